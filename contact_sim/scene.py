@@ -1,0 +1,193 @@
+"""Scene files (YAML) → ``World``. Every error names its path in the scene and the reason."""
+import os
+
+import numpy as np
+
+from .errors import ContactSimError, SceneError
+from .settings import check_keys, parse_material, parse_settings
+from .shapes import Box, Convex, Plane, Sphere, TriMesh
+from .world import World
+
+TOP_KEYS = {"name", "description", "gravity", "settings", "materials", "bodies"}
+BODY_KEYS = {"name", "kind", "model", "shape", "mass", "density", "position", "orientation", "velocity",
+             "angular_velocity", "material", "collision"}
+SHAPE_KEYS = {
+    "plane": {"type", "normal", "offset"},
+    "sphere": {"type", "radius"},
+    "box": {"type", "size"},
+    "convex": {"type", "points", "file", "scale"},
+    "mesh": {"type", "vertices", "faces", "file", "scale"},
+}
+
+
+def default_scene_path():
+    """Path of the built-in default scene shipped with the package."""
+    return os.path.join(scenes_dir(), "default.yaml")
+
+
+def scenes_dir():
+    """Folder of the shipped scenes: ``config/scenes`` beside the package (source tree or
+    ``pip install -e``), or ``share/contact_sim/config/scenes`` of an installed prefix."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    candidates = [os.path.join(here, "..", "config", "scenes")]
+    import sys
+
+    candidates.append(os.path.join(sys.prefix, "share", "contact_sim", "config", "scenes"))
+    for c in candidates:
+        if os.path.isdir(c):
+            return os.path.normpath(c)
+    raise ContactSimError("cannot find the shipped scenes (config/scenes); pass a scene path")
+
+
+def resolve_scene(name_or_path):
+    """A scene path from a path, or the name of a shipped scene (``bouncing_ball``)."""
+    if os.path.isfile(name_or_path):
+        return name_or_path
+    shipped = os.path.join(scenes_dir(), name_or_path if name_or_path.endswith(".yaml") else name_or_path + ".yaml")
+    if os.path.isfile(shipped):
+        return shipped
+    raise ContactSimError(f"scene {name_or_path!r}: no such file, and no shipped scene of that name "
+                          f"(shipped: {', '.join(list_scenes())})")
+
+
+def list_scenes():
+    return sorted(f[:-5] for f in os.listdir(scenes_dir()) if f.endswith(".yaml"))
+
+
+def load_scene(source, base_dir=None):
+    """Build a ``World`` from a scene file path or a dict of the same content.
+
+    Mesh files resolve relative to the scene file (or ``base_dir``, default the current folder,
+    for a dict). Raises ``SceneError`` naming the path (``bodies[3].mass``) and the reason; a bad
+    scene never yields a half-built world.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        import yaml
+
+        path = os.fspath(source)
+        if not os.path.isfile(path):
+            raise SceneError("", f"no such scene file {path!r}")
+        try:
+            with open(path) as fh:
+                data = yaml.safe_load(fh)
+        except yaml.YAMLError as exc:
+            raise SceneError("", f"{path}: not valid YAML: {exc}") from None
+        base_dir = os.path.dirname(os.path.abspath(path)) if base_dir is None else base_dir
+    elif isinstance(source, dict):
+        data = source
+    else:
+        raise SceneError("", f"a scene is a file path or a dict, got {type(source).__name__}")
+    if data is None:
+        data = {}
+    base_dir = os.getcwd() if base_dir is None else base_dir
+    return _build(data, base_dir)
+
+
+def _build(data, base_dir):
+    check_keys(data, "", TOP_KEYS)
+    gravity = _vec(data.get("gravity", [0.0, 0.0, -9.81]), 3, "gravity")
+    settings = parse_settings(data.get("settings"))
+    materials = {}
+    mats = data.get("materials") or {}
+    if not isinstance(mats, dict):
+        raise SceneError("materials", f"must be a mapping of name → material, got {type(mats).__name__}")
+    for name, m in mats.items():
+        materials[str(name)] = parse_material(m if m is not None else {}, f"materials.{name}")
+    world = World(gravity=gravity, settings=settings, materials=materials)
+    bodies = data.get("bodies") or []
+    if not isinstance(bodies, list):
+        raise SceneError("bodies", f"must be a list, got {type(bodies).__name__}")
+    for i, b in enumerate(bodies):
+        path = f"bodies[{i}]"
+        check_keys(b, path, BODY_KEYS)
+        if "name" not in b:
+            raise SceneError(f"{path}.name", "required")
+        if "shape" not in b:
+            raise SceneError(f"{path}.shape", "required")
+        shape = parse_shape(b["shape"], f"{path}.shape", base_dir)
+        collision = b.get("collision") or {}
+        check_keys(collision, f"{path}.collision", {"group", "mask"})
+        kwargs = {k: b[k] for k in ("kind", "model", "mass", "density", "position", "orientation", "velocity",
+                                    "angular_velocity", "material") if k in b}
+        if "group" in collision:
+            kwargs["group"] = collision["group"]
+        if "mask" in collision:
+            kwargs["mask"] = collision["mask"]
+        try:
+            world.add_body(b["name"], shape, where=path, **kwargs)
+        except SceneError:
+            raise
+        except ContactSimError as exc:
+            raise _as_scene_error(exc) from None
+    world.mark_initial()
+    return world
+
+
+def _as_scene_error(exc):
+    text = str(exc)
+    path, _, reason = text.partition(": ")
+    return SceneError(path, reason) if reason else SceneError("", text)
+
+
+def _vec(value, n, path):
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SceneError(path, f"must be {n} numbers, got {value!r}") from None
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise SceneError(path, f"must be {n} finite numbers, got {value!r}")
+    return a
+
+
+def parse_shape(d, path, base_dir="."):
+    """A shape from its scene mapping (``{type: box, size: [...]}``), errors naming ``path``."""
+    if not isinstance(d, dict) or "type" not in d:
+        raise SceneError(f"{path}.type", f"required: one of {', '.join(SHAPE_KEYS)}")
+    t = d["type"]
+    if t not in SHAPE_KEYS:
+        raise SceneError(f"{path}.type", f"must be one of {', '.join(SHAPE_KEYS)}; got {t!r}")
+    check_keys(d, path, SHAPE_KEYS[t])
+    try:
+        if t == "plane":
+            return Plane(d.get("normal", [0, 0, 1]), d.get("offset", 0.0), name=path)
+        if t == "sphere":
+            if "radius" not in d:
+                raise SceneError(f"{path}.radius", "required")
+            return Sphere(d["radius"], name=path)
+        if t == "box":
+            if "size" not in d:
+                raise SceneError(f"{path}.size", "required")
+            return Box(d["size"], name=path)
+        scale = d.get("scale", 1.0)
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not np.isfinite(scale) or scale <= 0:
+            raise SceneError(f"{path}.scale", f"must be a number > 0, got {scale!r}")
+        if "file" in d:
+            other = {"points"} if t == "convex" else {"vertices", "faces"}
+            if other & set(d):
+                raise SceneError(path, f"give file or {' and '.join(sorted(other))}, not both")
+            f = d["file"]
+            full = f if os.path.isabs(str(f)) else os.path.join(base_dir, str(f))
+            if not os.path.isfile(full):
+                raise SceneError(f"{path}.file", f"no such file {str(f)!r} (looked in {base_dir})")
+            cls = Convex if t == "convex" else TriMesh
+            return cls.from_file(full, scale, name=path)
+        if t == "convex":
+            if "points" not in d:
+                raise SceneError(f"{path}.points", "required (or file)")
+            return Convex(np.asarray(d["points"], float) * scale if _numeric(d["points"]) else d["points"], name=path)
+        if "vertices" not in d or "faces" not in d:
+            raise SceneError(path, "mesh needs vertices and faces (or file)")
+        verts = np.asarray(d["vertices"], float) * scale if _numeric(d["vertices"]) else d["vertices"]
+        return TriMesh(verts, d["faces"], name=path)
+    except SceneError:
+        raise
+    except ContactSimError as exc:
+        raise _as_scene_error(exc) from None
+
+
+def _numeric(x):
+    try:
+        np.asarray(x, float)
+        return True
+    except (TypeError, ValueError):
+        return False

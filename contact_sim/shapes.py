@@ -1,0 +1,307 @@
+"""Collision shapes, their validation and their mass properties.
+
+A shape lives in its body's frame. Polyhedral shapes (box, convex, mesh) carry their geometry as
+arrays computed once here: vertices ``(V, 3)``, triangles ``(F, 3)`` int, unique edges ``(E, 2)``
+int, and (convex shapes) the merged face planes ``normals (P, 3)``, ``offsets (P,)`` with
+``normals @ x <= offsets`` inside. Bounding volumes are derived from the same arrays.
+"""
+import numpy as np
+
+from .errors import ContactSimError
+
+_TINY = 1e-12
+
+
+def _vec(value, n, what):
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}") from None
+    if a.shape != (n,):
+        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise ContactSimError(f"{what}: must be finite, got {a.tolist()}")
+    return a
+
+
+def _positive(value, what):
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ContactSimError(f"{what}: must be a number, got {value!r}") from None
+    if not np.isfinite(x) or x <= 0:
+        raise ContactSimError(f"{what}: must be > 0, got {value!r}")
+    return x
+
+
+class Shape:
+    """Base class. ``type`` is the key of the shape in scenes and in the narrow-phase table."""
+
+    type = "shape"
+    finite = True
+
+    def mass_properties(self, density):
+        """``(mass, center_of_mass (3,), inertia (3, 3) about the center of mass)`` for a density."""
+        raise NotImplementedError
+
+    def thinnest(self):
+        """Smallest extent of the shape (m): how far it may move in a step before it can tunnel."""
+        raise NotImplementedError
+
+
+class Plane(Shape):
+    """Half-space ``{x : normal·x <= offset}`` in the body frame; ``normal·P - offset`` is the signed distance."""
+
+    type = "plane"
+    finite = False
+
+    def __init__(self, normal=(0.0, 0.0, 1.0), offset=0.0, *, name="plane"):
+        n = _vec(normal, 3, f"{name}.normal")
+        length = np.linalg.norm(n)
+        if length < _TINY:
+            raise ContactSimError(f"{name}.normal: must be non-zero, got {n.tolist()}")
+        try:
+            off = float(offset)
+        except (TypeError, ValueError):
+            raise ContactSimError(f"{name}.offset: must be a number, got {offset!r}") from None
+        if not np.isfinite(off):
+            raise ContactSimError(f"{name}.offset: must be finite, got {offset!r}")
+        self.normal = n / length
+        self.offset = off / length
+
+    def mass_properties(self, density):
+        raise ContactSimError("plane: a half-space has no finite mass; use kind static or kinematic")
+
+    def thinnest(self):
+        return np.inf
+
+    def __repr__(self):
+        return f"Plane(normal={self.normal.tolist()}, offset={self.offset})"
+
+
+class Sphere(Shape):
+    type = "sphere"
+
+    def __init__(self, radius, *, name="sphere"):
+        self.radius = _positive(radius, f"{name}.radius")
+
+    def mass_properties(self, density):
+        r = self.radius
+        m = density * 4.0 / 3.0 * np.pi * r**3
+        return m, np.zeros(3), np.eye(3) * (0.4 * m * r * r)
+
+    def thinnest(self):
+        return 2.0 * self.radius
+
+    def aabb_local(self):
+        return -np.full(3, self.radius), np.full(3, self.radius)
+
+    def __repr__(self):
+        return f"Sphere(radius={self.radius})"
+
+
+def _unique_edges(faces):
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e.sort(axis=1)
+    return np.unique(e, axis=0)
+
+
+class Polyhedron(Shape):
+    """Shared geometry of box, convex and mesh shapes (see the module docstring for the arrays)."""
+
+    convex = True
+
+    def _set_geometry(self, vertices, faces):
+        self.vertices = np.ascontiguousarray(vertices, dtype=float)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        self.edges = _unique_edges(self.faces)
+        tri = self.vertices[self.faces]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.face_normals = cross / np.linalg.norm(cross, axis=1, keepdims=True)
+        if self.convex:
+            self._merge_planes()
+
+    def _merge_planes(self):
+        # coplanar triangles share one plane: merge them so the vertex-inside test uses each face once
+        offs = np.einsum("ij,ij->i", self.face_normals, self.vertices[self.faces[:, 0]])
+        key = np.round(np.column_stack([self.face_normals, offs / self.scale_hint]), 9)
+        _, first = np.unique(key, axis=0, return_index=True)
+        first.sort()
+        self.plane_normals = self.face_normals[first]
+        self.plane_offsets = offs[first]
+
+    @property
+    def scale_hint(self):
+        return max(float(np.ptp(self.vertices, axis=0).max()), _TINY)
+
+    def aabb_local(self):
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    def thinnest(self):
+        if self.convex:
+            # width of a convex body: smallest distance between a face plane and the farthest vertex
+            support = (self.vertices @ self.plane_normals.T).max(axis=0)
+            depth = support - (self.vertices @ self.plane_normals.T).min(axis=0)
+            return float(depth.min())
+        lo, hi = self.aabb_local()
+        return float((hi - lo).min())
+
+
+class Box(Polyhedron):
+    """Box of full edge lengths ``size (3,)`` centred on the body origin (as URDF/SDF)."""
+
+    type = "box"
+
+    def __init__(self, size, *, name="box"):
+        s = _vec(size, 3, f"{name}.size")
+        if np.any(s <= 0):
+            raise ContactSimError(f"{name}.size: every edge length must be > 0, got {s.tolist()}")
+        self.size = s
+        self.half = 0.5 * s
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+        verts = corners * self.half
+        # 12 outward-wound triangles
+        faces = np.array(
+            [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+             [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+        )
+        self._set_geometry(verts, faces)
+
+    def mass_properties(self, density):
+        a, b, c = self.size
+        m = density * a * b * c
+        return m, np.zeros(3), np.diag([b * b + c * c, a * a + c * c, a * a + b * b]) * (m / 12.0)
+
+    def thinnest(self):
+        return float(self.size.min())
+
+    def __repr__(self):
+        return f"Box(size={self.size.tolist()})"
+
+
+def _check_points(points, what, min_count):
+    try:
+        p = np.array(points, dtype=float)
+    except (TypeError, ValueError):
+        raise ContactSimError(f"{what}: must be a list of [x, y, z] points") from None
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ContactSimError(f"{what}: must be an (N, 3) array of points, got shape {p.shape}")
+    if len(p) < min_count:
+        raise ContactSimError(f"{what}: needs at least {min_count} points, got {len(p)}")
+    if not np.all(np.isfinite(p)):
+        bad = np.argwhere(~np.isfinite(p))[0][0]
+        raise ContactSimError(f"{what}: point {bad} is not finite: {p[bad].tolist()}")
+    return p
+
+
+def _load_mesh(path, what):
+    import os
+
+    import trimesh
+
+    if not os.path.isfile(path):
+        raise ContactSimError(f"{what}: no such file {str(path)!r}")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise ContactSimError(f"{what}: cannot read mesh {str(path)!r}: {exc}") from None
+    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+
+
+class Convex(Polyhedron):
+    """Convex polyhedron: the convex hull (trimesh/qhull) of ``points (N, 3)``, N ≥ 4, not coplanar."""
+
+    type = "convex"
+
+    def __init__(self, points, *, name="convex"):
+        import trimesh
+
+        p = _check_points(points, f"{name}.points", 4)
+        centred = p - p.mean(axis=0)
+        sv = np.linalg.svd(centred, compute_uv=False)
+        if sv[-1] <= 1e-9 * max(sv[0], _TINY):
+            raise ContactSimError(
+                f"{name}.points: all {len(p)} points are coplanar or collinear; a convex solid needs "
+                "4 points not in one plane"
+            )
+        hull = trimesh.convex.convex_hull(p)
+        self._hull = hull
+        self._set_geometry(hull.vertices, hull.faces)
+
+    @classmethod
+    def from_file(cls, path, scale=1.0, *, name="convex"):
+        verts, _ = _load_mesh(path, f"{name}.file")
+        return cls(verts * float(scale), name=name)
+
+    def mass_properties(self, density):
+        mp = self._hull.mass_properties  # volume, center_mass, inertia (about the centre of mass)
+        m = density * mp["volume"]
+        return m, np.asarray(mp["center_mass"], float), np.asarray(mp["inertia"], float) * density
+
+    def translated(self, offset):
+        """The same hull moved by ``offset (3,)`` (used to put the body origin at the centre of mass)."""
+        return Convex(self.vertices + np.asarray(offset, float))
+
+    def __repr__(self):
+        return f"Convex({len(self.vertices)} vertices, {len(self.plane_normals)} faces)"
+
+
+class TriMesh(Polyhedron):
+    """Triangle mesh, concave allowed: ``vertices (V, 3)``, ``faces (F, 3)`` int.
+
+    Static and kinematic bodies may use any mesh with faces; a dynamic body needs a closed
+    (watertight) mesh so that its mass properties exist.
+    """
+
+    type = "mesh"
+    convex = False
+
+    def __init__(self, vertices, faces, *, name="mesh"):
+        import trimesh
+
+        v = _check_points(vertices, f"{name}.vertices", 3)
+        try:
+            f = np.array(faces, dtype=np.int64)
+        except (TypeError, ValueError):
+            raise ContactSimError(f"{name}.faces: must be a list of [i, j, k] vertex indices") from None
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise ContactSimError(f"{name}.faces: must be a non-empty (F, 3) array of indices, got shape {f.shape}")
+        if f.min() < 0 or f.max() >= len(v):
+            raise ContactSimError(f"{name}.faces: indices must be in [0, {len(v) - 1}], got {f.min()}..{f.max()}")
+        tri = v[f]
+        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        scale = max(float(np.ptp(v, axis=0).max()), _TINY)
+        keep = area2 > 1e-12 * scale * scale
+        if not keep.any():
+            raise ContactSimError(f"{name}.faces: every triangle has zero area")
+        f = f[keep]  # degenerate slivers carry no surface; dropping them keeps normals finite
+        self._mesh = trimesh.Trimesh(v, f, process=False)
+        self._set_geometry(v, f)
+
+    @classmethod
+    def from_file(cls, path, scale=1.0, *, name="mesh"):
+        verts, faces = _load_mesh(path, f"{name}.file")
+        return cls(verts * float(scale), faces, name=name)
+
+    @property
+    def watertight(self):
+        return bool(self._mesh.is_watertight)
+
+    def mass_properties(self, density):
+        if not self.watertight:
+            raise ContactSimError("mesh: not closed (watertight), so it has no volume or inertia; "
+                                  "make the body static or kinematic, or use a convex shape")
+        mp = self._mesh.mass_properties
+        if mp["volume"] <= 0:
+            raise ContactSimError("mesh: faces wind inwards (negative volume); flip them")
+        m = density * mp["volume"]
+        return m, np.asarray(mp["center_mass"], float), np.asarray(mp["inertia"], float) * density
+
+    def translated(self, offset):
+        return TriMesh(self.vertices + np.asarray(offset, float), self.faces)
+
+    def __repr__(self):
+        return f"TriMesh({len(self.vertices)} vertices, {len(self.faces)} faces)"
+
+
+SHAPE_TYPES = {"plane": Plane, "sphere": Sphere, "box": Box, "convex": Convex, "mesh": TriMesh}

@@ -1,0 +1,406 @@
+"""The world: bodies as a structure of arrays, and stepping.
+
+Internally a body's position is its centre of mass and its collision geometry is stored
+relative to it; ``World.body()`` and ``World.set_pose()`` speak of the body frame the user
+gave (for primitives the two coincide).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import dynamics, quat
+from .contacts import Contacts
+from .errors import ContactSimError
+from .settings import DEFAULT_MATERIAL, Material, Settings
+from .shapes import Plane, Shape
+
+KINDS = ("static", "kinematic", "dynamic")
+MODELS = ("rigid", "particle")
+STATIC, KINEMATIC, DYNAMIC = 0, 1, 2
+DEFAULT_DENSITY = 1000.0  # kg/m³ (water), when neither mass nor density is given
+ALL_GROUPS = 0xFFFFFFFF
+
+
+@dataclass(frozen=True)
+class Body:
+    """A snapshot of one body (copies, world frame). ``velocity`` is that of the centre of mass."""
+
+    name: str
+    index: int
+    kind: str
+    model: str
+    shape: Shape
+    mass: float
+    inertia: np.ndarray          # (3, 3) body frame, about the centre of mass
+    center_of_mass: np.ndarray   # (3,) body frame
+    position: np.ndarray         # (3,) body-frame origin in the world
+    orientation: np.ndarray      # (4,) x, y, z, w
+    velocity: np.ndarray         # (3,)
+    angular_velocity: np.ndarray  # (3,)
+    material: str
+
+
+class _State:
+    """Per-body motion arrays; copied whole for reset and for refusing bad input atomically."""
+
+    NAMES = ("pos", "vel", "quat", "omega", "principal_q", "principal_moments", "stamp", "posed")
+
+    def __init__(self):
+        self.pos = np.zeros((0, 3))
+        self.vel = np.zeros((0, 3))
+        self.quat = np.zeros((0, 4))
+        self.omega = np.zeros((0, 3))
+        self.principal_q = np.zeros((0, 4))
+        self.principal_moments = np.zeros((0, 3))
+        self.stamp = np.zeros(0)              # time of the last pose given (kinematic bodies)
+        self.posed = np.zeros(0, bool)        # has a pose been given yet
+
+    def copy(self):
+        c = _State()
+        for n in self.NAMES:
+            setattr(c, n, getattr(self, n).copy())
+        return c
+
+
+def _vector(value, n, what):
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}") from None
+    if a.shape != (n,):
+        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise ContactSimError(f"{what}: must be finite, got {a.tolist()}")
+    return a
+
+
+def _unit_quaternion(value, what, tolerance):
+    q = _vector(value, 4, what)
+    norm = float(np.linalg.norm(q))
+    if norm < 1e-12:
+        raise ContactSimError(f"{what}: zero quaternion is not a rotation")
+    if abs(norm - 1.0) > tolerance:
+        raise ContactSimError(f"{what}: quaternion must be unit length (x, y, z, w), got norm {norm:.6g}")
+    return q / norm
+
+
+class World:
+    """A rigid-body world. See the package docstring for the public contract."""
+
+    def __init__(self, gravity=(0.0, 0.0, -9.81), settings=None, materials=None):
+        self.gravity = _vector(gravity, 3, "gravity")
+        self.settings = settings if settings is not None else Settings()
+        self.materials = {DEFAULT_MATERIAL: Material()}
+        self.materials.update(materials or {})
+        self.time = 0.0
+        self.contacts = Contacts.empty()
+        self._names = []
+        self._index = {}
+        self.shapes = []          # per body, geometry relative to the centre of mass
+        self.user_shapes = []     # per body, as given
+        self.material_names = []
+        self.s = _State()
+        self.kind = np.zeros(0, np.int8)
+        self.particle = np.zeros(0, bool)
+        self.mass = np.zeros(0)
+        self.inv_mass = np.zeros(0)
+        self.inertia_body = np.zeros((0, 3, 3))
+        self.inv_inertia_body = np.zeros((0, 3, 3))
+        self.com_local = np.zeros((0, 3))
+        self.restitution = np.zeros(0)
+        self.friction = np.zeros(0)
+        self.static_friction = np.zeros(0)
+        self.group = np.zeros(0, np.uint32)
+        self.mask = np.zeros(0, np.uint32)
+        self._initial = None
+        self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
+
+    # ------------------------------------------------------------------ bodies
+    @property
+    def body_names(self):
+        """Body names in index order (what ``contacts.body_a`` / ``body_b`` index)."""
+        return list(self._names)
+
+    def __len__(self):
+        return len(self._names)
+
+    def index(self, name):
+        """Index of a body by name; ``ContactSimError`` naming it when there is none."""
+        try:
+            return self._index[name]
+        except (KeyError, TypeError):
+            raise ContactSimError(f"unknown body {name!r} (bodies: {', '.join(self._names) or 'none'})") from None
+
+    def add_body(self, name, shape, *, kind="dynamic", model="rigid", mass=None, density=None,
+                 position=(0.0, 0.0, 0.0), orientation=(0.0, 0.0, 0.0, 1.0), velocity=(0.0, 0.0, 0.0),
+                 angular_velocity=(0.0, 0.0, 0.0), material=DEFAULT_MATERIAL, group=1, mask=ALL_GROUPS,
+                 where=None):
+        """Add a body and return its index. Everything is checked before the world changes.
+
+        ``position (3,)`` is the body-frame origin, ``orientation (4,)`` x,y,z,w, velocities (3,)
+        world frame (``velocity`` of the centre of mass). ``mass`` or ``density`` (kg/m³, default
+        1000) sets mass and inertia of dynamic bodies; static and kinematic bodies have infinite
+        mass. ``group``/``mask`` are collision bit masks: two bodies are tested only if each one's
+        group intersects the other's mask. ``where`` prefixes error messages (the scene path).
+        """
+        w = where or f"body {name!r}"
+        if not isinstance(name, str) or not name:
+            raise ContactSimError(f"{w}.name: must be a non-empty string, got {name!r}")
+        if name in self._index:
+            raise ContactSimError(f"{w}.name: duplicate body name {name!r}")
+        if not isinstance(shape, Shape):
+            raise ContactSimError(f"{w}.shape: must be a contact_sim shape, got {type(shape).__name__}")
+        if kind not in KINDS:
+            raise ContactSimError(f"{w}.kind: must be one of {', '.join(KINDS)}; got {kind!r}")
+        if model not in MODELS:
+            raise ContactSimError(f"{w}.model: must be one of {', '.join(MODELS)}; got {model!r}")
+        if material not in self.materials:
+            raise ContactSimError(f"{w}.material: unknown material {material!r} "
+                                  f"(materials: {', '.join(self.materials)})")
+        tol = self.settings.quaternion_tolerance
+        pos = _vector(position, 3, f"{w}.position")
+        q = _unit_quaternion(orientation, f"{w}.orientation", tol)
+        vel = _vector(velocity, 3, f"{w}.velocity")
+        omega = _vector(angular_velocity, 3, f"{w}.angular_velocity")
+        for label, value in (("group", group), ("mask", mask)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= ALL_GROUPS:
+                raise ContactSimError(f"{w}.{label}: must be an integer bit mask in [0, 2^32), got {value!r}")
+        if mass is not None and density is not None:
+            raise ContactSimError(f"{w}: give mass or density, not both")
+
+        com = np.zeros(3)
+        inertia = np.zeros((3, 3))
+        body_mass = np.inf
+        if kind == "dynamic":
+            if isinstance(shape, Plane):
+                raise ContactSimError(f"{w}.shape: a plane is a half-space with no mass; make the body static or kinematic")
+            if mass is not None:
+                body_mass = self._positive(mass, f"{w}.mass")
+                try:
+                    m1, com, i1 = shape.mass_properties(1.0)
+                except ContactSimError as exc:
+                    raise ContactSimError(f"{w}.{exc}") from None
+                inertia = i1 * (body_mass / m1)  # uniform density
+            else:
+                rho = DEFAULT_DENSITY if density is None else self._positive(density, f"{w}.density")
+                try:
+                    body_mass, com, inertia = shape.mass_properties(rho)
+                except ContactSimError as exc:
+                    raise ContactSimError(f"{w}.{exc}") from None
+        elif mass is not None or density is not None:
+            self._positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
+        centered = shape.translated(-com) if np.any(com != 0) else shape
+
+        rotates = kind == "dynamic" and model == "rigid"
+        if rotates:
+            moments, pq = dynamics.principal_frame(inertia[None])
+            moments, pq = moments[0], pq[0]
+            inv_inertia = np.linalg.inv(inertia)
+        else:
+            moments, pq = np.full(3, np.inf), np.array([0.0, 0.0, 0.0, 1.0])
+            inv_inertia = np.zeros((3, 3))
+            if model == "particle" and np.any(omega != 0):
+                raise ContactSimError(f"{w}.angular_velocity: a particle does not rotate; got {omega.tolist()}")
+        if kind == "static" and (np.any(vel != 0) or np.any(omega != 0)):
+            raise ContactSimError(f"{w}: a static body never moves; give it no velocity (or make it kinematic)")
+
+        mat = self.materials[material]
+        com_world = pos + quat.rotate(q, com)
+        vel_com = vel + np.cross(omega, com_world - pos)
+        # ---- commit (nothing below can fail)
+        idx = len(self._names)
+        self._names.append(name)
+        self._index[name] = idx
+        self.shapes.append(centered)
+        self.user_shapes.append(shape)
+        self.material_names.append(material)
+        s = self.s
+        s.pos = np.vstack([s.pos, com_world])
+        s.vel = np.vstack([s.vel, vel_com])
+        s.quat = np.vstack([s.quat, q])
+        s.omega = np.vstack([s.omega, omega])
+        s.principal_q = np.vstack([s.principal_q, pq])
+        s.principal_moments = np.vstack([s.principal_moments, moments])
+        s.stamp = np.append(s.stamp, np.nan)
+        s.posed = np.append(s.posed, False)
+        self.kind = np.append(self.kind, np.int8(KINDS.index(kind)))
+        self.particle = np.append(self.particle, model == "particle")
+        self.mass = np.append(self.mass, body_mass)
+        self.inv_mass = np.append(self.inv_mass, 0.0 if kind != "dynamic" else 1.0 / body_mass)
+        self.inertia_body = np.concatenate([self.inertia_body, inertia[None]])
+        self.inv_inertia_body = np.concatenate([self.inv_inertia_body, inv_inertia[None]])
+        self.com_local = np.vstack([self.com_local, com])
+        self.restitution = np.append(self.restitution, mat.restitution)
+        self.friction = np.append(self.friction, mat.friction)
+        self.static_friction = np.append(self.static_friction, mat.static_friction)
+        self.group = np.append(self.group, np.uint32(group))
+        self.mask = np.append(self.mask, np.uint32(mask))
+        return idx
+
+    @staticmethod
+    def _positive(value, what):
+        if isinstance(value, bool):
+            raise ContactSimError(f"{what}: must be a number, got {value!r}")
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            raise ContactSimError(f"{what}: must be a number, got {value!r}") from None
+        if not np.isfinite(x) or x <= 0:
+            raise ContactSimError(f"{what}: must be > 0, got {value!r}")
+        return x
+
+    def body(self, name):
+        """Snapshot (copies) of a body by name: position, orientation, velocities, mass, shape."""
+        i = self.index(name)
+        q = self.s.quat[i].copy()
+        return Body(
+            name=name, index=i, kind=KINDS[self.kind[i]], model="particle" if self.particle[i] else "rigid",
+            shape=self.user_shapes[i], mass=float(self.mass[i]), inertia=self.inertia_body[i].copy(),
+            center_of_mass=self.com_local[i].copy(),
+            position=self.s.pos[i] - quat.rotate(q, self.com_local[i]), orientation=q,
+            velocity=self.s.vel[i].copy(), angular_velocity=self.s.omega[i].copy(),
+            material=self.material_names[i],
+        )
+
+    # ------------------------------------------------------------------ driving bodies
+    def set_pose(self, name, position, orientation, stamp=None):
+        """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time
+        ``stamp`` (s; default the world time). From the second pose on its linear and angular
+        velocity are the finite differences of successive poses over their stamps, so responses
+        see how fast it really moves. Stamps must increase. Bad input changes nothing."""
+        i = self.index(name)
+        if self.kind[i] != KINEMATIC:
+            raise ContactSimError(f"set_pose({name!r}): only kinematic bodies are posed from outside; "
+                                  f"{name!r} is {KINDS[self.kind[i]]} (use set_state for dynamic bodies)")
+        pos = _vector(position, 3, f"set_pose({name!r}).position")
+        q = _unit_quaternion(orientation, f"set_pose({name!r}).orientation", self.settings.quaternion_tolerance)
+        t = self.time if stamp is None else stamp
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
+            raise ContactSimError(f"set_pose({name!r}).stamp: must be a finite number of seconds, got {stamp!r}")
+        t = float(t)
+        s = self.s
+        com_world = pos + quat.rotate(q, self.com_local[i])
+        if s.posed[i]:
+            dt = t - s.stamp[i]
+            if dt <= 0:
+                raise ContactSimError(f"set_pose({name!r}).stamp: must be after the previous pose "
+                                      f"({s.stamp[i]!r}), got {t!r}")
+            q_prev = s.quat[i]
+            if np.dot(q, q_prev) < 0:  # same rotation, other sign: keep the shorter way round
+                q = -q
+            s.omega[i] = quat.to_rotvec(quat.mul(q, quat.conj(q_prev))) / dt
+            s.vel[i] = (com_world - s.pos[i]) / dt
+        s.pos[i] = com_world
+        s.quat[i] = q
+        s.stamp[i] = t
+        s.posed[i] = True
+
+    def set_state(self, name, position=None, orientation=None, velocity=None, angular_velocity=None):
+        """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first."""
+        i = self.index(name)
+        if self.kind[i] == STATIC:
+            raise ContactSimError(f"set_state({name!r}): {name!r} is static and never moves")
+        s = self.s
+        q = s.quat[i] if orientation is None else _unit_quaternion(
+            orientation, f"set_state({name!r}).orientation", self.settings.quaternion_tolerance)
+        pos = None if position is None else _vector(position, 3, f"set_state({name!r}).position")
+        vel = None if velocity is None else _vector(velocity, 3, f"set_state({name!r}).velocity")
+        om = None if angular_velocity is None else _vector(angular_velocity, 3, f"set_state({name!r}).angular_velocity")
+        if om is not None and self.particle[i] and np.any(om != 0):
+            raise ContactSimError(f"set_state({name!r}).angular_velocity: a particle does not rotate")
+        origin = s.pos[i] - quat.rotate(s.quat[i], self.com_local[i]) if pos is None else pos
+        s.quat[i] = q
+        s.pos[i] = origin + quat.rotate(q, self.com_local[i])
+        if vel is not None:
+            s.vel[i] = vel
+        if om is not None:
+            s.omega[i] = om
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, dt=None):
+        """Advance the world by ``dt`` seconds (default ``settings.dt``); ``contacts`` then holds
+        the contacts of this step with the impulses applied."""
+        dt = self._check_dt(dt)
+        from . import stepper  # the time-of-impact / response pipeline
+
+        stepper.step(self, dt)
+
+    def detect(self):
+        """All contacts of the current state, without stepping (``Contacts``); the statistics of
+        this detection are in ``last_detection``."""
+        from . import collision
+
+        contacts, self.last_detection = collision.detect_world(self)
+        return contacts
+
+    def _check_dt(self, dt):
+        if dt is None:
+            return self.settings.dt
+        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)) or not np.isfinite(dt) or dt <= 0:
+            raise ContactSimError(f"step: dt must be a finite number of seconds > 0, got {dt!r}")
+        return float(dt)
+
+    def _advance_free(self, dt):
+        """Move every body as if nothing touched for ``dt``: dynamic bodies ballistically with
+        torque-free rotation, kinematic bodies at their constant linear and angular velocity."""
+        dynamic = self.kind == DYNAMIC
+        dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
+        kin = np.flatnonzero(self.kind == KINEMATIC)
+        if kin.size:
+            s = self.s
+            turn = quat.from_rotvec(s.omega[kin] * dt)
+            s.quat[kin] = quat.normalize(quat.mul(turn, s.quat[kin]))
+
+    # ------------------------------------------------------------------ reporting
+    def energy(self):
+        """Kinetic plus gravitational potential energy (J) of the dynamic bodies."""
+        d = self.kind == DYNAMIC
+        if not d.any():
+            return 0.0
+        s = self.s
+        m = self.mass[d]
+        lin = 0.5 * np.sum(m * np.einsum("ij,ij->i", s.vel[d], s.vel[d]))
+        inertia_w = np.linalg.inv(dynamics.world_inverse_inertia(s.quat[d], self.inv_inertia_body[d])[~self.particle[d]]) \
+            if (~self.particle[d]).any() else np.zeros((0, 3, 3))
+        w = s.omega[d][~self.particle[d]]
+        rot = 0.5 * np.sum(np.einsum("ij,ijk,ik->i", w, inertia_w, w))
+        pot = -np.sum(m * (s.pos[d] @ self.gravity))
+        return float(lin + rot + pot)
+
+    def angular_momentum(self):
+        """Total angular momentum (3,) of the dynamic rigid bodies about the world origin."""
+        d = (self.kind == DYNAMIC) & ~self.particle
+        s = self.s
+        if not d.any():
+            return np.zeros(3)
+        iw = np.linalg.inv(dynamics.world_inverse_inertia(s.quat[d], self.inv_inertia_body[d]))
+        spin = np.einsum("ijk,ik->ij", iw, s.omega[d])
+        orbital = np.cross(s.pos[d], self.mass[d][:, None] * s.vel[d])
+        return spin.sum(axis=0) + orbital.sum(axis=0)
+
+    def describe(self):
+        """A short human-readable account of the world: bodies, shapes, kinds and settings."""
+        kinds = {k: int(np.sum(self.kind == i)) for i, k in enumerate(KINDS)}
+        shapes = {}
+        for sh in self.user_shapes:
+            shapes[sh.type] = shapes.get(sh.type, 0) + 1
+        lines = [
+            f"{len(self)} bodies: " + ", ".join(f"{v} {k}" for k, v in kinds.items() if v),
+            "shapes: " + ", ".join(f"{v} {k}" for k, v in sorted(shapes.items())),
+            f"gravity {self.gravity.tolist()} m/s², dt {self.settings.dt:.6g} s",
+        ]
+        return "\n".join(lines)
+
+    # ------------------------------------------------------------------ reset
+    def mark_initial(self):
+        """Remember the current state as the one ``reset()`` returns to."""
+        self._initial = (self.s.copy(), self.time)
+
+    def reset(self):
+        """Return to the state saved by ``mark_initial()`` (done by ``load_scene``)."""
+        if self._initial is None:
+            raise ContactSimError("reset: no initial state was saved (call mark_initial first)")
+        state, t = self._initial
+        self.s = state.copy()
+        self.time = t
+        self.contacts = Contacts.empty()

@@ -1,0 +1,47 @@
+"""contact_sim: an ament_python package (colcon build) that also installs with plain pip."""
+import os
+from glob import glob
+
+from setuptools import setup
+
+PACKAGE = "contact_sim"
+
+
+def tree(src, dest):
+    """data_files entries for every file under ``src``, keeping the folder layout under ``dest``."""
+    out = {}
+    for path in glob(os.path.join(src, "**", "*"), recursive=True):
+        if os.path.isfile(path):
+            out.setdefault(os.path.join(dest, os.path.dirname(path)), []).append(path)
+    return sorted(out.items())
+
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Collision detection and contact response for rigid bodies in pure Python, with a ROS 2 node",
+    packages=["contact_sim", "contact_sim.collision", "msg_adapters"],
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
+        ("share/" + PACKAGE, ["package.xml"]),
+    ] + tree("config", "share/" + PACKAGE),
+    python_requires=">=3.10",
+    install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60"],
+    extras_require={
+        # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
+        "plot": ["matplotlib>=3.6"],
+        "test": ["pytest>=7", "pytest-timeout>=2.1", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
+        "bench": ["matplotlib>=3.6", "python-fcl>=0.7", "pybullet>=3.2"],
+    },
+    zip_safe=True,
+    maintainer="contact_sim developers",
+    maintainer_email="contact-sim@example.com",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "contact-sim = contact_sim.cli:main",
+            "contact_sim_node = msg_adapters.node:main",
+        ],
+    },
+)
