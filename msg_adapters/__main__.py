@@ -1,0 +1,7 @@
+"""``python -m msg_adapters [--ros-args ...]`` runs the contact_sim node."""
+import sys
+
+from .node import main
+
+if __name__ == "__main__":
+    sys.exit(main())

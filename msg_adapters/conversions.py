@@ -1,0 +1,344 @@
+"""Pure conversions between contact_sim arrays and ROS 2 messages (no node, no rclpy).
+
+Everything on a hot path is numpy: a contact set becomes a ``sensor_msgs/PointCloud2`` through
+one structured array (``CONTACT_DTYPE``), and a ``geometry_msgs/PoseArray`` is read from / written
+to its CDR bytes directly (``parse_posearray_cdr`` / ``posearray_cdr``), which is what the node
+uses on its raw subscription and for ``body_states``. The message-object versions
+(``arrays_to_posearray`` / ``posearray_to_arrays``) are for users and tests.
+"""
+import struct
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, Pose, PoseArray, Vector3
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
+
+from contact_sim import FEATURES, Contacts
+
+# ---------------------------------------------------------------------------- contacts
+#: One PointCloud2 point per contact. float64 for every physical quantity (bit-exact round trip),
+#: uint32 for the indices. ``x, y, z`` is the contact point (so RViz can show the cloud),
+#: ``normal_*`` the unit normal from B to A, ``depth`` > 0 when penetrating, ``impulse_*`` the total
+#: impulse on A during the step (N·s; B got its negative) = ``normal_impulse * normal +
+#: friction_impulse_*``, ``relative_normal_velocity`` n·(v_A − v_B) before the response (< 0
+#: approaching), ``feature`` indexes ``contact_sim.FEATURES``, ``body_a``/``body_b`` index the body
+#: names published on ``body_names``. 132 bytes of fields padded to a 136-byte point (8-aligned).
+CONTACT_FIELDS = (
+    ("x", np.float64), ("y", np.float64), ("z", np.float64),
+    ("normal_x", np.float64), ("normal_y", np.float64), ("normal_z", np.float64),
+    ("depth", np.float64),
+    ("impulse_x", np.float64), ("impulse_y", np.float64), ("impulse_z", np.float64),
+    ("normal_impulse", np.float64),
+    ("friction_impulse_x", np.float64), ("friction_impulse_y", np.float64), ("friction_impulse_z", np.float64),
+    ("relative_normal_velocity", np.float64),
+    ("body_a", np.uint32), ("body_b", np.uint32), ("feature", np.uint32),
+)
+CONTACT_POINT_STEP = 136
+CONTACT_DTYPE = np.dtype({
+    "names": [n for n, _ in CONTACT_FIELDS],
+    "formats": [np.dtype(t).newbyteorder("<") for _, t in CONTACT_FIELDS],
+    "offsets": list(np.cumsum([0] + [np.dtype(t).itemsize for _, t in CONTACT_FIELDS])[:-1]),
+    "itemsize": CONTACT_POINT_STEP,
+})
+
+_NP_TO_POINTFIELD = {
+    np.dtype(np.int8): PointField.INT8, np.dtype(np.uint8): PointField.UINT8,
+    np.dtype(np.int16): PointField.INT16, np.dtype(np.uint16): PointField.UINT16,
+    np.dtype(np.int32): PointField.INT32, np.dtype(np.uint32): PointField.UINT32,
+    np.dtype(np.float32): PointField.FLOAT32, np.dtype(np.float64): PointField.FLOAT64,
+}
+_POINTFIELD_TO_NP = {v: k for k, v in _NP_TO_POINTFIELD.items()}
+
+
+def point_fields(dtype):
+    """``PointField`` list describing a (little-endian) structured numpy dtype."""
+    out = []
+    for name in dtype.names:
+        ftype, offset = dtype.fields[name][:2]
+        base = ftype.base.newbyteorder("=")
+        count = int(np.prod(ftype.shape)) if ftype.shape else 1
+        out.append(PointField(name=name, offset=int(offset), datatype=_NP_TO_POINTFIELD[base], count=count))
+    return out
+
+
+def dtype_from_fields(fields, point_step, big_endian=False):
+    """The structured numpy dtype of a PointCloud2's ``fields`` (offsets and padding kept)."""
+    order = ">" if big_endian else "<"
+    names, formats, offsets = [], [], []
+    for f in fields:
+        if f.datatype not in _POINTFIELD_TO_NP:
+            raise ValueError(f"PointCloud2 field {f.name!r}: unknown datatype {f.datatype}")
+        base = _POINTFIELD_TO_NP[f.datatype].newbyteorder(order)
+        names.append(f.name)
+        formats.append(base if f.count <= 1 else (base, (f.count,)))
+        offsets.append(f.offset)
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
+
+
+def contacts_to_array(contacts):
+    """``contact_sim.Contacts`` → structured array of ``CONTACT_DTYPE`` (vectorised)."""
+    k = len(contacts)
+    a = np.zeros(k, CONTACT_DTYPE)
+    if k == 0:
+        return a
+    for i, ax in enumerate("xyz"):
+        a[ax] = contacts.point[:, i]
+        a["normal_" + ax] = contacts.normal[:, i]
+        a["impulse_" + ax] = contacts.impulse[:, i]
+        a["friction_impulse_" + ax] = contacts.friction_impulse[:, i]
+    a["depth"] = contacts.depth
+    a["normal_impulse"] = contacts.normal_impulse
+    a["relative_normal_velocity"] = contacts.relative_normal_velocity
+    a["body_a"] = contacts.body_a
+    a["body_b"] = contacts.body_b
+    a["feature"] = contacts.feature
+    return a
+
+
+def array_to_contacts(a):
+    """Structured array with the ``CONTACT_DTYPE`` field names → ``contact_sim.Contacts``."""
+    def vec(prefix):
+        return np.stack([a[prefix + ax] for ax in "xyz"], axis=1).astype(np.float64, copy=False).reshape(-1, 3)
+
+    return Contacts(
+        body_a=a["body_a"].astype(np.int64), body_b=a["body_b"].astype(np.int64),
+        point=vec(""), normal=vec("normal_"), depth=a["depth"].astype(np.float64),
+        impulse=vec("impulse_"), normal_impulse=a["normal_impulse"].astype(np.float64),
+        friction_impulse=vec("friction_impulse_"),
+        relative_normal_velocity=a["relative_normal_velocity"].astype(np.float64),
+        feature=a["feature"].astype(np.int64),
+    )
+
+
+def array_to_pointcloud2(a, header):
+    """Any structured array → unorganised ``PointCloud2`` (height 1, little-endian, dense)."""
+    a = np.ascontiguousarray(a)
+    msg = PointCloud2()
+    msg.header = header
+    msg.height = 1
+    msg.width = int(a.shape[0])
+    msg.fields = point_fields(a.dtype)
+    msg.is_bigendian = False
+    msg.point_step = a.dtype.itemsize
+    msg.row_step = msg.point_step * msg.width
+    msg.is_dense = True
+    msg.data = a.tobytes()  # bytes, not memoryview: the setter is ~80x faster
+    return msg
+
+
+def contacts_to_pointcloud2(contacts, header):
+    """``contact_sim.Contacts`` → ``sensor_msgs/PointCloud2`` with the ``CONTACT_DTYPE`` layout."""
+    return array_to_pointcloud2(contacts_to_array(contacts), header)
+
+
+def pointcloud2_to_array(msg):
+    """``PointCloud2`` → structured array (a zero-copy view on ``msg.data``, read-only)."""
+    dtype = dtype_from_fields(msg.fields, msg.point_step, msg.is_bigendian)
+    n = int(msg.width) * int(msg.height)
+    if msg.row_step != msg.point_step * msg.width:
+        raise ValueError(f"PointCloud2 with row padding (row_step {msg.row_step}, point_step {msg.point_step}, "
+                         f"width {msg.width}) is not supported")
+    if len(msg.data) < n * msg.point_step:
+        raise ValueError(f"PointCloud2 data has {len(msg.data)} bytes, needs {n * msg.point_step}")
+    return np.frombuffer(msg.data, dtype, count=n)
+
+
+def pointcloud2_to_contacts(msg):
+    """``PointCloud2`` published on ``contacts`` → ``contact_sim.Contacts``."""
+    return array_to_contacts(pointcloud2_to_array(msg))
+
+
+# ---------------------------------------------------------------------------- stamps and headers
+def stamp_to_ns(stamp):
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def ns_to_stamp(ns):
+    return Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000))
+
+
+def make_header(frame_id, stamp_ns):
+    return Header(frame_id=frame_id, stamp=ns_to_stamp(stamp_ns))
+
+
+# ---------------------------------------------------------------------------- poses
+def arrays_to_posearray(positions, orientations, header):
+    """``(N, 3)`` positions and ``(N, 4)`` x,y,z,w orientations → ``geometry_msgs/PoseArray``."""
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    q = np.asarray(orientations, np.float64).reshape(-1, 4)
+    if len(p) != len(q):
+        raise ValueError(f"{len(p)} positions but {len(q)} orientations")
+    msg = PoseArray(header=header)
+    poses = []
+    for (px, py, pz), (qx, qy, qz, qw) in zip(p.tolist(), q.tolist()):
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = px, py, pz
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = qx, qy, qz, qw
+        poses.append(pose)
+    msg.poses = poses
+    return msg
+
+
+def posearray_to_arrays(msg):
+    """``geometry_msgs/PoseArray`` → ``(positions (N, 3), orientations (N, 4) x,y,z,w)`` float64."""
+    flat = np.array([(p.position.x, p.position.y, p.position.z,
+                      p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w) for p in msg.poses],
+                    dtype=np.float64).reshape(-1, 7)
+    return flat[:, :3].copy(), flat[:, 3:].copy()
+
+
+class CdrError(ValueError):
+    """Bytes that are not a well-formed serialized message of the expected type."""
+
+
+def _align(offset, n):
+    return (offset + n - 1) // n * n
+
+
+def parse_posearray_cdr(data):
+    """Serialized (CDR) ``geometry_msgs/PoseArray`` → ``(stamp_ns, frame_id, positions (N, 3),
+    orientations (N, 4))`` with numpy, no message objects. Raises ``CdrError`` on malformed bytes."""
+    buf = memoryview(data).cast("B") if not isinstance(data, (bytes, bytearray)) else data
+    if len(buf) < 4:
+        raise CdrError(f"PoseArray: {len(buf)} bytes, too short for a CDR header")
+    kind = buf[1]
+    if buf[0] != 0 or kind not in (0, 1):
+        raise CdrError(f"PoseArray: unsupported CDR encapsulation {bytes(buf[:2]).hex()}")
+    e = "<" if kind == 1 else ">"
+    body = memoryview(buf)[4:]
+    n_body = len(body)
+    try:
+        sec, nsec, slen = struct.unpack_from(e + "iII", body, 0)
+        off = 12
+        if slen == 0 or off + slen > n_body:
+            raise CdrError(f"PoseArray: frame_id length {slen} does not fit in {n_body} bytes")
+        frame_id = bytes(body[off:off + slen - 1]).decode("utf-8", "replace")
+        off = _align(off + slen, 4)
+        (n,) = struct.unpack_from(e + "I", body, off)
+        off = _align(off + 4, 8) if n else off + 4
+        if off + 56 * n > n_body:
+            raise CdrError(f"PoseArray: {n} poses need {off + 56 * n} bytes, got {n_body}")
+    except struct.error as exc:
+        raise CdrError(f"PoseArray: truncated ({exc})") from None
+    flat = np.frombuffer(body, np.dtype(e + "f8"), count=7 * n, offset=off).reshape(n, 7)
+    if e == ">":
+        flat = flat.astype("<f8")
+    return int(sec) * 1_000_000_000 + int(nsec), frame_id, flat[:, :3], flat[:, 3:]
+
+
+def posearray_cdr(positions, orientations, frame_id, stamp_ns):
+    """``(N, 3)`` + ``(N, 4)`` → serialized little-endian CDR bytes of a ``geometry_msgs/PoseArray``
+    (publishable as is with ``Publisher.publish(bytes)``); vectorised, no message objects."""
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    q = np.asarray(orientations, np.float64).reshape(-1, 4)
+    if len(p) != len(q):
+        raise ValueError(f"{len(p)} positions but {len(q)} orientations")
+    n = len(p)
+    fid = frame_id.encode("utf-8") + b"\0"
+    head = struct.pack("<iII", int(stamp_ns // 1_000_000_000), int(stamp_ns % 1_000_000_000), len(fid)) + fid
+    head += b"\0" * (_align(len(head), 4) - len(head))
+    head += struct.pack("<I", n)
+    if n:
+        head += b"\0" * (_align(len(head), 8) - len(head))
+    flat = np.empty((n, 7), "<f8")
+    flat[:, :3] = p
+    flat[:, 3:] = q
+    return b"\x00\x01\x00\x00" + head + flat.tobytes()
+
+
+class PoseError(ValueError):
+    """Refused pose input; ``reason`` is a short key (``length``, ``nonfinite``, ``zero_quaternion``,
+    ``non_unit_quaternion``) used for the diagnostics counters."""
+
+    def __init__(self, reason, message):
+        self.reason = reason
+        super().__init__(message)
+
+
+def validate_poses(positions, orientations, expected=None, tolerance=1e-3, what="poses"):
+    """Check poses before they touch a world; returns ``(positions, unit orientations)`` copies.
+
+    Refuses (``PoseError``) a count different from ``expected``, NaN/inf anywhere, a zero
+    quaternion, and a quaternion whose norm differs from 1 by more than ``tolerance``.
+    """
+    p = np.asarray(positions, np.float64)
+    q = np.asarray(orientations, np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or q.ndim != 2 or q.shape[1] != 4 or len(p) != len(q):
+        raise PoseError("length", f"{what}: need (N, 3) positions and (N, 4) orientations, "
+                                  f"got {p.shape} and {q.shape}")
+    if expected is not None and len(p) != expected:
+        raise PoseError("length", f"{what}: {len(p)} poses for {expected} tracked bodies")
+    bad = ~(np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1))
+    if bad.any():
+        raise PoseError("nonfinite", f"{what}: pose {int(np.flatnonzero(bad)[0])} has NaN or infinite values")
+    norm = np.linalg.norm(q, axis=1)
+    zero = norm < 1e-12
+    if zero.any():
+        raise PoseError("zero_quaternion", f"{what}: pose {int(np.flatnonzero(zero)[0])} has a zero quaternion")
+    off = np.abs(norm - 1.0) > tolerance
+    if off.any():
+        i = int(np.flatnonzero(off)[0])
+        raise PoseError("non_unit_quaternion",
+                        f"{what}: pose {i} quaternion has norm {norm[i]:.6g} (must be 1 ± {tolerance:g})")
+    return p.copy(), q / norm[:, None]
+
+
+# ---------------------------------------------------------------------------- RViz markers
+def contact_markers(contacts, header, impulse_scale=1.0, max_arrows=100, ns="contacts", point_size=0.02):
+    """``MarkerArray`` for RViz: a DELETEALL, one SPHERE_LIST of all contact points, and one ARROW
+    per contact (at most ``max_arrows``, largest impulses first) showing the impulse on A
+    (length = ``impulse_scale`` m per N·s)."""
+    out = MarkerArray()
+    clear = Marker(header=header, ns=ns, action=Marker.DELETEALL)
+    pts = Marker(header=header, ns=ns + "/points", id=0, type=Marker.SPHERE_LIST, action=Marker.ADD)
+    pts.pose.orientation.w = 1.0
+    pts.scale = Vector3(x=point_size, y=point_size, z=point_size)
+    pts.color = ColorRGBA(r=1.0, g=0.2, b=0.1, a=1.0)
+    pts.points = [Point(x=x, y=y, z=z) for x, y, z in np.asarray(contacts.point, float).tolist()]
+    out.markers = [clear, pts]
+    k = len(contacts)
+    if k and max_arrows > 0:
+        mag = np.linalg.norm(contacts.impulse, axis=1)
+        order = np.argsort(-mag, kind="stable")[:max_arrows]
+        order = order[mag[order] > 0]
+        starts = contacts.point[order].tolist()
+        ends = (contacts.point[order] + impulse_scale * contacts.impulse[order]).tolist()
+        for j, (s, e) in enumerate(zip(starts, ends)):
+            m = Marker(header=header, ns=ns + "/impulses", id=j, type=Marker.ARROW, action=Marker.ADD)
+            m.pose.orientation.w = 1.0
+            m.points = [Point(x=s[0], y=s[1], z=s[2]), Point(x=e[0], y=e[1], z=e[2])]
+            m.scale = Vector3(x=point_size * 0.5, y=point_size, z=point_size)
+            m.color = ColorRGBA(r=0.1, g=0.6, b=1.0, a=1.0)
+            out.markers.append(m)
+    return out
+
+
+# ---------------------------------------------------------------------------- diagnostics
+def _fmt(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def diagnostic_array(header, name, hardware_id, values, level=DiagnosticStatus.OK, message="ok"):
+    """``DiagnosticArray`` with one status ``name`` whose key/values are ``values`` (a dict, in order)."""
+    status = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
+                              values=[KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()])
+    return DiagnosticArray(header=header, status=[status])
+
+
+def diagnostics_to_dict(msg, name=None):
+    """Key/values of the first status (named ``name`` if given) of a ``DiagnosticArray``."""
+    for s in msg.status:
+        if name is None or s.name == name:
+            return {kv.key: kv.value for kv in s.values}
+    return None
+
+
+def feature_name(index):
+    return FEATURES[index] if 0 <= index < len(FEATURES) else f"unknown({index})"
