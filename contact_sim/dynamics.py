@@ -3,12 +3,14 @@
 Translation: ``x += v dt + g dt²/2``, ``v += g dt`` — exact for constant acceleration, so ballistic
 flight carries no integration error at any step size.
 
-Rotation: the torque-free rigid body is split into three rotations about its principal axes
-(Strang splitting 1-2-3-2-1, McLachlan 1993 / Dullweber–Leimkuhler–McLachlan 1997). Each
-sub-flow is an exact rotation about one body axis at the rate ``L_i / I_i``, during which the
-world angular momentum ``L`` does not change: so ``L`` is conserved to round-off, quaternions
-stay unit length (they are only ever multiplied by unit rotations), energy error stays bounded
-(symplectic, second order) and fast spin cannot blow up.
+Rotation: the torque-free rigid body's energy is split as
+``H = |L|²/(2 I₂) + Σᵢ Πᵢ² (1/Iᵢ − 1/I₂)/2`` (``Π`` body angular momentum, ``I₂`` the middle
+principal moment). The first term commutes with the rest (``|L|`` is a Casimir): its flow is an
+exact rotation about the world ``L`` at rate ``|L|/I₂``. The other two terms are exact rotations
+about body axes 1 and 3 and are composed by Strang splitting. Consequences: ``L`` is conserved to
+round-off; quaternions stay unit (only unit rotations multiply them); the method is symplectic
+and second order, so energy error stays bounded and fast spin cannot blow up; and for spheres,
+cubes and any body with two equal moments one split term vanishes, so the rotation is exact.
 """
 import numpy as np
 
@@ -52,21 +54,35 @@ def integrate_free(state, dt, gravity, moving, rotating):
         state.omega[idx] = w
 
 
+MAX_SPLIT_ANGLE = 0.25  # rad: largest non-commuting sub-rotation per sub-step (accuracy knob)
+MAX_SUBSTEPS = 64  # beyond this, spin stays stable and L exact but accuracy degrades gracefully
+
+
 def rotate_free(q, omega, principal_q, moments, dt):
     """Torque-free rotation over ``dt`` (see module docstring). Returns new ``(q, omega)``.
 
     ``q (N, 4)`` body orientation, ``omega (N, 3)`` world angular velocity, ``principal_q (N, 4)``
-    principal-to-body rotation, ``moments (N, 3)`` principal moments (``inf`` = locked axis).
+    principal-to-body rotation, ``moments (N, 3)`` principal moments in ascending order.
+
+    The exact ``|L|`` rotation takes any angle in one go; only the split (non-commuting) rotations
+    limit accuracy, so a body whose split rotation would exceed ``MAX_SPLIT_ANGLE`` in a step is
+    sub-stepped (per body; slowly or symmetrically spinning bodies take one sub-step).
     """
     qp = quat.mul(q, principal_q)  # orientation of the principal frame
-    inv_m = np.where(np.isfinite(moments), 1.0 / moments, 0.0)
-    # world angular momentum L = R_p diag(I) R_pᵀ ω, held fixed during the splitting
+    inv_m = 1.0 / moments
     body_w = quat.rotate(quat.conj(qp), omega)
-    L = quat.rotate(qp, np.where(np.isfinite(moments), moments * body_w, 0.0))
-    for axis, frac in ((0, 0.5), (1, 0.5), (2, 1.0), (1, 0.5), (0, 0.5)):
-        pi_axis = quat.rotate(quat.conj(qp), L)[:, axis]
-        angle = pi_axis * inv_m[:, axis] * (frac * dt)
-        qp = quat.mul(qp, quat.axis_rotation(axis, angle))
+    L = quat.rotate(qp, moments * body_w)  # world angular momentum, fixed during free flight
+    rate = inv_m - inv_m[:, 1:2]           # (1/I_i - 1/I_2): zero on the middle axis
+    split_rate = np.linalg.norm(L, axis=1) * np.abs(rate).max(axis=1)
+    n_sub = np.clip(np.ceil(split_rate * dt / MAX_SPLIT_ANGLE), 1, MAX_SUBSTEPS).astype(int)
+    h = dt / n_sub
+    for k in range(int(n_sub.max())):
+        active = (k < n_sub)[:, None]
+        for axis, frac in ((0, 0.5), (2, 1.0), (0, 0.5)):
+            pi_axis = quat.rotate(quat.conj(qp), L)[:, axis]
+            angle = np.where(active[:, 0], pi_axis * rate[:, axis] * frac * h, 0.0)
+            qp = quat.mul(qp, quat.axis_rotation(axis, angle))
+    qp = quat.mul(quat.from_rotvec(L * (inv_m[:, 1:2] * dt)), qp)  # commutes: one exact turn for the whole step
     qp = quat.normalize(qp)  # removes round-off only; every factor above is unit
     omega_new = quat.rotate(qp, quat.rotate(quat.conj(qp), L) * inv_m)
     return quat.mul(qp, quat.conj(principal_q)), omega_new

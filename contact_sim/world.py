@@ -206,7 +206,6 @@ class World:
 
         mat = self.materials[material]
         com_world = pos + quat.rotate(q, com)
-        vel_com = vel + np.cross(omega, com_world - pos)
         # ---- commit (nothing below can fail)
         idx = len(self._names)
         self._names.append(name)
@@ -216,7 +215,7 @@ class World:
         self.material_names.append(material)
         s = self.s
         s.pos = np.vstack([s.pos, com_world])
-        s.vel = np.vstack([s.vel, vel_com])
+        s.vel = np.vstack([s.vel, vel])
         s.quat = np.vstack([s.quat, q])
         s.omega = np.vstack([s.omega, omega])
         s.principal_q = np.vstack([s.principal_q, pq])
@@ -261,6 +260,15 @@ class World:
             velocity=self.s.vel[i].copy(), angular_velocity=self.s.omega[i].copy(),
             material=self.material_names[i],
         )
+
+    def poses(self):
+        """Body-frame origins ``(N, 3)`` and orientations ``(N, 4)`` x,y,z,w of all bodies (copies)."""
+        q = self.s.quat.copy()
+        return self.s.pos - quat.rotate(q, self.com_local), q
+
+    def velocities(self):
+        """Linear ``(N, 3)`` (of the centres of mass) and angular ``(N, 3)`` velocities (copies)."""
+        return self.s.vel.copy(), self.s.omega.copy()
 
     # ------------------------------------------------------------------ driving bodies
     def set_pose(self, name, position, orientation, stamp=None):
