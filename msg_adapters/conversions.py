@@ -301,11 +301,13 @@ def contact_markers(contacts, header, impulse_scale=1.0, max_arrows=100, ns="con
     out.markers = [clear, pts]
     k = len(contacts)
     if k and max_arrows > 0:
-        mag = np.linalg.norm(contacts.impulse, axis=1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            mag = np.nan_to_num(np.linalg.norm(contacts.impulse, axis=1), nan=0.0)
         order = np.argsort(-mag, kind="stable")[:max_arrows]
         order = order[mag[order] > 0]
         starts = contacts.point[order].tolist()
-        ends = (contacts.point[order] + impulse_scale * contacts.impulse[order]).tolist()
+        with np.errstate(over="ignore", invalid="ignore"):
+            ends = (contacts.point[order] + impulse_scale * contacts.impulse[order]).tolist()
         for j, (s, e) in enumerate(zip(starts, ends)):
             m = Marker(header=header, ns=ns + "/impulses", id=j, type=Marker.ARROW, action=Marker.ADD)
             m.pose.orientation.w = 1.0

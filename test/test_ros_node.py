@@ -1,0 +1,229 @@
+"""The contact_sim node in process: own rclpy.Context and ROS domain, services, bad input counted."""
+import math
+import os
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy", reason="ROS 2 Jazzy wheels not installed (make test installs them)")
+pytestmark = pytest.mark.ros
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from domain_coordinator import domain_id  # noqa: E402
+from geometry_msgs.msg import PoseArray  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from sensor_msgs.msg import PointCloud2  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+from msg_adapters import conversions as cv  # noqa: E402
+from msg_adapters.node import DIAG_NAME, ConfigError, ContactSimNode, main  # noqa: E402
+from msg_adapters.testing import Spinner, ros_context, ros_env  # noqa: E402
+
+IDENTITY = np.array([[0.0, 0.0, 0.0, 1.0]])
+
+
+class Client:
+    """A test client node: latest messages of every node output, publishers and service clients."""
+
+    def __init__(self, ctx):
+        self.node = rclpy.create_node("client", context=ctx)
+        self.last = {}
+        self.count = {"contacts": 0, "body_states": 0}
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.node.create_subscription(String, "body_names", lambda m: self.last.__setitem__("names", m), latched)
+        self.node.create_subscription(PoseArray, "body_states", self._on_states, 10)
+        self.node.create_subscription(PointCloud2, "contacts", self._on_contacts, 10)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        self.poses = self.node.create_publisher(PoseArray, "body_poses", 10)
+        self.raw = self.node.create_publisher(PoseArray, "body_poses", 10)
+        self.reset = self.node.create_client(Trigger, "/contact_sim/reset")
+        self.pause = self.node.create_client(SetBool, "/contact_sim/pause")
+        self.step = self.node.create_client(Trigger, "/contact_sim/step")
+
+    def _on_states(self, m):
+        self.last["states"] = m
+        self.count["body_states"] += 1
+
+    def _on_contacts(self, m):
+        self.last["contacts"] = m
+        self.count["contacts"] += 1
+
+    def _on_diag(self, m):
+        d = cv.diagnostics_to_dict(m, DIAG_NAME)
+        if d is not None:
+            self.last["diag"] = d
+
+    def diag(self, key):
+        d = self.last.get("diag")
+        return None if d is None else d[key]
+
+    def send(self, p, q, stamp_ns, frame_id="world"):
+        self.poses.publish(cv.arrays_to_posearray(p, q, cv.make_header(frame_id, stamp_ns)))
+
+
+@pytest.fixture
+def ros(monkeypatch):
+    with domain_id() as dom:
+        for k, v in ros_env(dom).items():
+            monkeypatch.setenv(k, v)
+        with ros_context(dom) as ctx:
+            yield ctx
+
+
+def make_node(ctx, **params):
+    base = {"scene": "kinematic_paddle", "rate_hz": 50, "diagnostics_period": 0.0, "pose_timeout": 0.1,
+            "velocity_decay": 0.0}
+    base.update(params)
+    return ContactSimNode(context=ctx, parameter_overrides=[Parameter(k, value=v) for k, v in base.items()])
+
+
+@pytest.fixture
+def running(ros):
+    node = make_node(ros)
+    client = Client(ros)
+    spin = Spinner(ros, node, client.node)
+    spin.until(lambda: "names" in client.last and "diag" in client.last and "states" in client.last,
+               10, "first outputs of the node")
+    yield node, client, spin
+    spin.shutdown()
+    client.node.destroy_node()
+    node.destroy_node()
+
+
+def test_outputs_services_and_integer_for_double_parameter(running):
+    node, client, spin = running
+    assert node.get_parameter("rate_hz").value == 50  # an int accepted for a double
+    assert node.period == pytest.approx(0.02)
+    names = client.last["names"].data.split("\n")
+    assert names == ["ground", "paddle", "ball"] == node.world.body_names
+    states = client.last["states"]
+    assert len(states.poses) == 3 and states.header.frame_id == "world"
+    assert states.header.stamp.sec > 0  # stamped from the node clock
+
+    r = spin.call(client.step, Trigger.Request())
+    assert not r.success and "not paused" in r.message
+    assert spin.call(client.pause, SetBool.Request(data=True)).success
+    t0 = node.world.time
+    contacts_before = client.count["contacts"]
+    r = spin.call(client.step, Trigger.Request())
+    assert r.success, r.message
+    assert node.world.time == pytest.approx(t0 + 0.02, abs=1e-12)
+    spin.until(lambda: client.count["contacts"] > contacts_before, 5, "contacts of the manual step")
+    spin.until(lambda: client.diag("paused") == "true", 5, "diagnostics saying paused")
+    assert node.world.time == pytest.approx(t0 + 0.02, abs=1e-12)  # paused: the timer does not step
+
+    r = spin.call(client.reset, Trigger.Request())
+    assert r.success and "kinematic_paddle" in r.message
+    assert node.world.time == 0.0
+    np.testing.assert_array_equal(node.world.body("ball").position, [0.0, 0.0, 0.1])
+    assert spin.call(client.pause, SetBool.Request(data=False)).success
+    spin.until(lambda: node.world.time > 0.05, 5, "the world running again")
+    ticks = int(client.diag("ticks"))
+    spin.until(lambda: int(client.diag("ticks")) > ticks, 5, "diagnostics counting ticks")
+    for key in ("step_time_ms", "tick_time_ms_p99", "contacts", "max_penetration_m", "energy_J",
+                "solver_residual", "tick_overruns", "rejected_poses", "rejected_parameters"):
+        assert key in client.last["diag"]
+
+
+def test_poses_drive_the_paddle_and_it_holds_after_the_timeout(running):
+    node, client, spin = running
+    stamp = node.get_clock().now().nanoseconds
+    x0 = -0.4
+    client.send([[x0, 0.0, 0.16]], IDENTITY, stamp)
+    client.send([[x0 + 0.01, 0.0, 0.16]], IDENTITY, stamp + 10_000_000)  # 1 m/s along x
+    spin.until(lambda: node.counts["poses_accepted"] >= 2, 5, "two accepted poses")
+    paddle = node.world.body("paddle")
+    np.testing.assert_allclose(paddle.velocity, [1.0, 0.0, 0.0], atol=1e-6)
+    # no more poses: after pose_timeout (0.1 s) it is put back at the last pose and stops
+    spin.until(lambda: not np.any(node.world.body("paddle").velocity), 5, "the paddle to stop")
+    ticks = node.counts["ticks"]
+    spin.until(lambda: node.counts["ticks"] > ticks + 2, 5, "more ticks")
+    np.testing.assert_allclose(node.world.body("paddle").position, [x0 + 0.01, 0.0, 0.16], atol=1e-12)
+
+
+def test_bad_poses_are_rejected_counted_and_change_nothing(running):
+    node, client, spin = running
+    stamp = node.get_clock().now().nanoseconds
+    good = np.array([[-0.4, 0.0, 0.16]])
+    client.send(good, IDENTITY, stamp)
+    spin.until(lambda: node.counts["poses_accepted"] == 1, 5, "the good pose")
+    before = node.world.body("paddle")
+    bad = [
+        ("length", np.vstack([good, good]), np.vstack([IDENTITY, IDENTITY]), "world"),
+        ("length", np.zeros((0, 3)), np.zeros((0, 4)), "world"),
+        ("nonfinite", [[np.nan, 0.0, 0.16]], IDENTITY, "world"),
+        ("nonfinite", good, [[0.0, 0.0, 0.0, np.inf]], "world"),
+        ("zero_quaternion", good, [[0.0, 0.0, 0.0, 0.0]], "world"),
+        ("non_unit_quaternion", good, [[0.0, 0.0, 0.0, 2.0]], "world"),
+        ("frame_id", good + 0.1, IDENTITY, "map"),
+    ]
+    for i, (_, p, q, frame) in enumerate(bad):
+        client.send(p, q, stamp + (i + 1) * 1_000_000, frame)
+    client.send(good + 0.1, IDENTITY, stamp)  # not after the accepted one
+    client.raw.publish(b"\x00\x01\x00\x00\x01\x02")  # serialized garbage
+    spin.until(lambda: client.diag("rejected_poses") == str(len(bad) + 2), 10, "all bad poses counted")
+    d = client.last["diag"]
+    for reason in ("length", "nonfinite"):
+        assert d["rejected_pose_" + reason] == "2"
+    for reason in ("zero_quaternion", "non_unit_quaternion", "frame_id", "stamp", "malformed"):
+        assert d["rejected_pose_" + reason] == "1", reason
+    assert node.counts["poses_accepted"] == 1
+    after = node.world.body("paddle")
+    np.testing.assert_array_equal(after.orientation, before.orientation)
+    assert np.all(np.isfinite(node.body_poses()[0]))
+    # and the node still runs and accepts a good pose
+    ticks = node.counts["ticks"]
+    client.send(good + [[0.001, 0.0, 0.0]], IDENTITY, stamp + 100_000_000)
+    spin.until(lambda: node.counts["poses_accepted"] == 2 and node.counts["ticks"] > ticks, 5, "recovery")
+
+
+def test_bad_parameters_at_run_time_are_rejected_and_counted(running):
+    node, client, spin = running
+    world = node.world
+    bad = [
+        Parameter("substeps", value=0),
+        Parameter("substeps", value="two"),
+        Parameter("pose_timeout", value=-1.0),
+        Parameter("pose_timeout", value=math.nan),
+        Parameter("scene", value="/no/such/scene.yaml"),
+        Parameter("tracked_bodies", value=["ball"]),
+        Parameter("tracked_bodies", value=["nobody"]),
+        Parameter("model.toi", value="sometimes"),
+        Parameter("rate_hz", value=10.0),  # read-only
+    ]
+    for prm in bad:
+        result = node.set_parameters([prm])[0]
+        assert not result.successful, prm.name
+        assert result.reason
+    assert node.counts["rejected_parameters"] == len(bad)
+    assert node.world is world and node.tracked == ["paddle"] and node.cfg["substeps"] == 1
+    assert node.get_parameter("substeps").value == 1
+    spin.until(lambda: client.diag("rejected_parameters") == str(len(bad)), 5, "diagnostics count")
+
+    scene_toi = world.settings.toi
+    assert node.set_parameters([Parameter("model.toi", value="next_step")])[0].successful
+    assert world.settings.toi == "next_step"
+    assert node.set_parameters([Parameter("model.toi", value="")])[0].successful
+    assert world.settings.toi == scene_toi
+    assert node.set_parameters([Parameter("substeps", value=3), Parameter("pose_timeout", value=2)])[0].successful
+    assert node.cfg["substeps"] == 3 and node.cfg["pose_timeout"] == 2.0
+    t = node.world.time
+    spin.until(lambda: node.world.time > t, 5, "ticks with substeps")
+    assert node.counts["step_errors"] == 0
+
+
+def test_bad_scene_at_start_up_is_a_clear_error(ros, tmp_path, capsys):
+    scene = tmp_path / "broken.yaml"
+    scene.write_text("bodies:\n  - {name: b, kind: dynamic, mass: -1, shape: {type: sphere, radius: 0.1}}\n")
+    with pytest.raises(ConfigError, match=r"bodies\[0\]\.mass"):
+        make_node(ros, scene=str(scene))
+    with pytest.raises(ConfigError, match="tracked_bodies: unknown body 'lid'"):
+        make_node(ros, tracked_bodies=["lid"])
+    # the console-script entry point: message on stderr, non-zero status
+    assert main(["contact_sim_node", "--ros-args", "-p", f"scene:={scene}"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot start" in err and "bodies[0].mass" in err and str(scene) in err
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
