@@ -466,8 +466,9 @@ class ContactSimNode(Node):
         c = self.counts
         times = np.array(self.tick_times) * 1e3 if self.tick_times else np.zeros(1)
         contacts = getattr(self, "contacts", None) or contact_sim.Contacts.empty()
-        solve = getattr(self.world, "last_solve", None)
-        residual = getattr(solve, "residual", solve) if solve is not None else float("nan")
+        solve = getattr(self.world, "last_solve", None)  # a dict (stepper) or an object; may not exist
+        residual = solve.get("residual") if isinstance(solve, dict) else getattr(solve, "residual", None)
+        iterations = solve.get("iterations") if isinstance(solve, dict) else getattr(solve, "iterations", None)
         try:
             residual = float(residual)
         except (TypeError, ValueError):
@@ -487,6 +488,7 @@ class ContactSimNode(Node):
             "max_penetration_m": float(contacts.depth.max()) if len(contacts) else 0.0,
             "energy_J": float(self.world.energy()),
             "solver_residual": residual,
+            "solver_iterations": iterations if isinstance(iterations, int) else -1,
             "poses_received": c["poses_received"],
             "poses_accepted": c["poses_accepted"],
             "rejected_poses": c["rejected_poses"],
