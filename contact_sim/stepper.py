@@ -1,13 +1,330 @@
-"""The step pipeline: free motion, detection, time of impact, response.
+"""The step pipeline: detection, impacts, resting contact, time of impact, free motion.
 
-Until detection and response land this only advances free motion; ``World.step`` calls
-``step(world, dt)``.
+``World.step`` calls ``step(world, dt)``. One step of ``dt``, with ``T`` the time left:
+
+1. detect contacts (margin ``settings.contact_margin``);
+2. **impacts**: touching contacts that approach get instantaneous impulses with restitution
+   (kinematic response: ``v+ = v − (1+k)(N·v)N`` without rotation; impulse response: the lecture's
+   ``j`` with both bodies' world inverse inertia, Coulomb friction), solved together by projected
+   Gauss–Seidel (``response.solver``);
+3. **resting contact** (when on): contacts that stay touching get the impulse that acts as a constant
+   force over ``T``: non-negative, zero when separating, the average normal velocity over ``T`` not
+   approaching (no sinking), friction inside the cone (sticking = stopped at the end of ``T``);
+4. **time of impact**: ``next_step`` advances by ``T``; ``fractional`` and ``swept`` find the first
+   instant in ``(0, T]`` at which a pair that is apart touches (closed form for sphere–plane and
+   sphere–sphere, bracket + Brent otherwise; ``swept`` guarantees that nothing passes through a
+   thin body), advance exactly to it and go back to 1 with the rest of the step — at most
+   ``settings.max_impacts_per_step`` times;
+5. positions of penetrating contacts are corrected by split-impulse pseudo-velocities, which move
+   bodies and are then discarded (no energy is added).
+
+Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal.
+
+``world.contacts`` gets the contacts of the step with the impulses applied to A (normal and
+friction parts), ``world.last_solve`` a dict with the solver's iterations, residual, maximum
+penetration at the start of the step, contact and impact counts, and the models used.
 """
+import warnings
+
+import numpy as np
+
+from . import dynamics
 from .contacts import Contacts
+from .response import models as _models
+from .response import narrow, solver
+
+DYNAMIC = 2
+SPLIT_BETA = 0.5          # fraction of the penetration removed per step by the pseudo-velocities
+FRACTIONAL_TOUCH = 1e-12  # m: a pair this close counts as touching after an exact time of impact
+
+
+def describe_models(world):
+    """What ``step`` will use for ``world`` and why (``list[str]``), with preflight warnings."""
+    return _models.describe(world)
 
 
 def step(world, dt):
     """Advance ``world`` by ``dt`` (already validated, > 0)."""
-    world._advance_free(dt)
+    m = _models.choose(world, dt)
+    if getattr(world, "_cs_preflight_dt", None) != dt:
+        world._cs_preflight_dt = dt
+        _models.warn_preflight(world, m, dt)
+    if getattr(world, "_cs_warm_time", -np.inf) > world.time:   # world was reset
+        world._cs_warm = None
+    world._cs_warm_time = world.time
+    if m.response == "penalty":
+        _penalty_step(world, dt, m)
+    else:
+        _impulse_step(world, dt, m)
     world.time += dt
-    world.contacts = Contacts.empty()
+
+
+# ---------------------------------------------------------------------------- helpers
+def _inv_inertia(world, m):
+    """World inverse inertia ``(N,3,3)`` (zeros when the models skip rotation)."""
+    if not m.rotation:
+        return np.zeros((len(world), 3, 3))
+    return dynamics.world_inverse_inertia(world.s.quat, world.inv_inertia_body)
+
+
+def _coefficients(world, c, m):
+    """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``."""
+    rule = world.settings.combine
+    a, b = c.body_a, c.body_b
+    e = _combine(world.restitution[a], world.restitution[b], rule)
+    if not m.friction or m.response == "kinematic":
+        z = np.zeros(len(a))
+        return e, z, z
+    mu_d = _combine(world.friction[a], world.friction[b], rule)
+    mu_s = np.maximum(_combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
+    return e, mu_s, mu_d
+
+
+def _combine(x, y, rule):
+    from .settings import combine
+
+    out = combine(x, y, rule)
+    return np.where(x == y, x, out)   # same material → exactly that material's value
+
+
+def _rows(world, c, inv_inertia):
+    s = world.s
+    return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, s.pos, world.inv_mass, inv_inertia,
+                             s.vel, s.omega, movable=world.kind == DYNAMIC)
+
+
+def _gravity(world):
+    return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
+
+
+def _warm_keys(world, c, cell=2e-3):
+    """Integer keys ``(K,5)`` identifying a contact across steps: pair and its point in A's frame."""
+    from . import quat
+
+    s = world.s
+    local = quat.rotate(quat.conj(s.quat[c.body_a]), c.point - s.pos[c.body_a])
+    return np.column_stack([c.body_a, c.body_b, np.floor(local / cell).astype(np.int64)])
+
+
+def _warm_lookup(world, keys):
+    """Previous step's resting impulses per unit time ``(K,3)`` for matching keys (else 0)."""
+    old = getattr(world, "_cs_warm", None)
+    out = np.zeros((len(keys), 3))
+    if old is None or len(keys) == 0 or len(old[0]) == 0:
+        return out
+    okeys, orate = old
+    allk = np.concatenate([okeys, keys])
+    _, inv = np.unique(allk, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    table = np.full(inv.max() + 1, -1)
+    table[inv[: len(okeys)]] = np.arange(len(okeys))
+    hit = table[inv[len(okeys):]]
+    ok = hit >= 0
+    out[ok] = orate[hit[ok]]
+    return out
+
+
+def _record(c, rows, lam, vn0):
+    """Fill the impulse columns of contacts ``c`` from accumulated ``lam (K,3)`` (n, t1, t2)."""
+    c.normal_impulse = lam[:, 0].copy()
+    c.friction_impulse = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
+    c.impulse = c.normal_impulse[:, None] * c.normal + c.friction_impulse
+    c.relative_normal_velocity = vn0.copy()
+    return c
+
+
+# ---------------------------------------------------------------------------- impulse / kinematic
+def _impulse_step(world, dt, m):
+    st = world.settings
+    s = world.s
+    margin = st.contact_margin
+    exact_toi = m.toi in ("fractional", "swept")
+    touch_eps = FRACTIONAL_TOUCH if exact_toi else margin
+    v_rest = max(np.linalg.norm(world.gravity) * dt, 1e-3)
+    dyn = world.kind == DYNAMIC
+    rotating = dyn & ~world.particle
+    g = _gravity(world)
+    t_left = dt
+    events = 0
+    records = []
+    iters, residual, max_pen = 0, 0.0, 0.0
+    pseudo = None
+    warm_out = (np.zeros((0, 5), np.int64), np.zeros((0, 3)))
+    first = True
+    while True:
+        c = narrow.detect(world, margin)
+        k = len(c)
+        dv_rest = np.zeros_like(s.vel)
+        dw_rest = np.zeros_like(s.omega)
+        lam2 = np.zeros((0, 3))
+        rest_idx = np.zeros(0, np.int64)
+        exclude = set()
+        if k:
+            if first:
+                max_pen = max(max_pen, float(c.depth.max()))
+            inv_i = _inv_inertia(world, m)
+            rows = _rows(world, c, inv_i)
+            e, mu_s, mu_d = _coefficients(world, c, m)
+            vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+            lam = np.zeros((k, 3))
+            touching = c.depth >= -touch_eps
+            approaching = touching & (vn0 < 0)
+            if approaching.any():
+                ti = np.flatnonzero(touching)
+                r1 = _rows(world, c.select(ti), inv_i)
+                target = np.where(vn0[ti] < 0, -e[ti] * vn0[ti], 0.0)
+                res = solver.solve(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti], mu_d=mu_d[ti],
+                                   iterations=st.solver_iterations, tolerance=st.solver_tolerance)
+                lam[ti] += _to_basis(res.impulse, r1, rows, ti)
+                iters = max(iters, res.iterations)
+                residual = max(residual, res.residual)
+            vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+            resting = (c.depth >= -margin) & (vn1 >= -v_rest)
+            if m.resting and resting.any():
+                rest_idx = np.flatnonzero(resting)
+                cr = c.select(rest_idx)
+                r2 = _rows(world, cr, inv_i)
+                v_end = s.vel + g * t_left
+                w_end = s.omega.copy()
+                v_start_end = v_end.copy()
+                w_start_end = w_end.copy()
+                base = solver.row_velocity(r2, s.vel, s.omega)[:, 0]
+                target = np.minimum(cr.depth, 0.0) / t_left   # close a gap, never open one
+                keys = _warm_keys(world, cr)
+                warm_rate = _warm_lookup(world, keys)
+                warm = _project_warm(warm_rate * t_left, r2, mu_d[rest_idx])
+                res = solver.solve(r2, v_end, w_end, target_n=target, alpha_n=0.5, base_n=base,
+                                   mu_s=mu_s[rest_idx], mu_d=mu_d[rest_idx], iterations=st.solver_iterations,
+                                   tolerance=st.solver_tolerance, warm=warm)
+                iters = max(iters, res.iterations)
+                residual = max(residual, res.residual)
+                lam2 = res.impulse
+                dv_rest = v_end - v_start_end
+                dw_rest = w_end - w_start_end
+                warm_out = (keys, _to_world_tangent(lam2, r2) / t_left)
+            if first:
+                pseudo = _split_impulse(world, c, inv_i, dt)
+            exclude = {(int(a), int(b)) for a, b in zip(c.body_a[touching | resting], c.body_b[touching | resting])}
+            exclude |= {(b, a) for a, b in exclude}
+        first = False
+        tau = t_left
+        if exact_toi and events < st.max_impacts_per_step:
+            from .response import toi
+
+            acc = g + dv_rest / t_left
+            motion = toi.Motion(world, acc, rotating)
+            ev, pair = toi.earliest_event(world, motion, t_left, exclude, swept=m.toi == "swept")
+            if ev < t_left:
+                tau = ev
+                events += 1
+        frac = tau / t_left
+        if k:
+            if len(rest_idx):
+                lam[rest_idx] += _to_basis(lam2 * frac, r2, rows, rest_idx)
+            records.append(_record(c, rows, lam, vn0))
+        _advance(world, tau, 0.5 * dv_rest * frac, 0.5 * dw_rest * frac)
+        if frac >= 1.0:
+            break
+        t_left -= tau
+    if pseudo is not None:
+        vp, wp = pseudo
+        _move(world, vp * dt, wp * dt)
+    world._cs_warm = warm_out
+    world.contacts = Contacts.concat(records)
+    world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
+                        "contacts": len(world.contacts), "impacts": events, "toi": m.toi,
+                        "response": m.response}
+
+
+def _to_basis(lam_sub, r_sub, rows, idx):
+    """Express impulses ``(k,3)`` given in ``r_sub``'s tangent basis in ``rows``' basis at ``idx``."""
+    world_t = lam_sub[:, 1:2] * r_sub.t1 + lam_sub[:, 2:3] * r_sub.t2
+    out = lam_sub.copy()
+    out[:, 1] = np.einsum("ij,ij->i", world_t, rows.t1[idx])
+    out[:, 2] = np.einsum("ij,ij->i", world_t, rows.t2[idx])
+    return out
+
+
+def _to_world_tangent(lam, rows):
+    """``(K,3)``: normal impulse and the tangential impulse as (x,y) in a fixed per-contact frame —
+    stored as normal, then the world tangent vector projected on a basis without hint."""
+    t1, t2 = solver.tangent_basis(rows.n)
+    wt = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
+    return np.column_stack([lam[:, 0], np.einsum("ij,ij->i", wt, t1), np.einsum("ij,ij->i", wt, t2)])
+
+
+def _project_warm(w, rows, mu):
+    """Warm impulses ``(K,3)`` from the fixed-frame form back to ``rows``' basis, inside the cone."""
+    if not np.any(w):
+        return None
+    t1, t2 = solver.tangent_basis(rows.n)
+    wt = w[:, 1:2] * t1 + w[:, 2:3] * t2
+    out = np.column_stack([np.maximum(w[:, 0], 0.0), np.einsum("ij,ij->i", wt, rows.t1),
+                           np.einsum("ij,ij->i", wt, rows.t2)])
+    mag = np.linalg.norm(out[:, 1:], axis=1)
+    lim = mu * out[:, 0]
+    scale = np.where(mag > lim, lim / np.maximum(mag, 1e-300), 1.0)
+    out[:, 1:] *= scale[:, None]
+    return out
+
+
+def _advance(world, tau, half_dv, half_dw):
+    """Free motion over ``tau`` with a constant contact force whose velocity change over ``tau`` is
+    ``2·half_dv (N,3)`` (angular ``2·half_dw``): kick half, drift exactly, kick half."""
+    s = world.s
+    s.vel += half_dv
+    s.omega += half_dw
+    world._advance_free(tau)
+    s.vel += half_dv
+    s.omega += half_dw
+
+
+def _move(world, dx, dtheta):
+    """Displace centres by ``dx (N,3)`` and rotate by rotation vectors ``dtheta (N,3)``."""
+    from . import quat
+
+    s = world.s
+    s.pos += dx
+    turn = np.flatnonzero(np.any(dtheta != 0, axis=1))
+    if turn.size:
+        s.quat[turn] = quat.normalize(quat.mul(quat.from_rotvec(dtheta[turn]), s.quat[turn]))
+
+
+def _split_impulse(world, c, inv_i, dt):
+    """Pseudo-velocities ``(vp, wp) (N,3)`` removing ``SPLIT_BETA`` of each penetration over ``dt``
+    (normal rows only, non-negative), or ``None`` when nothing penetrates."""
+    pen = np.flatnonzero(c.depth > 0)
+    if pen.size == 0:
+        return None
+    cp = c.select(pen)
+    rows = _rows(world, cp, inv_i)
+    vp = np.zeros_like(world.s.vel)
+    wp = np.zeros_like(world.s.omega)
+    st = world.settings
+    solver.solve(rows, vp, wp, target_n=SPLIT_BETA * cp.depth / dt, iterations=st.solver_iterations,
+                 tolerance=st.solver_tolerance)
+    return vp, wp
+
+
+# ---------------------------------------------------------------------------- penalty
+def _penalty_step(world, dt, m):
+    """Spring ``k·depth`` plus damper ``−c·v_n`` along the normal (never pulling), applied as an
+    impulse ``F·dt`` before the exact free drift (symplectic Euler): at rest ``k·depth = m g``."""
+    st = world.settings
+    s = world.s
+    c = narrow.detect(world, 0.0)
+    k = len(c)
+    max_pen = float(c.depth.max()) if k else 0.0
+    if k:
+        rows = _rows(world, c, _inv_inertia(world, m))
+        vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+        force = np.maximum(st.penalty.stiffness * np.maximum(c.depth, 0.0) - st.penalty.damping * vn0, 0.0)
+        lam = np.zeros((k, 3))
+        lam[:, 0] = force * dt
+        solver.apply(rows, s.vel, s.omega, lam)
+        world.contacts = _record(c, rows, lam, vn0)
+    else:
+        world.contacts = Contacts.empty()
+    world._advance_free(dt)
+    world.last_solve = {"iterations": 0, "residual": 0.0, "max_penetration": max_pen, "contacts": k,
+                        "impacts": 0, "toi": m.toi, "response": m.response}

@@ -1,0 +1,16 @@
+"""Collision response and time of impact (issue 4).
+
+* ``solver``  — contact rows, graph colouring, projected Gauss–Seidel impulses (pure functions of
+  body arrays and contact arrays);
+* ``toi``     — time of impact: closed forms, bracket + Brent, swept test;
+* ``narrow``  — signed distances / stand-in contacts for plane, sphere and box pairs;
+* ``models``  — ``auto`` model choice, ``describe`` and preflight warnings.
+
+The step pipeline that uses them is ``contact_sim.stepper``.
+"""
+from .models import (ContactModelWarning, MassRatioWarning, PenaltyStiffnessWarning, TunnellingWarning,
+                     choose, describe, preflight)
+from .solver import build_rows, color_contacts, row_velocity, solve
+
+__all__ = ["ContactModelWarning", "MassRatioWarning", "PenaltyStiffnessWarning", "TunnellingWarning",
+           "build_rows", "choose", "color_contacts", "describe", "preflight", "row_velocity", "solve"]

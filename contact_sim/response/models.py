@@ -1,0 +1,200 @@
+"""Which response / time-of-impact / friction / resting model a world uses, and why.
+
+``choose(world, dt)`` resolves every ``auto`` setting from the scene itself (cheapest adequate
+model); ``describe(world)`` turns the choice into sentences; ``preflight(world)`` returns the
+warnings users of other engines ask for (mass ratio, thin-and-fast, stiff penalty).
+"""
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..shapes import Plane, Sphere
+
+MASS_RATIO_LIMIT = 100.0      # above this between bodies that can touch, iterative solvers struggle
+PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the explicit spring is near its stability edge (2)
+FRACTIONAL_AUTO_MAX_BODIES = 16
+
+
+class ContactModelWarning(UserWarning):
+    """A preflight warning about the chosen contact models (mass ratio, tunnelling, stiffness)."""
+
+
+class PenaltyStiffnessWarning(ContactModelWarning):
+    """Penalty stiffness too high for the step size: the explicit spring can go unstable."""
+
+
+class TunnellingWarning(ContactModelWarning):
+    """A body moves more than the thinnest size it can meet in one step without swept detection."""
+
+
+class MassRatioWarning(ContactModelWarning):
+    """Mass ratio between two bodies that can touch is above ``MASS_RATIO_LIMIT``."""
+
+
+@dataclass
+class Models:
+    response: str
+    toi: str
+    friction: bool
+    resting: bool
+    rotation: bool
+    reasons: list = field(default_factory=list)
+
+
+def _can_touch(world):
+    """Boolean ``(N,N)`` matrix of body pairs that can touch (masks agree, one is dynamic)."""
+    g, m = world.group, world.mask
+    ok = ((g[:, None] & m[None, :]) != 0) & ((g[None, :] & m[:, None]) != 0)
+    dyn = world.kind == 2
+    ok &= dyn[:, None] | dyn[None, :]
+    np.fill_diagonal(ok, False)
+    return ok
+
+
+def step_travel(world, dt):
+    """Distance ``(N,)`` each body can travel in one step at its current speed under gravity."""
+    g = np.linalg.norm(world.gravity) * (world.kind == 2)
+    return np.linalg.norm(world.s.vel, axis=1) * dt + 0.5 * g * dt * dt
+
+
+def thin_and_fast(world, dt):
+    """Bodies ``[(name, travel, thinnest)]`` that move farther in a step than the thinnest finite
+    body they could meet (themselves included)."""
+    if len(world) == 0:
+        return []
+    thin = np.array([sh.thinnest() for sh in world.shapes])
+    travel = step_travel(world, dt)
+    finite_min = np.min(thin[np.isfinite(thin)]) if np.isfinite(thin).any() else np.inf
+    limit = np.minimum(thin, finite_min)
+    bad = np.flatnonzero((world.kind == 2) & (travel > limit))
+    return [(world.body_names[i], float(travel[i]), float(limit[i])) for i in bad]
+
+
+def choose(world, dt=None):
+    """Resolve the ``auto`` settings of ``world`` for a step of ``dt`` (default ``settings.dt``)."""
+    st = world.settings
+    dt = st.dt if dt is None else dt
+    dyn = world.kind == 2
+    shapes = world.shapes
+    reasons = []
+    # friction
+    if st.friction == "auto":
+        friction = bool(np.any(world.friction[dyn] > 0)) if dyn.any() else False
+        reasons.append(f"friction {'on' if friction else 'off'}: "
+                       + ("a dynamic body's material has friction > 0" if friction else "no dynamic material has friction"))
+    else:
+        friction = bool(st.friction)
+        reasons.append(f"friction {'on' if friction else 'off'}: set by the scene")
+    # response
+    if st.response == "auto":
+        if dyn.any() and np.all(world.particle[dyn]):
+            response = "kinematic"
+            reasons.append("response kinematic: every dynamic body is a particle (no rotation, no inertia)")
+        else:
+            response = "impulse"
+            reasons.append("response impulse: rigid bodies with rotation")
+    else:
+        response = st.response
+        reasons.append(f"response {response}: set by the scene")
+    # rotation work
+    spheres_only = all(isinstance(shapes[i], Sphere) for i in np.flatnonzero(dyn))
+    rigid = dyn & ~world.particle
+    rotation = bool(rigid.any()) and response != "kinematic" and not (spheres_only and not friction)
+    if not rotation and rigid.any() and response != "kinematic":
+        reasons.append("rotation skipped in responses: frictionless spheres (contact forces pass through the centre)")
+    # time of impact
+    fast = thin_and_fast(world, dt)
+    if st.toi == "auto":
+        if fast:
+            toi = "swept"
+            reasons.append(f"time of impact swept: {fast[0][0]} moves {fast[0][1]:.3g} m per step, more than "
+                           f"the thinnest size it can meet ({fast[0][2]:.3g} m)")
+        elif len(world) <= FRACTIONAL_AUTO_MAX_BODIES and dyn.sum() <= 4 and response != "penalty":
+            toi = "fractional"
+            reasons.append("time of impact fractional: a few bodies, exact impact times are cheap")
+        else:
+            toi = "next_step"
+            reasons.append("time of impact next_step: no body moves more than the thinnest size in a step")
+    else:
+        toi = st.toi
+        reasons.append(f"time of impact {toi}: set by the scene")
+    if response == "penalty" and toi != "next_step":
+        reasons.append("penalty forces act on penetration: time of impact is handled at the next step")
+        toi = "next_step"
+    # resting
+    if st.resting == "auto":
+        lone = int(dyn.sum()) == 1 and response != "penalty"
+        bouncy = lone and np.all(world.restitution[dyn] > 0)
+        lone_sphere = lone and spheres_only and not friction
+        resting = not (bouncy and lone_sphere) and response != "penalty"
+        reasons.append("resting-contact solver " + ("off: a lone bouncing body needs only impacts" if not resting and response != "penalty"
+                                                    else "off: penalty forces hold bodies" if response == "penalty"
+                                                    else "on: bodies can rest on each other"))
+    else:
+        resting = bool(st.resting) and response != "penalty"
+        reasons.append(f"resting-contact solver {'on' if resting else 'off'}: set by the scene")
+    return Models(response, toi, friction, resting, rotation, reasons)
+
+
+def describe(world):
+    """Sentences (``list[str]``) saying which models the world uses and why, plus the preflight
+    warnings."""
+    m = choose(world)
+    return m.reasons + [f"warning: {w}" for _, w in preflight(world, m)]
+
+
+def _effective_masses(world):
+    """Lightest effective mass of a pair that can touch ``(m_eff, i, j)``."""
+    touch = _can_touch(world)
+    if not touch.any():
+        return None
+    m = np.where(world.kind == 2, world.mass, np.inf)
+    inv = np.where(np.isfinite(m), 1.0 / m, 0.0)
+    meff = 1.0 / np.maximum(inv[:, None] + inv[None, :], 1e-300)
+    meff = np.where(touch, meff, np.inf)
+    k = np.argmin(meff)
+    i, j = np.unravel_index(k, meff.shape)
+    return float(meff[i, j]), int(i), int(j)
+
+
+def preflight(world, models=None, dt=None):
+    """Warnings ``[(category, message)]`` about the scene and its models."""
+    m = choose(world, dt) if models is None else models
+    dt = world.settings.dt if dt is None else dt
+    out = []
+    names = world.body_names
+    if len(world) and len(world) <= 2000:
+        touch = _can_touch(world)
+        dyn2 = touch & (world.kind == 2)[:, None] & (world.kind == 2)[None, :]
+        if dyn2.any():
+            mass = world.mass
+            ratio = np.where(dyn2, mass[:, None] / mass[None, :], 0.0)
+            k = np.argmax(ratio)
+            i, j = np.unravel_index(k, ratio.shape)
+            if ratio[i, j] > MASS_RATIO_LIMIT:
+                out.append((MassRatioWarning,
+                            f"mass ratio {ratio[i, j]:.3g} between {names[i]!r} and {names[j]!r} (above "
+                            f"{MASS_RATIO_LIMIT:g}): iterative contact solvers converge slowly"))
+    if m.toi != "swept":
+        for name, travel, thin in thin_and_fast(world, dt):
+            out.append((TunnellingWarning,
+                        f"{name!r} moves {travel:.3g} m per step, more than the thinnest size it can meet "
+                        f"({thin:.3g} m), without swept detection (toi {m.toi}): it can pass through"))
+    if m.response == "penalty":
+        em = _effective_masses(world)
+        if em is not None:
+            meff, i, j = em
+            omega_dt = np.sqrt(world.settings.penalty.stiffness / meff) * dt
+            if omega_dt > PENALTY_OMEGA_DT_LIMIT:
+                out.append((PenaltyStiffnessWarning,
+                            f"penalty stiffness {world.settings.penalty.stiffness:g} N/m is too high for dt "
+                            f"{dt:.4g} s between {names[i]!r} and {names[j]!r}: sqrt(k/m)·dt = {omega_dt:.3g} "
+                            f"(stable below 2, accurate below {PENALTY_OMEGA_DT_LIMIT:g}); lower k or dt"))
+    return out
+
+
+def warn_preflight(world, models=None, dt=None):
+    """Issue the preflight warnings with ``warnings.warn`` (categories above)."""
+    for cat, msg in preflight(world, models, dt):
+        warnings.warn(msg, cat, stacklevel=3)
