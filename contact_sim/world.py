@@ -179,14 +179,14 @@ class World:
                 try:
                     m1, com, i1 = shape.mass_properties(1.0)
                 except ContactSimError as exc:
-                    raise ContactSimError(f"{w}.{exc}") from None
+                    raise ContactSimError(f"{w}.shape: {exc}") from None
                 inertia = i1 * (body_mass / m1)  # uniform density
             else:
                 rho = DEFAULT_DENSITY if density is None else self._positive(density, f"{w}.density")
                 try:
                     body_mass, com, inertia = shape.mass_properties(rho)
                 except ContactSimError as exc:
-                    raise ContactSimError(f"{w}.{exc}") from None
+                    raise ContactSimError(f"{w}.shape: {exc}") from None
         elif mass is not None or density is not None:
             self._positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
         centered = shape.translated(-com) if np.any(com != 0) else shape

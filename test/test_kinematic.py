@@ -1,0 +1,76 @@
+"""Kinematic bodies: velocity from successive poses and stamps; bad poses change nothing."""
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim import quat
+
+
+def world_with_paddle():
+    w = cs.World(gravity=(0, 0, 0))
+    w.add_body("paddle", cs.Box([0.3, 0.3, 0.05]), kind="kinematic")
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[5, 5, 5])
+    return w
+
+
+def test_velocity_from_successive_poses():
+    w = world_with_paddle()
+    q0 = np.array([0, 0, 0, 1.0])
+    w.set_pose("paddle", [0, 0, 0], q0, stamp=10.0)
+    assert np.array_equal(w.body("paddle").velocity, [0, 0, 0])  # one pose: no velocity yet
+    axis_angle = np.array([0.0, 0.0, 0.3])  # 0.3 rad about z in 0.25 s → 1.2 rad/s
+    q1 = quat.from_rotvec(axis_angle)
+    w.set_pose("paddle", [0.5, -0.25, 0.1], q1, stamp=10.25)
+    b = w.body("paddle")
+    assert np.allclose(b.velocity, [2.0, -1.0, 0.4], rtol=0, atol=1e-12)
+    assert np.allclose(b.angular_velocity, [0, 0, 1.2], rtol=0, atol=1e-12)
+    assert np.allclose(b.position, [0.5, -0.25, 0.1], atol=0) and np.allclose(b.orientation, q1, atol=1e-15)
+
+
+def test_quaternion_sign_flip_is_the_same_rotation():
+    w = world_with_paddle()
+    q = quat.from_rotvec([0.1, 0.0, 0.0])
+    w.set_pose("paddle", [0, 0, 0], q, stamp=0.0)
+    w.set_pose("paddle", [0, 0, 0], -quat.from_rotvec([0.2, 0.0, 0.0]), stamp=0.1)
+    assert np.allclose(w.body("paddle").angular_velocity, [1.0, 0, 0], atol=1e-12)
+
+
+def test_kinematic_body_moves_with_its_velocity_between_poses():
+    w = world_with_paddle()
+    w.set_pose("paddle", [0, 0, 0], [0, 0, 0, 1], stamp=0.0)
+    w.set_pose("paddle", [0.1, 0, 0], [0, 0, 0, 1], stamp=0.1)
+    for _ in range(10):
+        w.step(0.01)
+    assert np.allclose(w.body("paddle").position, [0.2, 0, 0], atol=1e-14)
+    assert np.allclose(w.body("paddle").velocity, [1.0, 0, 0], atol=1e-14)  # no gravity on kinematic bodies
+
+
+@pytest.mark.parametrize("args, message", [
+    (("ghost", [0, 0, 0], [0, 0, 0, 1], 1.0), "unknown body 'ghost'"),
+    (("ball", [0, 0, 0], [0, 0, 0, 1], 1.0), "only kinematic bodies are posed"),
+    (("paddle", [0, np.nan, 0], [0, 0, 0, 1], 1.0), r"position: must be finite"),
+    (("paddle", [0, 0], [0, 0, 0, 1], 1.0), r"position: must be 3 numbers"),
+    (("paddle", [0, 0, 0], [0, 0, 0, 0], 1.0), "zero quaternion"),
+    (("paddle", [0, 0, 0], [0, 0, 1, 1], 1.0), "must be unit length"),
+    (("paddle", [0, 0, 0], [0, 0, np.inf, 1], 1.0), "orientation: must be finite"),
+    (("paddle", [0, 0, 0], [0, 0, 0, 1], 0.5), "must be after the previous pose"),
+    (("paddle", [0, 0, 0], [0, 0, 0, 1], float("nan")), "stamp: must be a finite number"),
+])
+def test_bad_poses_are_refused_and_change_nothing(args, message):
+    w = world_with_paddle()
+    w.set_pose("paddle", [1, 2, 3], [0, 0, 0, 1], stamp=0.5)
+    before = [a.copy() for a in (w.s.pos, w.s.vel, w.s.quat, w.s.omega, w.s.stamp)]
+    with pytest.raises(cs.ContactSimError, match=message):
+        w.set_pose(*args)
+    after = (w.s.pos, w.s.vel, w.s.quat, w.s.omega, w.s.stamp)
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after))
+
+
+def test_set_state_and_reset():
+    w = cs.load_scene({"bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.1}, "position": [0, 0, 1]}]})
+    w.set_state("b", velocity=[1, 0, 0])
+    w.step(0.1)
+    assert not np.allclose(w.body("b").position, [0, 0, 1])
+    w.reset()
+    assert np.array_equal(w.body("b").position, [0, 0, 1]) and w.time == 0.0
+    assert np.array_equal(w.body("b").velocity, [0, 0, 0])
