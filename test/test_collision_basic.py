@@ -1,0 +1,190 @@
+"""Hand-made configurations for plane, sphere and box pairs, and invariants of every result."""
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim import quat as Q
+from contact_sim.collision import collide, detect_world, DetectionStats
+from contact_sim.contacts import FEATURES
+
+I = (0.0, 0.0, 0.0, 1.0)
+
+
+def check(c, a=None, pa=None, b=None, pb=None, margin=0.0):
+    """Invariants: finite, unit normals, and (when the inputs are given) symmetry under swapping."""
+    assert np.all(np.isfinite(c.point)) and np.all(np.isfinite(c.normal)) and np.all(np.isfinite(c.depth))
+    if len(c):
+        assert np.allclose(np.linalg.norm(c.normal, axis=1), 1.0, atol=1e-12)
+        assert np.all(c.depth >= -margin - 1e-12)
+    if a is not None:
+        s = collide(b, pb, a, pa, margin)
+        assert len(s) == len(c)
+        if len(c):
+            assert np.isclose(s.depth.max(), c.depth.max(), atol=1e-12)
+            # same points and depths, normals flipped (order may differ)
+            key = lambda x: np.lexsort(np.round(x.point, 9).T)
+            i, j = key(c), key(s)
+            assert np.allclose(c.point[i], s.point[j], atol=1e-9)
+            assert np.allclose(c.normal[i], -s.normal[j], atol=1e-9)
+            assert np.allclose(c.depth[i], s.depth[j], atol=1e-12)
+    return c
+
+
+def both(a, pa, b, pb, margin=0.0):
+    return check(collide(a, pa, b, pb, margin), a, pa, b, pb, margin)
+
+
+def test_sphere_plane_exact():
+    pl, sp = cs.Plane((0, 0, 1), 0.0), cs.Sphere(0.5)
+    c = both(sp, ((1, 2, 0.4), I), pl, ((0, 0, 0), I))
+    assert len(c) == 1
+    assert np.allclose(c.normal[0], [0, 0, 1]) and np.isclose(c.depth[0], 0.1)
+    assert np.allclose(c.point[0], [1, 2, -0.05])
+    assert FEATURES[c.feature[0]] == "plane"
+    # touching: depth exactly 0; apart by 1e-9: nothing without margin, depth -1e-9 with one
+    c = both(sp, ((0, 0, 0.5), I), pl, ((0, 0, 0), I))
+    assert len(c) == 1 and c.depth[0] == 0.0
+    assert len(both(sp, ((0, 0, 0.5 + 1e-9), I), pl, ((0, 0, 0), I))) == 0
+    c = both(sp, ((0, 0, 0.5 + 1e-9), I), pl, ((0, 0, 0), I), margin=1e-6)
+    assert np.isclose(c.depth[0], -1e-9, atol=1e-15)
+    # tilted and offset plane, deep
+    pl2 = cs.Plane((1, 0, 1), 1.0)  # x + z <= sqrt2 after normalising
+    c = both(sp, ((0, 0, 0), I), pl2, ((0, 0, 0), I))
+    assert np.isclose(c.depth[0], 0.5 + 1 / np.sqrt(2)) and np.allclose(c.normal[0], [2**-0.5, 0, 2**-0.5])
+
+
+def test_sphere_sphere():
+    a, b = cs.Sphere(0.5), cs.Sphere(0.25)
+    c = both(a, ((0.7, 0, 0), I), b, ((0, 0, 0), I))
+    assert np.isclose(c.depth[0], 0.05) and np.allclose(c.normal[0], [1, 0, 0])
+    assert np.allclose(c.point[0], [0.25 - 0.025, 0, 0])
+    assert collide(a, ((0.75, 0, 0), I), b, ((0, 0, 0), I)).depth[0] == 0.0
+    assert len(collide(a, ((0.75 + 1e-9, 0, 0), I), b, ((0, 0, 0), I))) == 0
+    # concentric (one inside the other): any normal is right, so no symmetry check
+    c = check(collide(a, ((0, 0, 0), I), b, ((0, 0, 0), I)))
+    assert np.isclose(c.depth[0], 0.75)
+
+
+def test_box_plane_manifold():
+    pl, bx = cs.Plane(), cs.Box((1, 2, 0.5))
+    c = both(bx, ((3, 4, 0.2), I), pl, ((0, 0, 0), I))
+    assert len(c) == 4
+    assert np.allclose(c.depth, 0.05) and np.allclose(c.normal, [0, 0, 1])
+    assert np.allclose(np.sort(c.point[:, 0]), [2.5, 2.5, 3.5, 3.5])
+    assert np.allclose(np.sort(c.point[:, 1]), [3, 3, 5, 5])
+    # on an edge (45 deg about x): 2 contacts; on a corner: 1
+    q = Q.axis_rotation(0, [np.pi / 4])[0]
+    h = np.sqrt(2) * 0.5 * np.hypot(2, 0.5) * np.cos(np.pi / 4 - np.arctan2(0.5, 2))
+    lowest = (Q.rotate(q, Box_vertices(bx)) @ [0, 0, 1]).min()
+    c = both(bx, ((0, 0, -lowest - 0.01), q), pl, ((0, 0, 0), I))
+    assert len(c) == 2 and np.allclose(c.depth, 0.01)
+    del h
+
+
+def Box_vertices(bx):
+    return bx.vertices
+
+
+def test_box_sphere():
+    bx, sp = cs.Box((2, 2, 2)), cs.Sphere(0.5)
+    c = both(bx, ((0, 0, 0), I), sp, ((0, 0, 1.4), I))     # face
+    assert np.isclose(c.depth[0], 0.1) and np.allclose(c.normal[0], [0, 0, -1])
+    c = both(bx, ((0, 0, 0), I), sp, ((1.2, 1.2, 1.2), I))  # vertex region: true distance
+    assert np.isclose(c.depth[0], 0.5 - np.sqrt(3 * 0.04))
+    c = both(bx, ((0, 0, 0), I), sp, ((1.2, 1.2, 0), I))    # edge region
+    assert np.isclose(c.depth[0], 0.5 - np.sqrt(2 * 0.04))
+    c = both(bx, ((0, 0, 0), I), sp, ((0, 0, 0.8), I))      # centre inside
+    assert np.isclose(c.depth[0], 0.7) and np.allclose(c.normal[0], [0, 0, -1])
+    assert collide(bx, ((0, 0, 0), I), sp, ((0, 0, 1.5), I)).depth[0] == 0.0
+    assert len(collide(bx, ((0, 0, 0), I), sp, ((0, 0, 1.5 + 1e-9), I))) == 0
+
+
+def test_box_box_face_edge_vertex():
+    b = cs.Box((1, 1, 1))
+    # face-face resting, offset: 4 points spanning the overlap patch
+    c = both(b, ((0.2, 0.1, 0.99), I), b, ((0, 0, 0), I))
+    assert len(c) == 4 and np.allclose(c.depth, 0.01) and np.allclose(c.normal, [0, 0, 1])
+    assert np.allclose(np.sort(np.unique(np.round(c.point[:, 0], 9))), [-0.3, 0.5])
+    assert all(FEATURES[f] == "face_face" for f in c.feature)
+    # coplanar faces, exactly touching: depth 0
+    c = both(b, ((0, 0, 1.0), I), b, ((0, 0, 0), I))
+    assert len(c) == 4 and np.all(c.depth == 0)
+    assert len(collide(b, ((0, 0, 1.0 + 1e-9), I), b, ((0, 0, 0), I))) == 0
+    # vertex down onto a face
+    q = Q.normalize(Q.mul(Q.axis_rotation(0, [np.arctan(np.sqrt(0.5))])[0], Q.axis_rotation(2, [np.pi / 4])[0]))
+    low = (Q.rotate(q, b.vertices) @ [0, 0, 1]).min()
+    c = both(b, ((0, 0, 0.5 - low - 0.02), q), b, ((0, 0, 0), I))
+    assert len(c) == 1 and np.isclose(c.depth[0], 0.02) and np.allclose(c.normal[0], [0, 0, 1])
+    # one inside the other
+    small = cs.Box((0.2, 0.2, 0.2))
+    c = both(small, ((0, 0, 0.1), I), b, ((0, 0, 0), I))
+    assert np.isclose(c.depth.max(), 0.5)
+
+
+def test_crossed_boxes_edge_face():
+    """Two long boxes crossed at 90 deg, rotated 45 deg about their long axes so that only the
+    edges interpenetrate: no vertex is inside, the edge-face test and an edge x edge axis find it."""
+    lb = cs.Box((4, 0.5, 0.5))
+    qx = Q.axis_rotation(0, [np.pi / 4])[0]
+    qy = Q.mul(Q.axis_rotation(2, [np.pi / 2])[0], qx)
+    d = 0.5 * np.sqrt(2) - 0.01      # each edge reaches 0.25*sqrt2 from the axis
+    c, st = collide(lb, ((0, 0, d), qy), lb, ((0, 0, 0), qx), stats=True)
+    check(c, lb, ((0, 0, d), qy), lb, ((0, 0, 0), qx))
+    assert len(c) == 1 and np.isclose(c.depth[0], 0.01) and np.allclose(c.normal[0], [0, 0, 1])
+    assert np.allclose(c.point[0], [0, 0, d / 2])
+    assert FEATURES[c.feature[0]] == "edge_face"
+    assert st.settled_by_vertex == 0 and st.needed_edge_face == 1 and st.edge_face_hits == 1
+
+
+def test_parallel_edges():
+    lb = cs.Box((4, 0.5, 0.5))
+    qx = Q.axis_rotation(0, [np.pi / 4])[0]
+    d = 0.5 * np.sqrt(2) - 0.01      # same orientation, top edge against bottom edge
+    c = both(lb, ((0.5, 0, d), qx), lb, ((0, 0, 0), qx))
+    # the shallowest way out is along a 45 deg face normal: depth 0.01/sqrt2, and the contact is the
+    # thin sliver where the two faces overlap, spanning the common length x in [-1.5, 2]
+    assert len(c) == 4 and np.allclose(c.depth, 0.01 / np.sqrt(2))
+    assert np.allclose(np.abs(c.normal), [0, 2**-0.5, 2**-0.5])
+    assert np.isclose(c.point[:, 0].min(), -1.5) and np.isclose(c.point[:, 0].max(), 2.0)
+    # touching edge on edge (the edges coincide along a line, up to the round-off of sqrt2)
+    c = both(lb, ((0.5, 0, 0.5 * np.sqrt(2)), qx), lb, ((0, 0, 0), qx), margin=1e-12)
+    assert len(c) >= 2 and np.allclose(c.depth, 0, atol=1e-15)
+
+
+@pytest.mark.parametrize("q", [(float("nan"), 0, 0, 1), (0, 0, 0, 0)])
+def test_bad_pose_refused(q):
+    with pytest.raises(cs.ContactSimError, match="pose_b.orientation"):
+        collide(cs.Sphere(1), ((0, 0, 0), I), cs.Sphere(1), ((0, 0, 0), q))
+    with pytest.raises(cs.ContactSimError, match="pose_a.position"):
+        collide(cs.Sphere(1), ((0, float("nan"), 0), I), cs.Sphere(1), ((0, 0, 0), I))
+    with pytest.raises(cs.ContactSimError, match="margin"):
+        collide(cs.Sphere(1), ((0, 0, 0), I), cs.Sphere(1), ((0, 0, 0), I), margin=-1)
+
+
+def test_detect_world_filters_and_stats():
+    w = cs.World()
+    w.add_body("ground", cs.Plane(), kind="static")
+    w.add_body("ball", cs.Sphere(0.5), position=(0, 0, 0.45))
+    w.add_body("box", cs.Box((1, 1, 1)), position=(2, 0, 0.49))
+    w.add_body("box2", cs.Box((1, 1, 1)), position=(2, 0, 1.48))
+    w.add_body("static_box", cs.Box((1, 1, 1)), kind="static", position=(5, 0, 0.4))  # static-static: skipped
+    w.add_body("ghost", cs.Sphere(0.5), position=(-2, 0, 0.4), group=2, mask=2)        # filtered vs ground
+    w.add_body("far", cs.Sphere(0.5), position=(0, 30, 30))
+    c, st = detect_world(w)
+    assert isinstance(st, DetectionStats)
+    pairs = sorted(set(zip(c.body_a.tolist(), c.body_b.tolist())))
+    assert pairs == [(0, 1), (0, 2), (2, 3)]
+    assert st.candidate_pairs == 3 and st.colliding_pairs == 3 and st.contacts == len(c) == 9
+    assert np.all(c.body_a < c.body_b)
+    ball = c.select(c.body_b == 1)
+    assert np.allclose(ball.normal, [0, 0, -1]) and np.isclose(ball.depth[0], 0.05)  # from ball to ground
+    top = c.select(c.body_b == 3)
+    assert len(top) == 4 and np.allclose(top.normal, [0, 0, -1]) and np.allclose(top.depth, 0.01)
+    assert set(st.seconds) >= {"broad", "bounding", "narrow", "total"}
+    # margin override: the far-apart stack now separated by 0.005 is reported with negative depth
+    w.set_state("box2", position=(2, 0, 1.495))
+    c, st = detect_world(w, margin=0.01)
+    top = c.select(c.body_b == 3)
+    assert len(top) == 4 and np.allclose(top.depth, -0.005)
+    assert len(w.detect()) == len(c) - 4  # default margin 1e-4 does not reach
+
