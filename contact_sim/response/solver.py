@@ -213,8 +213,14 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
                 mag = np.sqrt(np.einsum("ki,ki->k", trial, trial))
                 stick = mag <= mu_s[idx] * new[:, 0]
                 lim = mu_d[idx] * new[:, 0]
-                scale = np.where(stick, 1.0, lim / np.maximum(mag, _TINY))
-                new[:, 1:] = trial * scale[:, None]
+                # sliding: kinetic friction opposes the sliding velocity this contact would have
+                # without its own friction impulse (maximal dissipation), magnitude mu_d·λn
+                free = vt - np.einsum("kij,kj->ki", rows.K[idx, 1:, 1:], old[:, 1:])
+                fmag = np.sqrt(np.einsum("ki,ki->k", free, free))
+                use = fmag > 1e-14
+                dirn = np.where(use[:, None], -free / np.maximum(fmag, _TINY)[:, None],
+                                trial / np.maximum(mag, _TINY)[:, None])
+                new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
             delta = new - old
             lam[idx] = new
             apply(rows, vel, omega, delta, idx)

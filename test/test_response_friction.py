@@ -1,0 +1,72 @@
+"""Coulomb friction and resting contact against closed forms: sliding block, incline."""
+import os
+
+import numpy as np
+import pytest
+
+import contact_sim as cs
+
+SCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config", "scenes")
+G = 9.81
+
+
+def _scene(name):
+    import yaml
+
+    with open(os.path.join(SCENES, name)) as fh:
+        return yaml.safe_load(fh)
+
+
+def test_sliding_block_stop_distance():
+    world = cs.load_scene(os.path.join(SCENES, "sliding_block.yaml"))
+    assert abs(world.settings.dt - 1 / 240) < 1e-15
+    v0, mu = 2.0, 0.5
+    x0 = world.body("block").position[0]
+    for _ in range(240):
+        world.step()
+    b = world.body("block")
+    d = b.position[0] - x0
+    expect = v0 ** 2 / (2 * mu * G)
+    print(f"stop distance {d:.6f} m, closed form {expect:.6f} m, error {100 * (d / expect - 1):.4f} %")
+    assert abs(d / expect - 1) <= 0.005
+    assert np.linalg.norm(b.velocity) < 1e-6                 # stopped, and stays stopped
+    assert abs(b.position[2] - 0.1) < 1e-4                    # neither sank nor jumped
+    assert world.last_solve["residual"] <= 1e-6
+
+
+def _incline(theta_deg):
+    data = _scene("incline.yaml")
+    t = np.radians(theta_deg)
+    n = [float(np.sin(t)), 0.0, float(np.cos(t))]
+    data["bodies"][0]["shape"]["normal"] = n
+    data["bodies"][1]["position"] = [0.1 * n[0], 0.0, 0.1 * n[2]]
+    data["bodies"][1]["orientation"] = [0.0, float(np.sin(t / 2)), 0.0, float(np.cos(t / 2))]
+    return cs.load_scene(data), np.array([np.cos(t), 0.0, -np.sin(t)])   # down-slope direction
+
+
+def test_incline_below_friction_angle_stays():
+    world, down = _incline(20.0)
+    p0 = world.body("block").position.copy()
+    for _ in range(480):   # 2 s
+        world.step()
+    drift = np.linalg.norm(world.body("block").position - p0)
+    print(f"incline 20°: drift {drift * 1e3:.4g} mm in 2 s")
+    assert drift < 1e-4
+
+
+def test_incline_above_friction_angle_slides_with_closed_form_acceleration():
+    theta, mu = 35.0, 0.5
+    world, down = _incline(theta)
+    a_expect = G * (np.sin(np.radians(theta)) - mu * np.cos(np.radians(theta)))
+    p0 = world.body("block").position.copy()
+    ts, ss = [], []
+    for _ in range(240):   # 1 s
+        world.step()
+        ts.append(world.time)
+        ss.append((world.body("block").position - p0) @ down)
+    ts, ss = np.array(ts), np.array(ss)
+    a_fit = np.polyfit(ts, ss, 2)[0] * 2
+    v = world.body("block").velocity @ down
+    print(f"incline 35°: a {a_fit:.5f} (fit), v/t {v / ts[-1]:.5f}, closed form {a_expect:.5f}")
+    assert abs(a_fit / a_expect - 1) <= 0.01
+    assert abs(v / ts[-1] / a_expect - 1) <= 0.01
