@@ -309,7 +309,7 @@ def _split_impulse(world, c, inv_i, dt):
 # ---------------------------------------------------------------------------- penalty
 def _penalty_step(world, dt, m):
     """Spring ``k·depth`` plus damper ``−c·v_n`` along the normal (never pulling), applied as an
-    impulse ``F·dt`` before the exact free drift (symplectic Euler): at rest ``k·depth = m g``."""
+    impulse ``F·dt`` kick before the drift (symplectic Euler): at rest ``k·depth = m g`` exactly."""
     st = world.settings
     s = world.s
     c = narrow.detect(world, 0.0)
@@ -323,8 +323,18 @@ def _penalty_step(world, dt, m):
         lam[:, 0] = force * dt
         solver.apply(rows, s.vel, s.omega, lam)
         world.contacts = _record(c, rows, lam, vn0)
+        # bodies in contact integrate gravity as a kick too (symplectic Euler: x += (v + (F/m + g)dt)dt),
+        # so that rest is exactly k·depth = m g and the spring is stable for sqrt(k/m)·dt < 2;
+        # free bodies keep the exact ballistic step
+        touched = np.zeros(len(world), bool)
+        touched[c.body_a] = True
+        touched[c.body_b] = True
+        shift = np.where((touched & (world.kind == DYNAMIC))[:, None], 0.5 * world.gravity * dt, 0.0)
+        s.vel += shift
+        world._advance_free(dt)
+        s.vel -= shift
     else:
         world.contacts = Contacts.empty()
-    world._advance_free(dt)
+        world._advance_free(dt)
     world.last_solve = {"iterations": 0, "residual": 0.0, "max_penetration": max_pen, "contacts": k,
                         "impacts": 0, "toi": m.toi, "response": m.response}

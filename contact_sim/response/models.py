@@ -176,11 +176,11 @@ def preflight(world, models=None, dt=None):
                 out.append((MassRatioWarning,
                             f"mass ratio {ratio[i, j]:.3g} between {names[i]!r} and {names[j]!r} (above "
                             f"{MASS_RATIO_LIMIT:g}): iterative contact solvers converge slowly"))
-    if m.toi != "swept":
+    if m.toi == "next_step":   # fractional and swept are continuous (see response.toi): nothing passes
         for name, travel, thin in thin_and_fast(world, dt):
             out.append((TunnellingWarning,
                         f"{name!r} moves {travel:.3g} m per step, more than the thinnest size it can meet "
-                        f"({thin:.3g} m), without swept detection (toi {m.toi}): it can pass through"))
+                        f"({thin:.3g} m), without swept or fractional time of impact (toi {m.toi}): it can pass through"))
     if m.response == "penalty":
         em = _effective_masses(world)
         if em is not None:
