@@ -55,6 +55,13 @@ _POINTFIELD_TO_NP = {v: k for k, v in _NP_TO_POINTFIELD.items()}
 
 def point_fields(dtype):
     """``PointField`` list describing a (little-endian) structured numpy dtype."""
+    if dtype == CONTACT_DTYPE:
+        return [PointField(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
+                for f in _CONTACT_POINT_FIELDS]
+    return _point_fields(dtype)
+
+
+def _point_fields(dtype):
     out = []
     for name in dtype.names:
         ftype, offset = dtype.fields[name][:2]
@@ -62,6 +69,9 @@ def point_fields(dtype):
         count = int(np.prod(ftype.shape)) if ftype.shape else 1
         out.append(PointField(name=name, offset=int(offset), datatype=_NP_TO_POINTFIELD[base], count=count))
     return out
+
+
+_CONTACT_POINT_FIELDS = _point_fields(CONTACT_DTYPE)
 
 
 def dtype_from_fields(fields, point_step, big_endian=False):

@@ -1,0 +1,217 @@
+"""Benchmark of the contact_sim ROS 2 node, with the node in its own process.
+
+Measures
+  * tick time p50/p99 (ms) at 100 Hz for scenes of 10, 100 and 500 bodies (a ground plane, the
+    kinematic paddle and dynamic spheres resting on the ground, so every sphere has a contact each
+    tick), read from the node's per-tick ``/diagnostics`` (``tick_time_ms_last``);
+  * pose-to-contacts latency: stamp of a ``body_poses`` message to receipt of the first ``contacts``
+    message stamped at or after it (the first tick that could use it);
+  * ``body_poses`` messages dropped at 100 Hz and 1 kHz input: sent by this script minus
+    ``poses_received`` counted by the node.
+
+Prints a table and writes bench/results/node.csv.
+Run: .venv/bin/python bench/bench_node.py [--seconds 5]
+"""
+import argparse
+import csv
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray
+from domain_coordinator import domain_id
+from geometry_msgs.msg import PoseArray
+from sensor_msgs.msg import PointCloud2
+
+from msg_adapters import conversions as cv
+from msg_adapters.node import DIAG_NAME
+from msg_adapters.testing import Spinner, ros_context, ros_env
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+RESULTS = os.path.join(HERE, "results", "node.csv")
+
+
+def grid_scene(n_bodies, path):
+    """Ground + kinematic paddle + (n_bodies - 2) spheres resting on the ground, 0.3 m apart."""
+    k = n_bodies - 2
+    side = int(np.ceil(np.sqrt(k)))
+    bodies = [{"name": "ground", "kind": "static", "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 0.0}},
+              {"name": "paddle", "kind": "kinematic", "shape": {"type": "box", "size": [0.05, 0.5, 0.3]},
+               "position": [-1.0, 0.0, 0.16]}]
+    for i in range(k):
+        r, c = divmod(i, side)
+        bodies.append({"name": f"ball{i}", "kind": "dynamic", "shape": {"type": "sphere", "radius": 0.1},
+                       "mass": 0.5, "position": [0.3 * c, 0.3 * r, 0.1]})
+    with open(path, "w") as fh:
+        yaml.safe_dump({"name": f"grid_{n_bodies}", "gravity": [0, 0, -9.81],
+                        "settings": {"dt": 0.01}, "bodies": bodies}, fh)
+    return path
+
+
+class Node:
+    def __init__(self, dom, scene, log_path, rate_hz=100.0):
+        self.log = open(log_path, "w")
+        cmd = [sys.executable, "-m", "msg_adapters", "--ros-args", "-p", f"scene:={scene}",
+               "-p", f"rate_hz:={rate_hz}", "-p", "publish_markers:=false", "-p", "diagnostics_period:=0.0",
+               "-p", "tracked_bodies:=[paddle]", "-p", "pose_timeout:=5.0"]
+        self.proc = subprocess.Popen(cmd, env=ros_env(dom), stdout=self.log, stderr=subprocess.STDOUT)
+
+    def stop(self):
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            return self.proc.wait(timeout=10)
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+            self.log.close()
+
+
+class Client:
+    def __init__(self, ctx):
+        self.node = rclpy.create_node("bench_client", context=ctx)
+        self.diag = None
+        self.tick_ms = []
+        self.record = False
+        self.contact_rx = []  # (receipt ns, header stamp ns)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
+        self.node.create_subscription(PointCloud2, "contacts", self._on_contacts, 100)
+        self.pub = self.node.create_publisher(PoseArray, "body_poses", 1000)
+
+    def _on_diag(self, m):
+        d = cv.diagnostics_to_dict(m, DIAG_NAME)
+        if d is None:
+            return
+        self.diag = d
+        if self.record and d["paused"] == "false":
+            self.tick_ms.append(float(d["tick_time_ms_last"]))
+
+    def _on_contacts(self, m):
+        if self.record:
+            self.contact_rx.append((time.time_ns(), cv.stamp_to_ns(m.header.stamp)))
+
+
+def run_scene(n_bodies, seconds, tmp, rows, pose_rates=()):
+    scene = grid_scene(n_bodies, os.path.join(tmp, f"grid_{n_bodies}.yaml"))
+    with domain_id() as dom:
+        os.environ.update(ros_env(dom))
+        node = Node(dom, scene, os.path.join(tmp, f"node_{n_bodies}.log"))
+        try:
+            with ros_context(dom) as ctx:
+                cl = Client(ctx)
+                spin = Spinner(ctx, cl.node)
+                spin.until(lambda: cl.diag is not None and cl.pub.get_subscription_count() > 0, 30, "the node")
+                # warm-up, then tick times at 100 Hz with no input
+                t_end = time.monotonic() + 1.0
+                spin.until(lambda: time.monotonic() > t_end, 5)
+                cl.record = True
+                t_end = time.monotonic() + seconds
+                spin.until(lambda: time.monotonic() > t_end, seconds + 5)
+                cl.record = False
+                ticks = np.array(cl.tick_ms)
+                d = cl.diag
+                rows.append(dict(test="tick_time", bodies=n_bodies, rate_hz=100, samples=len(ticks),
+                                 p50_ms=np.percentile(ticks, 50), p99_ms=np.percentile(ticks, 99),
+                                 max_ms=ticks.max(), overruns=int(d["tick_overruns"]),
+                                 skipped_ticks=int(d["skipped_ticks"]), contacts=int(d["contacts"])))
+                for rate in pose_rates:
+                    rows.append(pose_input(cl, spin, rate, seconds, n_bodies))
+                spin.shutdown()
+                cl.node.destroy_node()
+        finally:
+            rc = node.stop()
+            if rc != 0:
+                print(f"node for {n_bodies} bodies exited with {rc}; log in {tmp}", file=sys.stderr)
+
+
+def pose_input(cl, spin, rate, seconds, n_bodies):
+    """Publish paddle poses at ``rate`` Hz (stamped now) for ``seconds``; count drops and latency."""
+    received0 = int(cl.diag["poses_received"])
+    cl.contact_rx.clear()
+    stamps = []
+    period_ns = int(1e9 / rate)
+    start = time.time_ns()
+    cl.record = True
+    sent = 0
+    n_total = int(seconds * rate)
+
+    def publish_due():
+        nonlocal sent
+        now = time.time_ns()
+        while sent < n_total and now >= start + sent * period_ns:
+            x = -1.0 + 1e-4 * sent
+            cl.pub.publish(cv.posearray_cdr([[x, 0.0, 0.16]], [[0.0, 0.0, 0.0, 1.0]], "world", now))
+            stamps.append(now)
+            sent += 1
+        return sent >= n_total
+
+    # spin with short waits so the publishing keeps its rate
+    deadline = time.monotonic() + seconds + 10
+    while not publish_due():
+        spin.executor.spin_once(timeout_sec=0.0002)
+        if time.monotonic() > deadline:
+            break
+    # the node has counted everything it will ever get once its diagnostics stop changing
+    last = [None, time.monotonic()]
+
+    def settled():
+        v = cl.diag["poses_received"]
+        if v != last[0]:
+            last[:] = [v, time.monotonic()]
+        return time.monotonic() - last[1] > 0.5
+
+    spin.until(settled, 10, "the node to count all poses")
+    cl.record = False
+    received = int(cl.diag["poses_received"]) - received0
+    rx = np.array(cl.contact_rx, dtype=np.int64).reshape(-1, 2)
+    lat = []
+    if len(rx):
+        order = np.argsort(rx[:, 1])
+        hdr, got = rx[order, 1], rx[order, 0]
+        idx = np.searchsorted(hdr, np.array(stamps, np.int64), side="left")
+        ok = idx < len(hdr)
+        lat = (got[idx[ok]] - np.array(stamps, np.int64)[ok]) * 1e-6
+    lat = np.asarray(lat, float)
+    return dict(test=f"poses_{rate}Hz", bodies=n_bodies, rate_hz=100, samples=sent, sent=sent, received=received,
+                dropped=sent - received,
+                latency_p50_ms=np.percentile(lat, 50) if lat.size else np.nan,
+                latency_p99_ms=np.percentile(lat, 99) if lat.size else np.nan)
+
+
+COLUMNS = ["test", "bodies", "rate_hz", "samples", "p50_ms", "p99_ms", "max_ms", "overruns", "skipped_ticks",
+           "contacts", "sent", "received", "dropped", "latency_p50_ms", "latency_p99_ms"]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=5.0, help="measurement window per case")
+    ap.add_argument("--bodies", type=int, nargs="+", default=[10, 100, 500])
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in args.bodies:
+            run_scene(n, args.seconds, tmp, rows, pose_rates=(100, 1000) if n == 100 else ())
+    os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
+    with open(RESULTS, "w", newline="") as fh:
+        w = csv.DictWriter(fh, COLUMNS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in r.items()})
+    print(f"{'test':<14}{'bodies':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}{'overrun':>8}{'contacts':>9}"
+          f"{'sent':>7}{'dropped':>8}{'lat p50':>9}{'lat p99':>9}")
+    for r in rows:
+        def f(k):
+            v = r.get(k, "")
+            return f"{v:.3g}" if isinstance(v, float) else str(v)
+        print(f"{r['test']:<14}{r['bodies']:>7}{f('p50_ms'):>9}{f('p99_ms'):>9}{f('max_ms'):>9}{f('overruns'):>8}"
+              f"{f('contacts'):>9}{f('sent'):>7}{f('dropped'):>8}{f('latency_p50_ms'):>9}{f('latency_p99_ms'):>9}")
+    print(f"wrote {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()
