@@ -159,8 +159,14 @@ def build_world(cfg):
         raise ConfigError(f"parameter scene={cfg['scene']!r}: {exc}") from None
     scene_settings = copy.deepcopy(world.settings)
     apply_model(world, scene_settings, cfg)
+    tracked, idx = resolve_tracked(world, cfg["tracked_bodies"], path)
+    return world, path, tracked, idx, scene_settings
+
+
+def resolve_tracked(world, requested, path):
+    """Names and indices of the tracked bodies (all kinematic bodies when ``requested`` is empty)."""
     names = world.body_names
-    tracked = cfg["tracked_bodies"] or [n for n, k in zip(names, world.kind) if k == 1]
+    tracked = list(requested) or [n for n, k in zip(names, world.kind) if k == 1]
     for n in tracked:
         if n not in names:
             raise ConfigError(f"parameter tracked_bodies: unknown body {n!r} in scene {path} "
@@ -168,7 +174,7 @@ def build_world(cfg):
         if world.kind[names.index(n)] != 1:
             raise ConfigError(f"parameter tracked_bodies: body {n!r} is not kinematic; only kinematic bodies "
                               f"are driven by poses")
-    return world, path, list(tracked), np.array([names.index(n) for n in tracked], np.int64), scene_settings
+    return tracked, np.array([names.index(n) for n in tracked], np.int64)
 
 
 def apply_model(world, scene_settings, cfg):
@@ -276,6 +282,21 @@ class ContactSimNode(Node):
 
     # ------------------------------------------------------------------ input
     def _on_poses(self, data):
+        """Raw-subscription callback; also drains whatever else is queued, so a burst of poses costs
+        one executor round trip instead of one per message (rclpy takes one message per wait)."""
+        self._handle_pose(data)
+        sub = self.sub_poses
+        try:
+            for _ in range(10000):
+                with sub.handle:
+                    info = sub.handle.take_message(sub.msg_type, sub.raw)
+                if info is None:
+                    break
+                self._handle_pose(info[0])
+        except Exception as exc:  # internal rclpy API changed or handle gone: one message per callback
+            self._warn("drain", f"cannot drain body_poses ({type(exc).__name__}: {exc}); taking one per callback")
+
+    def _handle_pose(self, data):
         self.counts["poses_received"] += 1
         try:
             stamp_ns, frame_id, p, q = parse_posearray_cdr(data)
@@ -340,13 +361,19 @@ class ContactSimNode(Node):
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         new_world = None
-        if {p.name for p in params} & {"scene", "tracked_bodies"}:
-            try:
+        changed = {p.name for p in params}
+        try:
+            if "scene" in changed:
                 new_world = build_world(cfg)
-            except ConfigError as exc:
-                self._reject_parameters(params, exc)
-                return SetParametersResult(successful=False, reason=str(exc))
+            elif "tracked_bodies" in changed:  # same world, other bodies: no reload
+                tracked, idx = resolve_tracked(self.world, cfg["tracked_bodies"], self.scene_path)
+        except ConfigError as exc:
+            self._reject_parameters(params, exc)
+            return SetParametersResult(successful=False, reason=str(exc))
         self.cfg = cfg
+        if new_world is None and "tracked_bodies" in changed:
+            self.tracked, self.tracked_idx = tracked, idx
+            self._reset_tracking()
         if new_world is not None:
             self._install_world(*new_world)
             self._publish_names()

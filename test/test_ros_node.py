@@ -210,6 +210,8 @@ def test_bad_parameters_at_run_time_are_rejected_and_counted(running):
     assert world.settings.toi == scene_toi
     assert node.set_parameters([Parameter("substeps", value=3), Parameter("pose_timeout", value=2)])[0].successful
     assert node.cfg["substeps"] == 3 and node.cfg["pose_timeout"] == 2.0
+    assert node.set_parameters([Parameter("tracked_bodies", value=["paddle"])])[0].successful
+    assert node.world is world and node.tracked == ["paddle"]  # no scene reload for that
     t = node.world.time
     spin.until(lambda: node.world.time > t, 5, "ticks with substeps")
     assert node.counts["step_errors"] == 0
