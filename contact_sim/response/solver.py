@@ -183,6 +183,7 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
     friction = mu_s is not None and np.any(mu_s > 0)
     kn = alpha_n * rows.K[:, 0, 0]
     inv_kn = np.where(kn > 0, 1.0 / np.maximum(kn, _TINY), 0.0)
+    inv_kt = None
     if friction:
         kt = rows.K[:, 1:, 1:]
         det = kt[:, 0, 0] * kt[:, 1, 1] - kt[:, 0, 1] * kt[:, 1, 0]
@@ -194,28 +195,37 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
         inv_kt[:, 0, 1] = -kt[:, 0, 1] / safe
         inv_kt[:, 1, 0] = -kt[:, 1, 0] / safe
         inv_kt[~ok] = 0.0
+    # gather each colour's rows once (the sweep below then only does small dense products)
+    dirs = rows.dirs
+    cols = []
+    for idx in rows.colors:
+        cols.append((idx, rows.a[idx], rows.b[idx], dirs[idx], rows.ang_a[idx], rows.ang_b[idx],
+                     rows.ima[idx][:, None, None] * dirs[idx].transpose(0, 2, 1), rows.imb[idx][:, None, None] * dirs[idx].transpose(0, 2, 1),
+                     rows.iang_a[idx].transpose(0, 2, 1), rows.iang_b[idx].transpose(0, 2, 1),
+                     target_n[idx], inv_kn[idx], base_n[idx], rows.K[idx],
+                     inv_kt[idx] if friction else None, mu_s[idx] if friction else None,
+                     mu_d[idx] if friction else None))
     residual = 0.0
     it = 0
     for it in range(1, iterations + 1):
         residual = 0.0
-        for idx in rows.colors:
-            rv = row_velocity(rows, vel, omega, idx)
+        for (idx, a, b, d, anga, angb, lina_t, linb_t, ianga_t, iangb_t, tn, ikn, bn, kk, ikt, mus, mud) in cols:
+            rv = (d @ (vel[a] - vel[b])[:, :, None])[:, :, 0] + (anga @ omega[a][:, :, None])[:, :, 0] \
+                - (angb @ omega[b][:, :, None])[:, :, 0]
             old = lam[idx]
             new = old.copy()
-            # normal
-            cn = alpha_n * rv[:, 0] + (1.0 - alpha_n) * base_n[idx]
-            new[:, 0] = np.maximum(old[:, 0] + (target_n[idx] - cn) * inv_kn[idx], 0.0)
+            cn = alpha_n * rv[:, 0] + (1.0 - alpha_n) * bn
+            new[:, 0] = np.maximum(old[:, 0] + (tn - cn) * ikn, 0.0)
             if friction:
-                # tangential velocity after the normal change (normal/tangent coupling via rotation)
                 dn = new[:, 0] - old[:, 0]
-                vt = rv[:, 1:] + rows.K[idx, 1:, 0] * dn[:, None]
-                trial = old[:, 1:] - np.einsum("kij,kj->ki", inv_kt[idx], vt)
+                vt = rv[:, 1:] + kk[:, 1:, 0] * dn[:, None]
+                trial = old[:, 1:] - (ikt @ vt[:, :, None])[:, :, 0]
                 mag = np.sqrt(np.einsum("ki,ki->k", trial, trial))
-                stick = mag <= mu_s[idx] * new[:, 0]
-                lim = mu_d[idx] * new[:, 0]
+                stick = mag <= mus * new[:, 0]
+                lim = mud * new[:, 0]
                 # sliding: kinetic friction opposes the sliding velocity this contact would have
                 # without its own friction impulse (maximal dissipation), magnitude mu_d·λn
-                free = vt - np.einsum("kij,kj->ki", rows.K[idx, 1:, 1:], old[:, 1:])
+                free = vt - (kk[:, 1:, 1:] @ old[:, 1:, None])[:, :, 0]
                 fmag = np.sqrt(np.einsum("ki,ki->k", free, free))
                 use = fmag > 1e-14
                 dirn = np.where(use[:, None], -free / np.maximum(fmag, _TINY)[:, None],
@@ -223,7 +233,11 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
                 new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
             delta = new - old
             lam[idx] = new
-            apply(rows, vel, omega, delta, idx)
+            dl = delta[:, :, None]
+            vel[a] += (lina_t @ dl)[:, :, 0]
+            vel[b] -= (linb_t @ dl)[:, :, 0]
+            omega[a] += (ianga_t @ dl)[:, :, 0]
+            omega[b] -= (iangb_t @ dl)[:, :, 0]
             if delta.size:
                 residual = max(residual, float(np.abs(delta).max()))
         if residual <= tolerance:
