@@ -193,9 +193,10 @@ def main():
     ap.add_argument("--bodies", type=int, nargs="+", default=[10, 100, 500])
     args = ap.parse_args()
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for n in args.bodies:
-            run_scene(n, args.seconds, tmp, rows, pose_rates=(100, 1000) if n == 100 else ())
+    tmp = tempfile.mkdtemp(prefix="bench_node_")
+    print(f"scenes and node logs in {tmp}")
+    for n in args.bodies:
+        run_scene(n, args.seconds, tmp, rows, pose_rates=(100, 1000) if n == 100 else ())
     os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
     with open(RESULTS, "w", newline="") as fh:
         w = csv.DictWriter(fh, COLUMNS)

@@ -32,6 +32,11 @@ def ros_context(domain_id):
         ctx.try_shutdown()
 
 
+class WaitTimeout(AssertionError):
+    """A condition did not come true in time. Not an ``OSError`` (as ``TimeoutError`` is), which
+    ``domain_coordinator.domain_id()`` would swallow and turn into a confusing RuntimeError."""
+
+
 class Spinner:
     """A single-threaded executor on one context, with ``until(predicate, timeout)``."""
 
@@ -47,7 +52,7 @@ class Spinner:
         deadline = time.monotonic() + timeout
         while not predicate():
             if time.monotonic() > deadline:
-                raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
+                raise WaitTimeout(f"timed out after {timeout} s waiting for {what}")
             self.executor.spin_once(timeout_sec=0.02)
         return True
 
