@@ -35,7 +35,7 @@ from ..shapes import Shape
 from . import bounding, broadphase, narrow
 from .geometry import PolyTable, poly_geom
 
-__all__ = ["collide", "detect_world", "DetectionStats", "RANK"]
+__all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
 
 # shape type -> rank; kernels take A with the higher rank (so a plane or sphere is always B)
 RANK = {"plane": 0, "sphere": 1, "box": 2, "convex": 3, "mesh": 4}
@@ -382,3 +382,34 @@ def _bodies_cached(shapes):
     b = _Bodies(list(shapes))
     _PAIR_CACHE[key] = (shapes, b)
     return b
+
+
+def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_volume="auto"):
+    """Contacts of many given pairs at once (no broad phase): ``(Contacts, DetectionStats)``.
+
+    ``shapes`` list of N shapes (repeat the same object for identical bodies: its geometry is
+    prepared once), ``positions (N, 3)``, ``orientations (N, 4)`` x,y,z,w, ``pairs (K, 2)`` int.
+    ``body_a``/``body_b`` of the result index ``shapes``. Same stages and kernels as ``collide``.
+    """
+    t0 = time.perf_counter()
+    for i, s in enumerate(shapes):
+        if not isinstance(s, Shape) or s.type not in RANK:
+            raise ContactSimError(f"collide_pairs: shapes[{i}] must be a contact_sim shape, got {type(s).__name__}")
+    pos = np.asarray(positions, float).reshape(-1, 3)
+    q = np.asarray(orientations, float).reshape(-1, 4)
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    if len(pos) != len(shapes) or len(q) != len(shapes):
+        raise ContactSimError(f"collide_pairs: {len(shapes)} shapes need {len(shapes)} positions and orientations, "
+                              f"got {len(pos)} and {len(q)}")
+    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(q))):
+        raise ContactSimError("collide_pairs: positions and orientations must be finite (no NaN/inf)")
+    nq = np.linalg.norm(q, axis=1)
+    if np.any(nq < 1e-12):
+        raise ContactSimError(f"collide_pairs: orientation {int(np.argmin(nq))} is a zero quaternion")
+    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(shapes)):
+        raise ContactSimError(f"collide_pairs: pair indices must be in [0, {len(shapes) - 1}]")
+    bodies = _Bodies(list(shapes))
+    st = DetectionStats(bodies=len(shapes), candidate_pairs=len(pairs), bounding_volume=bounding_volume,
+                        margin=float(margin))
+    return _detect(bodies, list(shapes), pos, q / nq[:, None], pairs[:, 0], pairs[:, 1], float(margin),
+                   bounding_volume, st, t0, {"broad": 0.0})

@@ -322,14 +322,20 @@ def poly_poly(ta, ra, pa, Ra, tb, rb, pb, Rb, margin, counters=None):
             sel = g[refA == is_a]
             if sel.size == 0:
                 continue
+            # the incident body's deepest vertex below the reference face is always a candidate, so
+            # the deepest contact of the pair has exactly the SAT depth
             if is_a:
+                j = np.argmin(DA[sel, fa[sel], :], axis=1)
                 res = _face_contacts(ta, ra[sel], VA[sel], NA[sel], dA[sel], fa[sel],
-                                     tb, rb[sel], VB[sel], NB[sel], dB[sel], scale[sel], margin)
+                                     tb, rb[sel], VB[sel], NB[sel], dB[sel], scale[sel], margin,
+                                     VB[sel, j], sepA[sel])
                 k, pt, nref, dep, ft = res
                 out.append((sel[k], pt, -nref, dep, ft))
             else:
+                j = np.argmin(DB[sel, fb[sel], :], axis=1)
                 res = _face_contacts(tb, rb[sel], VB[sel], NB[sel], dB[sel], fb[sel],
-                                     ta, ra[sel], VA[sel], NA[sel], dA[sel], scale[sel], margin)
+                                     ta, ra[sel], VA[sel], NA[sel], dA[sel], scale[sel], margin,
+                                     VA[sel, j], sepB[sel])
                 k, pt, nref, dep, ft = res
                 out.append((sel[k], pt, nref, dep, ft))
     if not out:
@@ -425,7 +431,7 @@ def edge_face_any(V, edges, N, d, VF, loops, eps=1e-12):
     return hit
 
 
-def _face_contacts(tr, rr_, VR, NR, dR, fr, ti, ri, VI, NI, dI, scale, margin):
+def _face_contacts(tr, rr_, VR, NR, dR, fr, ti, ri, VI, NI, dI, scale, margin, sup_u, sup_sep):
     """Contact manifold on the reference face ``fr (n,)`` of body R with the most anti-parallel
     face of body I: the intersection of the two face polygons in the reference plane, found with
     the lecture's tests in 2-D (a vertex of one inside the other, edge crossings), keeping the
@@ -474,13 +480,12 @@ def _face_contacts(tr, rr_, VR, NR, dR, fr, ti, ri, VI, NI, dI, scale, margin):
     u3 = Q[:, None, :, :] + beta[..., None] * eQ[:, None, :, :]
     sep3 = _dot(u3, nr) - dref[:, None, None]
     M1, M2 = P.shape[1], Q.shape[1]
-    U = np.concatenate([u1, u2, u3.reshape(n, M1 * M2, 3)], axis=1)
-    SEP = np.concatenate([sep1, sep2, sep3.reshape(n, M1 * M2)], axis=1)
-    VAL = np.concatenate([in1, in2, in3.reshape(n, M1 * M2)], axis=1) & (SEP <= margin)
-    none = ~VAL.any(axis=1)
-    if none.any():   # round-off left nothing: fall back to the deepest incident vertex
-        j = np.argmin(np.where(True, sep1, 0), axis=1)
-        VAL[none, j[none]] = True
+    U = np.concatenate([sup_u[:, None, :], u1, u2, u3.reshape(n, M1 * M2, 3)], axis=1)
+    SEP = np.concatenate([sup_sep[:, None], sep1, sep2, sep3.reshape(n, M1 * M2)], axis=1)
+    VAL = np.concatenate([np.zeros((n, 1), bool), in1, in2, in3.reshape(n, M1 * M2)], axis=1) & (SEP <= margin)
+    # the support point only when the clipped patch misses the deepest penetration (deep overlaps)
+    best = np.where(VAL, SEP, np.inf).min(axis=1)
+    VAL[:, 0] = best > sup_sep + tol
     pts = U - 0.5 * SEP[..., None] * nref[:, None, :]
     keep = reduce_manifold(pts, -SEP, VAL, nref)
     count = keep.sum(axis=1)
