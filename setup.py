@@ -2,7 +2,7 @@
 import os
 from glob import glob
 
-from setuptools import setup
+from setuptools import find_packages, setup
 
 PACKAGE = "contact_sim"
 
@@ -20,7 +20,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     description="Collision detection and contact response for rigid bodies in pure Python, with a ROS 2 node",
-    packages=["contact_sim", "contact_sim.collision", "msg_adapters"],
+    packages=find_packages(include=["contact_sim", "contact_sim.*", "msg_adapters", "msg_adapters.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),

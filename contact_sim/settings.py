@@ -33,6 +33,8 @@ class Settings:
     bounding_volume: str = "auto"     # sphere | aabb | obb | slabs | hull | auto
     combine: str = "average"          # how two materials' coefficients combine
     quaternion_tolerance: float = 1e-3  # |‖q‖ − 1| accepted (and normalised) in given poses
+    split_beta: float = 0.5           # fraction of a penetration removed per step (split impulse)
+    mass_ratio_limit: float = 100.0   # preflight warning above this mass ratio between touching bodies
     penalty: Penalty = field(default_factory=Penalty)
 
     def as_dict(self):
@@ -118,6 +120,10 @@ def parse_settings(d, path="settings"):
         s.combine = _choice(d["combine"], f"{path}.combine", COMBINE_RULES)
     if "quaternion_tolerance" in d:
         s.quaternion_tolerance = _number(d["quaternion_tolerance"], f"{path}.quaternion_tolerance", lo=0, lo_open=True)
+    if "split_beta" in d:
+        s.split_beta = _number(d["split_beta"], f"{path}.split_beta", lo=0, hi=1)
+    if "mass_ratio_limit" in d:
+        s.mass_ratio_limit = _number(d["mass_ratio_limit"], f"{path}.mass_ratio_limit", lo=1)
     if "penalty" in d:
         p = d["penalty"]
         check_keys(p, f"{path}.penalty", {"stiffness", "damping"})
@@ -145,16 +151,22 @@ def parse_material(d, path):
 
 
 def combine(a, b, rule):
-    """Combine two materials' coefficients ``(K,)`` elementwise. Equal inputs give exactly that
-    value for ``average``, ``min`` and ``max`` (``multiply`` squares them, as Bullet does)."""
+    """Combine two materials' coefficients ``(K,)`` elementwise by ``rule`` (average, min, max,
+    multiply, geometric). Two equal coefficients always give exactly that value — under
+    ``multiply`` too, where Bullet would square them — so a material meeting itself behaves as
+    its own coefficients say."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
     if rule == "average":
-        return 0.5 * (a + b)
-    if rule == "min":
-        return np.minimum(a, b)
-    if rule == "max":
-        return np.maximum(a, b)
-    if rule == "multiply":
-        return a * b
-    if rule == "geometric":
-        return np.where(a == b, a, np.sqrt(a * b))
-    raise ValueError(f"unknown combine rule {rule!r}")
+        out = 0.5 * (a + b)
+    elif rule == "min":
+        out = np.minimum(a, b)
+    elif rule == "max":
+        out = np.maximum(a, b)
+    elif rule == "multiply":
+        out = a * b
+    elif rule == "geometric":
+        out = np.sqrt(a * b)
+    else:
+        raise ValueError(f"unknown combine rule {rule!r}")
+    return np.where(a == b, a, out)

@@ -30,11 +30,11 @@ import numpy as np
 
 from . import dynamics
 from .contacts import Contacts
+from .settings import combine
 from .response import models as _models
 from .response import narrow, solver
 
 DYNAMIC = 2
-SPLIT_BETA = 0.5          # fraction of the penetration removed per step by the pseudo-velocities
 FRACTIONAL_TOUCH = 1e-12  # m: a pair this close counts as touching after an exact time of impact
 
 
@@ -43,15 +43,18 @@ def describe_models(world):
     return _models.describe(world)
 
 
+def forget(world):
+    """Drop what the stepper carries between steps (warm starts, preflight done): after a reset."""
+    world._cs_warm = None
+    world._cs_preflight_dt = None
+
+
 def step(world, dt):
     """Advance ``world`` by ``dt`` (already validated, > 0)."""
     m = _models.choose(world, dt)
     if getattr(world, "_cs_preflight_dt", None) != dt:
         world._cs_preflight_dt = dt
         _models.warn_preflight(world, m, dt)
-    if getattr(world, "_cs_warm_time", -np.inf) > world.time:   # world was reset
-        world._cs_warm = None
-    world._cs_warm_time = world.time
     if m.response == "penalty":
         _penalty_step(world, dt, m)
     else:
@@ -71,20 +74,13 @@ def _coefficients(world, c, m):
     """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``."""
     rule = world.settings.combine
     a, b = c.body_a, c.body_b
-    e = _combine(world.restitution[a], world.restitution[b], rule)
+    e = combine(world.restitution[a], world.restitution[b], rule)
     if not m.friction or m.response == "kinematic":
         z = np.zeros(len(a))
         return e, z, z
-    mu_d = _combine(world.friction[a], world.friction[b], rule)
-    mu_s = np.maximum(_combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
+    mu_d = combine(world.friction[a], world.friction[b], rule)
+    mu_s = np.maximum(combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
     return e, mu_s, mu_d
-
-
-def _combine(x, y, rule):
-    from .settings import combine
-
-    out = combine(x, y, rule)
-    return np.where(x == y, x, out)   # same material → exactly that material's value
 
 
 def _rows(world, c, inv_inertia):
@@ -291,7 +287,7 @@ def _move(world, dx, dtheta):
 
 
 def _split_impulse(world, c, inv_i, dt):
-    """Pseudo-velocities ``(vp, wp) (N,3)`` removing ``SPLIT_BETA`` of each penetration over ``dt``
+    """Pseudo-velocities ``(vp, wp) (N,3)`` removing ``settings.split_beta`` of each penetration over ``dt``
     (normal rows only, non-negative), or ``None`` when nothing penetrates."""
     pen = np.flatnonzero(c.depth > 0)
     if pen.size == 0:
@@ -301,7 +297,7 @@ def _split_impulse(world, c, inv_i, dt):
     vp = np.zeros_like(world.s.vel)
     wp = np.zeros_like(world.s.omega)
     st = world.settings
-    solver.solve(rows, vp, wp, target_n=SPLIT_BETA * cp.depth / dt, iterations=st.solver_iterations,
+    solver.solve(rows, vp, wp, target_n=st.split_beta * cp.depth / dt, iterations=st.solver_iterations,
                  tolerance=st.solver_tolerance)
     return vp, wp
 

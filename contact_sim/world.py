@@ -397,6 +397,9 @@ class World:
             "shapes: " + ", ".join(f"{v} {k}" for k, v in sorted(shapes.items())),
             f"gravity {self.gravity.tolist()} m/s², dt {self.settings.dt:.6g} s",
         ]
+        from . import stepper
+
+        lines += stepper.describe_models(self)
         return "\n".join(lines)
 
     # ------------------------------------------------------------------ reset
@@ -412,3 +415,6 @@ class World:
         self.s = state.copy()
         self.time = t
         self.contacts = Contacts.empty()
+        from . import stepper
+
+        stepper.forget(self)

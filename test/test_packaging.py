@@ -20,8 +20,10 @@ def test_package_xml_is_format3_ament_python(repo):
 
 
 def test_ci_runs_the_readme_test_command(repo):
-    readme = open(os.path.join(repo, "README.md")).read()
-    ci = open(os.path.join(repo, ".ci", "run")).read()
+    with open(os.path.join(repo, "README.md")) as fh:
+        readme = fh.read()
+    with open(os.path.join(repo, ".ci", "run")) as fh:
+        ci = fh.read()
     assert "make test" in readme and "make run" in readme
     commands = [line.strip() for line in ci.splitlines() if line.strip() and not line.lstrip().startswith("#")]
     assert commands[-1] == "make test"

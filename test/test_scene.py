@@ -154,10 +154,9 @@ def test_same_material_combines_to_itself():
     from contact_sim.settings import COMBINE_RULES, combine
 
     e = np.array([0.8, 0.3, 0.1, 0.0, 1.0, 0.7071])
-    for rule in COMBINE_RULES:
-        if rule == "multiply":
-            continue  # Bullet's rule squares equal coefficients — documented, not our default
+    for rule in COMBINE_RULES:  # multiply too: Bullet's rule would square them
         assert np.array_equal(combine(e, e, rule), e), rule
+    assert combine(np.array([0.5]), np.array([0.8]), "multiply")[0] == 0.4
 
 
 def test_shipped_scenes_all_load(scenes_dir):

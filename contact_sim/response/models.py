@@ -11,7 +11,6 @@ import numpy as np
 
 from ..shapes import Plane, Sphere
 
-MASS_RATIO_LIMIT = 100.0      # above this between bodies that can touch, iterative solvers struggle
 PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the explicit spring is near its stability edge (2)
 FRACTIONAL_AUTO_MAX_BODIES = 16
 
@@ -29,7 +28,7 @@ class TunnellingWarning(ContactModelWarning):
 
 
 class MassRatioWarning(ContactModelWarning):
-    """Mass ratio between two bodies that can touch is above ``MASS_RATIO_LIMIT``."""
+    """Mass ratio between two bodies that can touch is above ``settings.mass_ratio_limit``."""
 
 
 @dataclass
@@ -169,13 +168,14 @@ def preflight(world, models=None, dt=None):
         dyn2 = touch & (world.kind == 2)[:, None] & (world.kind == 2)[None, :]
         if dyn2.any():
             mass = world.mass
-            ratio = np.where(dyn2, mass[:, None] / mass[None, :], 0.0)
+            ratio = np.divide(mass[:, None], mass[None, :], out=np.zeros(dyn2.shape), where=dyn2)
             k = np.argmax(ratio)
             i, j = np.unravel_index(k, ratio.shape)
-            if ratio[i, j] > MASS_RATIO_LIMIT:
+            limit = world.settings.mass_ratio_limit
+            if ratio[i, j] > limit:
                 out.append((MassRatioWarning,
                             f"mass ratio {ratio[i, j]:.3g} between {names[i]!r} and {names[j]!r} (above "
-                            f"{MASS_RATIO_LIMIT:g}): iterative contact solvers converge slowly"))
+                            f"{limit:g}): iterative contact solvers converge slowly"))
     if m.toi == "next_step":   # fractional and swept are continuous (see response.toi): nothing passes
         for name, travel, thin in thin_and_fast(world, dt):
             out.append((TunnellingWarning,
