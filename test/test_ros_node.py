@@ -16,6 +16,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import PointCloud2  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
+from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 from msg_adapters import conversions as cv  # noqa: E402
 from msg_adapters.node import DIAG_NAME, ConfigError, ContactSimNode, main  # noqa: E402
@@ -37,6 +38,7 @@ class Client:
         self.node.create_subscription(PoseArray, "body_states", self._on_states, 10)
         self.node.create_subscription(PointCloud2, "contacts", self._on_contacts, 10)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        self.node.create_subscription(MarkerArray, "contact_markers", lambda m: self.last.__setitem__("markers", m), 10)
         self.poses = self.node.create_publisher(PoseArray, "body_poses", 10)
         self.raw = self.node.create_publisher(PoseArray, "body_poses", 10)
         self.reset = self.node.create_client(Trigger, "/contact_sim/reset")
@@ -102,6 +104,9 @@ def test_outputs_services_and_integer_for_double_parameter(running):
     states = client.last["states"]
     assert len(states.poses) == 3 and states.header.frame_id == "world"
     assert states.header.stamp.sec > 0  # stamped from the node clock
+    spin.until(lambda: "markers" in client.last, 5, "contact markers (publish_markers is on)")
+    markers = client.last["markers"].markers
+    assert markers[0].action == Marker.DELETEALL and markers[1].type == Marker.SPHERE_LIST
 
     r = spin.call(client.step, Trigger.Request())
     assert not r.success and "not paused" in r.message
