@@ -29,7 +29,6 @@ from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
 import contact_sim
-from contact_sim import quat as cs_quat
 from contact_sim.settings import parse_settings
 
 from .conversions import (CdrError, PoseError, contact_markers, contacts_to_pointcloud2, diagnostic_array,
@@ -479,8 +478,7 @@ class ContactSimNode(Node):
     # ------------------------------------------------------------------ output
     def body_poses(self):
         """Body-frame origins (N, 3) and orientations (N, 4) of all bodies, vectorised."""
-        w = self.world
-        return w.s.pos - cs_quat.rotate(w.s.quat, w.com_local), w.s.quat
+        return self.world.poses()
 
     def _publish_states(self, now_ns):
         p, q = self.body_poses()
