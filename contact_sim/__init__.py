@@ -10,6 +10,7 @@ Quick start::
 
 The engine depends on numpy, scipy, trimesh and PyYAML only; it never imports ROS.
 """
+from .collision import DetectionStats, collide
 from .contacts import FEATURES, Contacts
 from .errors import ContactSimError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
@@ -20,7 +21,8 @@ from .world import Body, World
 __version__ = "0.1.0"
 
 __all__ = [
-    "Body", "Box", "ContactSimError", "Contacts", "Convex", "FEATURES", "Material", "Plane", "SceneError",
+    "Body", "Box", "ContactSimError", "Contacts", "Convex", "DetectionStats", "FEATURES", "Material", "Plane",
+    "SceneError", "collide",
     "Settings", "Sphere", "TriMesh", "World", "default_scene_path", "list_scenes", "load_scene",
     "resolve_scene",
 ]

@@ -14,9 +14,9 @@ BODY_KEYS = {"name", "kind", "model", "shape", "mass", "density", "position", "o
 SHAPE_KEYS = {
     "plane": {"type", "normal", "offset"},
     "sphere": {"type", "radius"},
-    "box": {"type", "size"},
-    "convex": {"type", "points", "file", "scale"},
-    "mesh": {"type", "vertices", "faces", "file", "scale"},
+    "box": {"type", "size", "slab_normals"},
+    "convex": {"type", "points", "file", "scale", "slab_normals"},
+    "mesh": {"type", "vertices", "faces", "file", "scale", "slab_normals"},
 }
 
 
@@ -140,7 +140,18 @@ def _vec(value, n, path):
 
 
 def parse_shape(d, path, base_dir="."):
-    """A shape from its scene mapping (``{type: box, size: [...]}``), errors naming ``path``."""
+    """A shape from its scene mapping (``{type: box, size: [...]}``), errors naming ``path``.
+    ``slab_normals: [[x, y, z], ...]`` sets the bounding-slab directions of a polyhedron."""
+    shape = _parse_shape(d, path, base_dir)
+    if isinstance(d, dict) and "slab_normals" in d:
+        try:
+            shape.with_slabs(d["slab_normals"], name=path)
+        except ContactSimError as exc:
+            raise _as_scene_error(exc) from None
+    return shape
+
+
+def _parse_shape(d, path, base_dir):
     if not isinstance(d, dict) or "type" not in d:
         raise SceneError(f"{path}.type", f"required: one of {', '.join(SHAPE_KEYS)}")
     t = d["type"]

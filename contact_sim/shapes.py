@@ -137,6 +137,33 @@ class Polyhedron(Shape):
     def aabb_local(self):
         return self.vertices.min(axis=0), self.vertices.max(axis=0)
 
+    def translated(self, offset):
+        """A copy moved by ``offset (3,)`` (puts a body's origin at its centre of mass). Geometry is
+        shifted, not recomputed: no second qhull run, faces and normals shared."""
+        import copy
+
+        off = np.asarray(offset, float)
+        out = copy.copy(self)
+        out.vertices = self.vertices + off
+        if self.convex:
+            out.plane_offsets = self.plane_offsets + self.plane_normals @ off
+        for attr in ("_hull", "_mesh"):
+            if hasattr(self, attr):
+                setattr(out, attr, getattr(self, attr).copy().apply_translation(off))
+        out.__dict__.pop("_cs_bounds", None)  # bounding volumes are cached per shape: rebuild for the copy
+        return out
+
+    def with_slabs(self, normals, name="shape"):
+        """Set the bounding-slab directions ``(K, 3)`` (each a plane-pair normal) used when the
+        bounding volume is ``slabs``; returns ``self``."""
+        n = _check_points(normals, f"{name}.slab_normals", 1)
+        length = np.linalg.norm(n, axis=1)
+        if np.any(length < _TINY):
+            raise ContactSimError(f"{name}.slab_normals: normal {int(np.argmin(length))} is zero")
+        self.slab_normals = n / length[:, None]
+        self.__dict__.pop("_cs_bounds", None)
+        return self
+
     def thinnest(self):
         if self.convex:
             # width of a convex body: smallest distance between a face plane and the farthest vertex
@@ -238,9 +265,6 @@ class Convex(Polyhedron):
         m = density * mp["volume"]
         return m, np.asarray(mp["center_mass"], float), np.asarray(mp["inertia"], float) * density
 
-    def translated(self, offset):
-        """The same hull moved by ``offset (3,)`` (used to put the body origin at the centre of mass)."""
-        return Convex(self.vertices + np.asarray(offset, float))
 
     def __repr__(self):
         return f"Convex({len(self.vertices)} vertices, {len(self.plane_normals)} faces)"
@@ -289,16 +313,14 @@ class TriMesh(Polyhedron):
 
     def mass_properties(self, density):
         if not self.watertight:
-            raise ContactSimError("mesh: not closed (watertight), so it has no volume or inertia; "
+            raise ContactSimError("mesh is not closed (watertight), so it has no volume or inertia; "
                                   "make the body static or kinematic, or use a convex shape")
         mp = self._mesh.mass_properties
         if mp["volume"] <= 0:
-            raise ContactSimError("mesh: faces wind inwards (negative volume); flip them")
+            raise ContactSimError("mesh faces wind inwards (negative volume); flip them")
         m = density * mp["volume"]
         return m, np.asarray(mp["center_mass"], float), np.asarray(mp["inertia"], float) * density
 
-    def translated(self, offset):
-        return TriMesh(self.vertices + np.asarray(offset, float), self.faces)
 
     def __repr__(self):
         return f"TriMesh({len(self.vertices)} vertices, {len(self.faces)} faces)"

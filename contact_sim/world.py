@@ -189,7 +189,11 @@ class World:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
         elif mass is not None or density is not None:
             self._positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
-        centered = shape.translated(-com) if np.any(com != 0) else shape
+        # centre the geometry on the centre of mass (round-off-sized offsets are not worth a copy)
+        scale = max(float(np.ptp(getattr(shape, "vertices", np.zeros((1, 3))), axis=0).max()), 1e-12)
+        centered = shape.translated(-com) if np.abs(com).max() > 1e-12 * scale else shape
+        if centered is shape:
+            com = np.zeros(3)
 
         rotates = kind == "dynamic" and model == "rigid"
         if rotates:

@@ -173,3 +173,25 @@ def test_default_scene_has_several_shapes_on_a_ground_plane():
     types = {s.type for s in w.user_shapes}
     assert {"plane", "sphere", "box", "convex", "mesh"} <= types
     assert int(np.sum(w.kind == 2)) >= 4
+
+
+def test_slab_normals_scene_key():
+    d = scene(bodies__2__shape={"type": "box", "size": [1, 2, 3], "slab_normals": [[1, 1, 0], [0, 0, 2]]})
+    w = cs.load_scene(d)
+    n = w.shapes[2].slab_normals
+    assert np.allclose(n, [[2 ** -0.5, 2 ** -0.5, 0], [0, 0, 1]], atol=1e-15)
+    with pytest.raises(cs.SceneError, match=r"bodies\[2\]\.shape\.slab_normals: normal 1 is zero"):
+        cs.load_scene(scene(bodies__2__shape={"type": "box", "size": [1, 2, 3], "slab_normals": [[1, 0, 0], [0, 0, 0]]}))
+
+
+def test_off_centre_convex_geometry_is_shifted_not_rebuilt():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [0, 0, 3]], float) + 5.0
+    shape = cs.Convex(pts)
+    w = cs.World()
+    w.add_body("t", shape, mass=1.0)
+    centred = w.shapes[0]
+    com = w.body("t").center_of_mass
+    assert np.allclose(centred.vertices, shape.vertices - com, atol=1e-14)
+    # each face plane moved with the vertices: every vertex still on or inside every plane
+    assert np.all(centred.vertices @ centred.plane_normals.T <= centred.plane_offsets + 1e-12)
+    assert np.allclose(centred._hull.center_mass, 0, atol=1e-12)
