@@ -33,9 +33,13 @@ from .contacts import Contacts
 from .settings import combine
 from .response import models as _models
 from .response import narrow, solver
+from .response import toi as toi_mod
 
 DYNAMIC = 2
 FRACTIONAL_TOUCH = 1e-12  # m: a pair this close counts as touching after an exact time of impact
+IMPACT_SPEED_FRACTION = 1e-3  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
+MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
+SOLVER_METHOD = "auto"    # direct (small) / jacobi (large); "gs" or "jacobi" force one (benchmarks)
 
 
 def describe_models(world):
@@ -93,31 +97,81 @@ def _gravity(world):
     return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
 
 
-def _warm_keys(world, c, cell=2e-3):
-    """Integer keys ``(K,5)`` identifying a contact across steps: pair and its point in A's frame."""
+def _local_points(world, c):
+    """Contact points ``(K,3)`` in body A's frame (what identifies a contact across steps)."""
     from . import quat
 
     s = world.s
-    local = quat.rotate(quat.conj(s.quat[c.body_a]), c.point - s.pos[c.body_a])
-    return np.column_stack([c.body_a, c.body_b, np.floor(local / cell).astype(np.int64)])
+    return quat.rotate(quat.conj(s.quat[c.body_a]), c.point - s.pos[c.body_a])
 
 
-def _warm_lookup(world, keys):
-    """Previous step's resting impulses per unit time ``(K,3)`` for matching keys (else 0)."""
-    old = getattr(world, "_cs_warm", None)
-    out = np.zeros((len(keys), 3))
-    if old is None or len(keys) == 0 or len(old[0]) == 0:
+def _extent(world):
+    """Per-body size ``(N,)`` (bounding radius; inf for planes): the scale of matching tolerances."""
+    ext = getattr(world, "_cs_extent", None)
+    if ext is None or len(ext) != len(world):
+        ext = np.array([toi_mod._extent(sh) for sh in world.shapes])
+        world._cs_extent = ext
+    return ext
+
+
+def _match(world, a0, b0, p0, a1, b1, p1):
+    """For each new contact ``(a1, b1, p1 (K1,3))`` the index of the old contact ``(a0, b0, p0 (K0,3))``
+    of the same pair whose point in A's frame is nearest, within ``MATCH_FRACTION`` of the smaller
+    body's size; ``-1`` when none. Each old contact is claimed at most once (``(K1,) int``)."""
+    out = np.full(len(a1), -1, np.int64)
+    if len(a0) == 0 or len(a1) == 0:
         return out
-    okeys, orate = old
-    allk = np.concatenate([okeys, keys])
-    _, inv = np.unique(allk, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    table = np.full(inv.max() + 1, -1)
-    table[inv[: len(okeys)]] = np.arange(len(okeys))
-    hit = table[inv[len(okeys):]]
-    ok = hit >= 0
-    out[ok] = orate[hit[ok]]
+    from scipy.spatial import cKDTree
+
+    ext = _extent(world)
+    size = np.minimum(ext[a1], ext[b1])
+    scale = float(np.max(np.abs(np.concatenate([p0, p1])))) + 1.0
+    n = len(world)
+    k0 = (a0 * n + b0).astype(float) * (8.0 * scale)
+    k1 = (a1 * n + b1).astype(float) * (8.0 * scale)
+    tree = cKDTree(np.column_stack([k0, p0]))
+    dist, idx = tree.query(np.column_stack([k1, p1]))
+    ok = np.isfinite(dist) & (dist <= MATCH_FRACTION * size)
+    cand = np.flatnonzero(ok)
+    if cand.size:
+        order = cand[np.argsort(dist[cand], kind="stable")]
+        _, first = np.unique(idx[order], return_index=True)
+        keep = order[first]
+        out[keep] = idx[keep]
     return out
+
+
+def _warm_lookup(world, c, local):
+    """Previous step's resting impulses per unit time ``(K,3)`` (normal, tangent in the fixed
+    per-contact frame of ``_to_world_tangent``) for the contacts ``c`` that match one (else 0)."""
+    old = getattr(world, "_cs_warm", None)
+    out = np.zeros((len(c), 3))
+    if old is None or len(c) == 0 or len(old[0]) == 0:
+        return out
+    a0, b0, p0, rate = old
+    hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
+    ok = hit >= 0
+    out[ok] = rate[hit[ok]]
+    return out
+
+
+def _merge_records(world, records):
+    """One row per contact point for the whole step: contacts of the sub-steps (``[(Contacts,
+    local (k,3))]``) that are the same point (same pair, same place on A) are merged, keeping the
+    latest geometry and the sum of the impulses."""
+    if not records:
+        return Contacts.empty()
+    acc, loc = records[0]
+    for c, local in records[1:]:
+        hit = _match(world, acc.body_a, acc.body_b, loc, c.body_a, c.body_b, local)
+        ok = hit >= 0
+        for name in ("normal_impulse", "friction_impulse", "impulse"):
+            getattr(c, name)[ok] += getattr(acc, name)[hit[ok]]
+        keep = np.ones(len(acc), bool)
+        keep[hit[ok]] = False
+        acc = Contacts.concat([acc.select(keep), c])
+        loc = np.concatenate([loc[keep], local])
+    return acc
 
 
 def _record(c, rows, lam, vn0):
@@ -131,12 +185,25 @@ def _record(c, rows, lam, vn0):
 
 # ---------------------------------------------------------------------------- impulse / kinematic
 def _impulse_step(world, dt, m):
+    """One step of the impulse (or kinematic) response. Per sub-step (split at times of impact):
+    detect once, build the constraint rows once, then
+
+    * impacts: contacts that touch and approach faster than ``IMPACT_SPEED_FRACTION·|g|·dt`` with a
+      restitution > 0 get the instantaneous impulses of the lecture (with every touching contact in
+      the same solve, target ``-e·v_n``);
+    * resting (all contacts within the margin): the impulse of a constant force over the rest of
+      the step ``T`` such that the *end* normal velocity is at least ``min(depth,0)/T`` (never
+      approaching; a gap may close exactly), friction sticking at the end or kinetic; warm
+      started from the previous step's matched contacts;
+    * split impulse: pseudo-velocities remove ``split_beta`` of each penetration, then are dropped.
+    """
     st = world.settings
     s = world.s
     margin = st.contact_margin
     exact_toi = m.toi in ("fractional", "swept")
     touch_eps = FRACTIONAL_TOUCH if exact_toi else margin
-    v_rest = max(np.linalg.norm(world.gravity) * dt, 1e-3)
+    gdt = float(np.linalg.norm(world.gravity)) * dt
+    v_imp = IMPACT_SPEED_FRACTION * gdt
     dyn = world.kind == DYNAMIC
     rotating = dyn & ~world.particle
     g = _gravity(world)
@@ -145,80 +212,80 @@ def _impulse_step(world, dt, m):
     records = []
     iters, residual, max_pen = 0, 0.0, 0.0
     pseudo = None
-    warm_out = (np.zeros((0, 5), np.int64), np.zeros((0, 3)))
+    warm_out = None
     first = True
+    inv_i = _inv_inertia(world, m)
     while True:
         c = narrow.detect(world, margin)
         k = len(c)
-        dv_rest = np.zeros_like(s.vel)
-        dw_rest = np.zeros_like(s.omega)
-        lam2 = np.zeros((0, 3))
-        rest_idx = np.zeros(0, np.int64)
+        dv_rest = None
+        dw_rest = None
         exclude = set()
         if k:
             if first:
                 max_pen = max(max_pen, float(c.depth.max()))
-            inv_i = _inv_inertia(world, m)
+            else:
+                inv_i = _inv_inertia(world, m)
             rows = _rows(world, c, inv_i)
+            local = _local_points(world, c)
             e, mu_s, mu_d = _coefficients(world, c, m)
+            fr = m.friction and m.response != "kinematic"
             vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
             lam = np.zeros((k, 3))
             touching = c.depth >= -touch_eps
-            approaching = touching & (vn0 < 0)
-            if approaching.any():
+            impact = touching & (vn0 < -v_imp) & (e > 0)
+            if not m.resting:
+                impact = touching & (vn0 < 0)
+            if impact.any():
                 ti = np.flatnonzero(touching)
-                r1 = _rows(world, c.select(ti), inv_i)
+                r1 = rows.select(ti)
                 target = np.where(vn0[ti] < 0, -e[ti] * vn0[ti], 0.0)
-                res = solver.solve(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti], mu_d=mu_d[ti],
-                                   iterations=st.solver_iterations, tolerance=st.solver_tolerance)
-                lam[ti] += _to_basis(res.impulse, r1, rows, ti)
+                res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
+                                        mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
+                                        tolerance=st.solver_tolerance, method=SOLVER_METHOD)
+                lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
-            vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
-            resting = (c.depth >= -margin) & (vn1 >= -v_rest)
-            if m.resting and resting.any():
-                rest_idx = np.flatnonzero(resting)
-                cr = c.select(rest_idx)
-                r2 = _rows(world, cr, inv_i)
+            if m.resting:
                 v_end = s.vel + g * t_left
                 w_end = s.omega.copy()
                 v_start_end = v_end.copy()
                 w_start_end = w_end.copy()
-                base = solver.row_velocity(r2, s.vel, s.omega)[:, 0]
-                target = np.minimum(cr.depth, 0.0) / t_left   # close a gap, never open one
-                keys = _warm_keys(world, cr)
-                warm_rate = _warm_lookup(world, keys)
-                warm = _project_warm(warm_rate * t_left, r2, mu_d[rest_idx])
-                res = solver.solve(r2, v_end, w_end, target_n=target, alpha_n=0.5, base_n=base,
-                                   mu_s=mu_s[rest_idx], mu_d=mu_d[rest_idx], iterations=st.solver_iterations,
-                                   tolerance=st.solver_tolerance, warm=warm)
+                target = np.minimum(c.depth, 0.0) / t_left   # close a gap, never open one
+                warm_rate = _warm_lookup(world, c, local)
+                warm = _project_warm(warm_rate * t_left, rows, mu_d)
+                res = solver.solve_auto(rows, v_end, w_end, target_n=target, mu_s=mu_s if fr else None,
+                                        mu_d=mu_d if fr else None, iterations=st.solver_iterations,
+                                        tolerance=st.solver_tolerance, warm=warm, method=SOLVER_METHOD)
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
                 lam2 = res.impulse
                 dv_rest = v_end - v_start_end
                 dw_rest = w_end - w_start_end
-                warm_out = (keys, _to_world_tangent(lam2, r2) / t_left)
+                warm_out = (c.body_a, c.body_b, local, _to_world_tangent(lam2, rows) / t_left)
             if first:
-                pseudo = _split_impulse(world, c, inv_i, dt)
-            exclude = {(int(a), int(b)) for a, b in zip(c.body_a[touching | resting], c.body_b[touching | resting])}
+                pseudo = _split_impulse(world, c, rows, dt)
+            near = touching | (c.depth >= -margin)
+            exclude = {(int(a), int(b)) for a, b in zip(c.body_a[near], c.body_b[near])} if exact_toi else set()
             exclude |= {(b, a) for a, b in exclude}
         first = False
         tau = t_left
         if exact_toi and events < st.max_impacts_per_step:
-            from .response import toi
-
-            acc = g + dv_rest / t_left
-            motion = toi.Motion(world, acc, rotating)
-            ev, pair = toi.earliest_event(world, motion, t_left, exclude, swept=m.toi == "swept")
+            acc = g if dv_rest is None else g + dv_rest / t_left
+            motion = toi_mod.Motion(world, acc, rotating)
+            ev, pair = toi_mod.earliest_event(world, motion, t_left, exclude, swept=m.toi == "swept")
             if ev < t_left:
                 tau = ev
                 events += 1
         frac = tau / t_left
         if k:
-            if len(rest_idx):
-                lam[rest_idx] += _to_basis(lam2 * frac, r2, rows, rest_idx)
-            records.append(_record(c, rows, lam, vn0))
-        _advance(world, tau, 0.5 * dv_rest * frac, 0.5 * dw_rest * frac)
+            if dv_rest is not None:
+                lam += lam2 * frac
+            records.append((_record(c, rows, lam, vn0), local))
+        if dv_rest is None:
+            world._advance_free(tau)
+        else:
+            _advance(world, tau, 0.5 * dv_rest * frac, 0.5 * dw_rest * frac)
         if frac >= 1.0:
             break
         t_left -= tau
@@ -226,7 +293,7 @@ def _impulse_step(world, dt, m):
         vp, wp = pseudo
         _move(world, vp * dt, wp * dt)
     world._cs_warm = warm_out
-    world.contacts = Contacts.concat(records)
+    world.contacts = _merge_records(world, records)
     world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
                         "contacts": len(world.contacts), "impacts": events, "toi": m.toi,
                         "response": m.response}
@@ -286,19 +353,18 @@ def _move(world, dx, dtheta):
         s.quat[turn] = quat.normalize(quat.mul(quat.from_rotvec(dtheta[turn]), s.quat[turn]))
 
 
-def _split_impulse(world, c, inv_i, dt):
-    """Pseudo-velocities ``(vp, wp) (N,3)`` removing ``settings.split_beta`` of each penetration over ``dt``
-    (normal rows only, non-negative), or ``None`` when nothing penetrates."""
+def _split_impulse(world, c, rows, dt):
+    """Pseudo-velocities ``(vp, wp) (N,3)`` removing ``settings.split_beta`` of each penetration over
+    ``dt`` (normal rows only, non-negative), or ``None`` when nothing penetrates. ``rows`` are the
+    constraint rows of all contacts ``c``; only the penetrating ones take part."""
     pen = np.flatnonzero(c.depth > 0)
     if pen.size == 0:
         return None
-    cp = c.select(pen)
-    rows = _rows(world, cp, inv_i)
     vp = np.zeros_like(world.s.vel)
     wp = np.zeros_like(world.s.omega)
     st = world.settings
-    solver.solve(rows, vp, wp, target_n=st.split_beta * cp.depth / dt, iterations=st.solver_iterations,
-                 tolerance=st.solver_tolerance)
+    solver.solve_auto(rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / dt,
+                      iterations=st.solver_iterations, tolerance=st.solver_tolerance, method=SOLVER_METHOD)
     return vp, wp
 
 

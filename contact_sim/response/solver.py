@@ -96,11 +96,27 @@ class Rows:
     ima: np.ndarray     # (K,)
     imb: np.ndarray
     K: np.ndarray       # (K, 3, 3) effective inverse mass in the (n, t1, t2) basis
-    colors: list
+    movable: np.ndarray  # (N,) bool: bodies whose velocity the solver changes
+    _colors: list = None
 
     @property
     def dirs(self):
         return np.stack([self.n, self.t1, self.t2], axis=1)  # (K, 3, 3)
+
+    @property
+    def colors(self):
+        """Graph colouring of the contacts (list of index arrays), computed on first use."""
+        if self._colors is None:
+            self._colors = color_contacts(self.a, self.b, self.movable)
+        return self._colors
+
+    def __len__(self):
+        return len(self.a)
+
+    def select(self, idx):
+        """Rows of the contacts ``idx`` (index array or boolean mask), without recomputation."""
+        f = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K")
+        return Rows(*[getattr(self, x)[idx] for x in f], self.movable)
 
 
 def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None):
@@ -123,8 +139,7 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
         + np.einsum("kdi,kei->kde", ang_b, iang_b)
     if movable is None:
         movable = inv_mass > 0
-    colors = color_contacts(a, b, movable)
-    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, colors)
+    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, movable)
 
 
 def row_velocity(rows, vel, omega, idx=slice(None)):
@@ -243,3 +258,231 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
         if residual <= tolerance:
             break
     return SolveResult(lam, it, residual)
+
+
+# ---------------------------------------------------------------------------- shared row algebra
+def _inv2(kt):
+    """Inverses ``(K,2,2)`` of the tangential blocks ``kt (K,2,2)`` (zero where singular)."""
+    det = kt[:, 0, 0] * kt[:, 1, 1] - kt[:, 0, 1] * kt[:, 1, 0]
+    ok = det > 1e-300
+    safe = np.where(ok, det, 1.0)
+    out = np.empty_like(kt)
+    out[:, 0, 0] = kt[:, 1, 1] / safe
+    out[:, 1, 1] = kt[:, 0, 0] / safe
+    out[:, 0, 1] = -kt[:, 0, 1] / safe
+    out[:, 1, 0] = -kt[:, 1, 0] / safe
+    out[~ok] = 0.0
+    return out
+
+
+def _project_row(old, rv, tn, inv_kn, kk, inv_kt, mus, mud):
+    """One projected block update of contacts ``(k,)``: normal then friction (static/kinetic).
+
+    ``old (k,3)`` accumulated impulses, ``rv (k,3)`` relative velocity (n, t1, t2), ``tn (k,)``
+    normal target, ``kk (k,3,3)`` (possibly split) effective inverse mass, ``inv_kn (k,)`` and
+    ``inv_kt (k,2,2)`` its inverted diagonal blocks (``inv_kt`` None: frictionless). Returns ``new (k,3)``."""
+    new = old.copy()
+    new[:, 0] = np.maximum(old[:, 0] + (tn - rv[:, 0]) * inv_kn, 0.0)
+    if inv_kt is None:
+        return new
+    dn = new[:, 0] - old[:, 0]
+    vt = rv[:, 1:] + kk[:, 1:, 0] * dn[:, None]
+    trial = old[:, 1:] - (inv_kt @ vt[:, :, None])[:, :, 0]
+    mag = np.sqrt(np.einsum("ki,ki->k", trial, trial))
+    stick = mag <= mus * new[:, 0]
+    lim = mud * new[:, 0]
+    free = vt - (kk[:, 1:, 1:] @ old[:, 1:, None])[:, :, 0]
+    fmag = np.sqrt(np.einsum("ki,ki->k", free, free))
+    use = fmag > 1e-14 * (1.0 + np.abs(rv[:, 0]))
+    dirn = np.where(use[:, None], -free / np.maximum(fmag, _TINY)[:, None], trial / np.maximum(mag, _TINY)[:, None])
+    new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
+    return new
+
+
+# ---------------------------------------------------------------------------- Jacobi, mass splitting
+def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None):
+    """Projected Jacobi with mass splitting, updating ``vel, omega (N,3)`` in place.
+
+    Every contact is updated in the same vectorised pass; a body touched by ``c`` contacts lends
+    each of them ``1/c`` of its inverse mass and inverse inertia when the contact's impulse is
+    computed (Tonge et al., mass splitting), which makes the simultaneous update convergent, while
+    the impulses themselves act with the full inverse mass: the fixed point is the exact solution
+    of the same complementarity problem that ``solve`` (Gauss–Seidel) solves. Same arguments and
+    result as ``solve`` (end-velocity form, ``alpha_n = 1``)."""
+    k = len(rows.a)
+    lam = np.zeros((k, 3)) if warm is None else warm.copy()
+    if k == 0:
+        return SolveResult(lam, 0, 0.0)
+    from scipy import sparse
+
+    a, b = rows.a, rows.b
+    n = len(vel)
+    mov = rows.movable
+    cnt = np.bincount(a[mov[a]], minlength=n) + np.bincount(b[mov[b]], minlength=n)
+    sa = 1.0 / np.maximum(cnt[a], 1)
+    sb = 1.0 / np.maximum(cnt[b], 1)
+    d = rows.dirs
+    ks = (rows.ima * sa + rows.imb * sb)[:, None, None] * np.eye(3) \
+        + sa[:, None, None] * np.einsum("kdi,kei->kde", rows.ang_a, rows.iang_a) \
+        + sb[:, None, None] * np.einsum("kdi,kei->kde", rows.ang_b, rows.iang_b)
+    kn = ks[:, 0, 0]
+    inv_kn = np.where(kn > 0, 1.0 / np.maximum(kn, _TINY), 0.0)
+    friction = mu_s is not None and np.any(mu_s > 0)
+    inv_kt = _inv2(ks[:, 1:, 1:]) if friction else None
+    scat = sparse.csr_matrix((np.ones(2 * k), (np.concatenate([a, b]), np.arange(2 * k))), shape=(n, 2 * k))
+    lin = np.concatenate([rows.ima[:, None, None] * d, -rows.imb[:, None, None] * d]).transpose(0, 2, 1)   # (2K,3,3)
+    ang = np.concatenate([rows.iang_a, -rows.iang_b]).transpose(0, 2, 1)
+
+    def push(delta):
+        dd = np.concatenate([delta, delta])[:, :, None]
+        vel += scat @ (lin @ dd)[:, :, 0]
+        omega += scat @ (ang @ dd)[:, :, 0]
+
+    if warm is not None and np.any(warm):
+        push(lam)
+    angab = np.concatenate([rows.ang_a, -rows.ang_b], axis=2)   # (K,3,6)
+    it, residual = 0, 0.0
+    for it in range(1, iterations + 1):
+        rv = (d @ (vel[a] - vel[b])[:, :, None])[:, :, 0] \
+            + (angab @ np.concatenate([omega[a], omega[b]], axis=1)[:, :, None])[:, :, 0]
+        new = _project_row(lam, rv, target_n, inv_kn, ks, inv_kt, mu_s, mu_d)
+        delta = new - lam
+        lam = new
+        push(delta)
+        residual = float(np.abs(delta).max())
+        if residual <= tolerance:
+            break
+    return SolveResult(lam, it, residual)
+
+
+# ---------------------------------------------------------------------------- direct (active set)
+DIRECT_MAX_CONTACTS = 200       # dense Delassus matrix (3K)² up to this many contacts
+DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
+DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
+
+
+def _regularised_solve(sub, r, eps, refine=2):
+    """``x`` with ``sub @ x = r`` for a symmetric positive semi-definite ``sub (m,m)``: Cholesky of
+    ``sub + eps·I`` followed by ``refine`` steps of iterative refinement (proximal point), which
+    remove the shift's bias on the well-determined part (exact to rounding for full rank) and leave
+    redundant directions at their least-norm value."""
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+    reg = sub.copy()
+    reg[np.diag_indices_from(reg)] += eps
+    try:
+        f = cho_factor(reg, check_finite=False)
+    except LinAlgError:
+        return np.linalg.lstsq(sub, r, rcond=None)[0]
+    x = cho_solve(f, r, check_finite=False)
+    for _ in range(refine):
+        x += cho_solve(f, r - sub @ x, check_finite=False)
+    return x
+
+
+def delassus(rows):
+    """Dense Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)``, rows ordered (n, t1, t2) per contact:
+    ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``."""
+    k = len(rows.a)
+    bodies, inv = np.unique(np.concatenate([rows.a, rows.b]), return_inverse=True)
+    ca, cb = inv[:k], inv[k:]
+    m = len(bodies)
+    d = rows.dirs
+    kk = np.arange(k)
+    J = np.zeros((k, 3, m, 6))
+    W = np.zeros((k, 3, m, 6))
+    J[kk, :, ca, :3] = d
+    J[kk, :, ca, 3:] = rows.ang_a
+    J[kk, :, cb, :3] = -d
+    J[kk, :, cb, 3:] = -rows.ang_b
+    W[kk, :, ca, :3] = rows.ima[:, None, None] * d
+    W[kk, :, ca, 3:] = rows.iang_a
+    W[kk, :, cb, :3] = -rows.imb[:, None, None] * d
+    W[kk, :, cb, 3:] = -rows.iang_b
+    return J.reshape(3 * k, 6 * m) @ W.reshape(3 * k, 6 * m).T
+
+
+def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None):
+    """Exact contact impulses by an active-set method on the dense Delassus matrix.
+
+    Solves ``v_n + (Aλ)_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction (tangential velocity
+    zero) by linear solves on the active rows, moving contacts in and out of the active set until
+    every normal impulse is non-negative and every inactive contact is satisfied. When a sticking
+    impulse leaves the static friction cone (sliding), or the set does not settle in
+    ``DIRECT_MAX_ROUNDS``, it stops and returns ``converged False`` with the impulses clamped
+    to the cone, for ``solve`` to finish from (warm start). Returns ``(SolveResult, converged)``;
+    ``vel, omega`` are updated only when converged."""
+    k = len(rows.a)
+    if A is None:
+        A = delassus(rows)
+    v0 = row_velocity(rows, vel, omega)                  # (K,3)
+    rhs = -v0.copy()
+    rhs[:, 0] += target_n
+    rhs = rhs.ravel()
+    friction = mu_s is not None and np.any(mu_s > 0)
+    act = v0[:, 0] < target_n
+    if warm is not None:
+        act |= warm[:, 0] > 0
+    diag = np.diag(A)
+    eps = DIRECT_REGULARISATION * max(float(diag.max()), _TINY)
+    tol = 1e-12 + 1e-9 * float(np.abs(rhs).max())
+    lam = np.zeros((k, 3))
+    converged = False
+    for _ in range(DIRECT_MAX_ROUNDS):
+        sel = np.zeros((k, 3), bool)
+        sel[:, 0] = act
+        if friction:
+            sel[:, 1:] = (act & (mu_s > 0))[:, None]
+        S = np.flatnonzero(sel.ravel())
+        x = np.zeros(3 * k)
+        if S.size:
+            x[S] = _regularised_solve(A[np.ix_(S, S)], rhs[S], eps)
+        lam = x.reshape(k, 3)
+        vn = v0[:, 0] + (A @ x)[0::3]
+        neg = act & (lam[:, 0] < 0)
+        viol = ~act & (vn < target_n - tol)
+        if neg.any() or viol.any():
+            act = (act & ~neg) | viol
+            continue
+        converged = True
+        break
+    lam[:, 0] = np.maximum(lam[:, 0], 0.0)
+    if friction:
+        mag = np.linalg.norm(lam[:, 1:], axis=1)
+        out = mag > mu_s * lam[:, 0] * (1 + 1e-12) + 1e-300
+        if out.any():
+            converged = False
+            lim = mu_d * lam[:, 0]
+            lam[:, 1:] *= np.where(out, lim / np.maximum(mag, _TINY), 1.0)[:, None]
+    else:
+        lam[:, 1:] = 0.0
+    if not converged:
+        return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
+    apply(rows, vel, omega, lam)
+    resid = (A @ lam.ravel() - rhs).reshape(k, 3)
+    resid[:, 0] = np.where(lam[:, 0] > 0, resid[:, 0], np.minimum(resid[:, 0], 0.0))
+    if not friction:
+        resid[:, 1:] = 0.0
+    residual = float(np.max(np.abs(resid) / np.maximum(diag.reshape(k, 3), _TINY))) if k else 0.0
+    return SolveResult(lam, 1, residual), True
+
+
+def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
+               method="auto"):
+    """Contact impulses by the best method for the size: ``direct`` (active set, exact) up to
+    ``DIRECT_MAX_CONTACTS`` contacts, finished by Gauss–Seidel when friction slides; ``jacobi``
+    (mass splitting) or ``gs`` (coloured Gauss–Seidel) above. Same result type as ``solve``."""
+    k = len(rows.a)
+    if method == "auto":
+        method = "direct" if k <= DIRECT_MAX_CONTACTS else "jacobi"
+    if method == "direct":
+        res, ok = solve_direct(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm)
+        if ok:
+            return res
+        return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
+                     tolerance=tolerance, warm=res.impulse)
+    if method == "jacobi":
+        return solve_jacobi(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
+                            tolerance=tolerance, warm=warm)
+    return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
+                 tolerance=tolerance, warm=warm)
