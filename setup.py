@@ -37,7 +37,6 @@ setup(
     maintainer="contact_sim developers",
     maintainer_email="contact-sim@example.com",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "contact-sim = contact_sim.cli:main",

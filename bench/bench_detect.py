@@ -80,12 +80,16 @@ def bench_fcl(world, shapes, kinds, repeat):
         T[:3, 3] = world.s.pos[i]
         m.add_object(str(i), meshes[k], transform=T)
     t_build = time.perf_counter() - t_build
-    times = []
+    times, times_data = [], []
     for _ in range(repeat):
         t = time.perf_counter()
         hit, names = m.in_collision_internal(return_names=True)
         times.append(time.perf_counter() - t)
-    return float(np.median(times)), len(names), t_build
+        # with contact data (points, normals, depths): the work our detection does
+        t = time.perf_counter()
+        m.in_collision_internal(return_names=True, return_data=True)
+        times_data.append(time.perf_counter() - t)
+    return float(np.median(times)), len(names), t_build, float(np.median(times_data))
 
 
 def main(argv=None):
@@ -98,15 +102,15 @@ def main(argv=None):
     rows = []
     print(f"{'bodies':>7} {'cand':>6} {'bvrej':>6} {'vert':>5} {'e-f':>5} {'pairs':>6} {'contacts':>8} "
           f"{'broad ms':>9} {'bv ms':>7} {'narrow ms':>9} {'total ms':>9} {'contacts/s':>11} {'fcl ms':>8} "
-          f"{'fcl/ours':>8}")
+          f"{'fcl/ours':>8} {'fcl+data ms':>11}")
     for n in args.sizes:
         world, shapes, kinds = make_scene(n)
         total, c, st = bench_ours(world, args.repeat)
-        fcl_ms, fcl_pairs, ratio = float("nan"), -1, float("nan")
+        fcl_ms, fcl_pairs, ratio, fcl_data_ms = float("nan"), -1, float("nan"), float("nan")
         if not args.no_fcl:
             try:
-                f, fcl_pairs, _ = bench_fcl(world, shapes, kinds, max(1, min(args.repeat, 3)))
-                fcl_ms = 1e3 * f
+                f, fcl_pairs, _, fd = bench_fcl(world, shapes, kinds, max(1, min(args.repeat, 3)))
+                fcl_ms, fcl_data_ms = 1e3 * f, 1e3 * fd
                 ratio = f / total
             except Exception as exc:  # fcl missing or failing: report, keep our numbers
                 print(f"  (fcl manager unavailable: {exc})")
@@ -116,12 +120,12 @@ def main(argv=None):
                    colliding_pairs=st.colliding_pairs, contacts=st.contacts,
                    broad_ms=1e3 * sec["broad"], bounding_ms=1e3 * sec["bounding"], narrow_ms=1e3 * sec["narrow"],
                    total_ms=1e3 * total, contacts_per_s=st.contacts / total, fcl_ms=fcl_ms,
-                   fcl_colliding_pairs=fcl_pairs, fcl_over_ours=ratio)
+                   fcl_colliding_pairs=fcl_pairs, fcl_over_ours=ratio, fcl_with_data_ms=fcl_data_ms)
         rows.append(row)
         print(f"{n:>7} {st.candidate_pairs:>6} {st.rejected_by_bounding_volume:>6} {st.settled_by_vertex:>5} "
               f"{st.needed_edge_face:>5} {st.colliding_pairs:>6} {st.contacts:>8} {row['broad_ms']:>9.2f} "
               f"{row['bounding_ms']:>7.2f} {row['narrow_ms']:>9.2f} {row['total_ms']:>9.2f} "
-              f"{row['contacts_per_s']:>11.0f} {fcl_ms:>8.2f} {ratio:>8.2f}")
+              f"{row['contacts_per_s']:>11.0f} {fcl_ms:>8.2f} {ratio:>8.2f} {fcl_data_ms:>11.2f}")
     os.makedirs(os.path.dirname(args.csv), exist_ok=True)
     with open(args.csv, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
