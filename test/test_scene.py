@@ -195,3 +195,25 @@ def test_off_centre_convex_geometry_is_shifted_not_rebuilt():
     # each face plane moved with the vertices: every vertex still on or inside every plane
     assert np.all(centred.vertices @ centred.plane_normals.T <= centred.plane_offsets + 1e-12)
     assert np.allclose(centred._hull.center_mass, 0, atol=1e-12)
+
+
+def test_shipped_scenes_start_without_interpenetration():
+    for name in cs.list_scenes():
+        if "overlap" in name:
+            continue  # deliberately starts overlapped (a hard case)
+        w = cs.load_scene(cs.resolve_scene(name))
+        c = w.detect()
+        deepest = float(c.depth.max()) if len(c) else 0.0
+        assert deepest <= 1e-6, f"{name}: bodies overlap by {deepest} m at start"
+
+
+def test_default_scene_produces_contacts_and_settles():
+    w = cs.load_scene(cs.default_scene_path())
+    seen = 0
+    for _ in range(int(round(3.0 / w.settings.dt))):
+        w.step()
+        seen = max(seen, len(w.contacts))
+    assert seen >= 5
+    assert len(w.contacts) >= 4 and w.contacts.depth.max() < 1e-3
+    dyn = w.kind == 2
+    assert np.abs(w.s.vel[dyn]).max() < 1e-2  # everything has come to rest
