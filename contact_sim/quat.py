@@ -4,6 +4,8 @@ All functions broadcast over leading dimensions and never loop in Python.
 """
 import numpy as np
 
+from .vec import cross
+
 
 def normalize(q):
     """Unit quaternion(s) ``(..., 4)``; the sign is kept."""
@@ -23,7 +25,7 @@ def mul(a, b):
     b = np.asarray(b, dtype=float)
     av, aw = a[..., :3], a[..., 3:]
     bv, bw = b[..., :3], b[..., 3:]
-    v = aw * bv + bw * av + np.cross(av, bv)
+    v = aw * bv + bw * av + cross(av, bv)
     w = aw * bw - np.sum(av * bv, axis=-1, keepdims=True)
     return np.concatenate([v, w], axis=-1)
 
@@ -33,8 +35,8 @@ def rotate(q, v):
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
     u, w = q[..., :3], q[..., 3:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    t = 2.0 * cross(u, v)
+    return v + w * t + cross(u, t)
 
 
 def to_matrix(q):

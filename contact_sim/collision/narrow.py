@@ -16,6 +16,7 @@ tests in the face plane: vertices of one polygon inside the other, and edge cros
 import numpy as np
 
 from ..contacts import FEATURES
+from ..vec import cross
 
 F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
@@ -169,7 +170,7 @@ def mesh_sphere(tab, rows, pa, Ra, cb, rb, margin, closed, counters=None):
     inside = closed & points_in_meshes(cb, T, valid_t)
     sgn = np.where(inside, -1.0, 1.0)
     sep = sgn * dist - rb
-    tn = np.cross(T[rn, j, 1] - T[rn, j, 0], T[rn, j, 2] - T[rn, j, 0])
+    tn = cross(T[rn, j, 1] - T[rn, j, 0], T[rn, j, 2] - T[rn, j, 0])
     normal = np.where((dist > 1e-300)[:, None], sgn[:, None] * (qbest - cb) / np.where(dist > 0, dist, 1)[:, None],
                       -_unit(tn))
     return _sphere_result(sep, normal, cb, rb, margin)
@@ -191,12 +192,12 @@ def points_in_meshes(p, T, valid_t, eps=1e-9):
     decided = np.zeros(len(p), bool)
     votes = np.zeros(len(p), np.int64)
     for r in _RAYS:
-        h = np.cross(r, e2)
+        h = cross(r, e2)
         det = _dot(e1, h)
         with np.errstate(divide="ignore", invalid="ignore"):
             inv = 1.0 / det
             u = _dot(s, h) * inv
-            qv = np.cross(s, e1)
+            qv = cross(s, e1)
             v = _dot(qv, r) * inv
             t = _dot(e2, qv) * inv
         scale = np.sqrt(np.abs(det)) + 1e-300
@@ -248,7 +249,7 @@ def reduce_manifold(pts, depth, valid, normal):
     far = d2[rows, i1]
     tiny = 1e-20 + 1e-18 * far
     keep[rows, i1] |= far > tiny
-    area = _dot(np.cross(rel[rows, i1][:, None, :], rel), normal[:, None, :])
+    area = _dot(cross(rel[rows, i1][:, None, :], rel), normal[:, None, :])
     a = np.where(valid, np.abs(area), -1.0)
     i2 = np.argmax(a, axis=1)
     big = a[rows, i2]
@@ -310,7 +311,7 @@ def poly_poly(ta, ra, pa, Ra, tb, rb, pb, Rb, margin, counters=None):
         b0 = VB[g, tb.edges[rb[g], eb[ke], 0]]
         b1 = VB[g, tb.edges[rb[g], eb[ke], 1]]
         cp_a, cp_b = _segment_closest(a0, a1, b0, b1)
-        nrm = _unit(np.cross(a1 - a0, b1 - b0))
+        nrm = _unit(cross(a1 - a0, b1 - b0))
         ca = np.einsum("nij,nj->ni", Ra[g], ta.centroid[ra[g]]) + pa[g]
         nrm = np.where((_dot(nrm, a0 - ca) < 0)[:, None], -nrm, nrm)   # outward from A
         out.append((g, 0.5 * (cp_a + cp_b), -nrm, -esep[ke], np.full(len(ke), F_EDGE)))
@@ -376,8 +377,8 @@ def _edge_axes(ta, ra, VA, NA, Ra, pa, tb, rb, VB, NB):
         a1, a2 = NA[sl][rr, pA[..., 0]], NA[sl][rr, pA[..., 1]]
         b1, b2 = NB[sl][rr, pB[..., 0]], NB[sl][rr, pB[..., 1]]
         c, d = -b1, -b2
-        bxa = np.cross(a2, a1)
-        dxc = np.cross(d, c)
+        bxa = cross(a2, a1)
+        dxc = cross(d, c)
         cba = np.einsum("nbi,nai->nab", c, bxa)
         dba = np.einsum("nbi,nai->nab", d, bxa)
         adc = np.einsum("nai,nbi->nab", a1, dxc)
@@ -391,7 +392,7 @@ def _edge_axes(ta, ra, VA, NA, Ra, pa, tb, rb, VB, NB):
         B0 = VB[sl][pi, eB[pi, ib, 0]]
         B1 = VB[sl][pi, eB[pi, ib, 1]]
         da, db = A1 - A0, B1 - B0
-        axis = np.cross(da, db)
+        axis = cross(da, db)
         length = np.linalg.norm(axis, axis=1)
         good = length > 1e-9 * np.linalg.norm(da, axis=1) * np.linalg.norm(db, axis=1)
         axis = axis / np.where(good, length, 1.0)[:, None]
@@ -416,15 +417,15 @@ def edge_face_any(V, edges, N, d, VF, loops, eps=1e-12):
     E0, E1 = V[rr, edges[..., 0]], V[rr, edges[..., 1]]           # (n, E, 3)
     s0 = np.einsum("npi,nei->nep", N, E0) - d[:, None, :]           # (n, E, P)
     s1 = np.einsum("npi,nei->nep", N, E1) - d[:, None, :]
-    cross = (s0 * s1 < 0)
-    pi, ei, fi = np.nonzero(cross)
+    straddles = (s0 * s1 < 0)
+    pi, ei, fi = np.nonzero(straddles)
     if pi.size == 0:
         return np.zeros(len(V), bool)
     t = s0[pi, ei, fi] / (s0[pi, ei, fi] - s1[pi, ei, fi])
     X = E0[pi, ei] + t[:, None] * (E1[pi, ei] - E0[pi, ei])         # (H, 3) on the plane
     loop = VF[pi[:, None], loops[pi, fi]]                          # (H, M, 3)
     nxt = np.roll(loop, -1, axis=1)
-    side = np.cross(nxt - loop, N[pi, fi][:, None, :])            # outward edge normals
+    side = cross(nxt - loop, N[pi, fi][:, None, :])            # outward edge normals
     inside = np.all(_dot(side, X[:, None, :] - loop) <= eps, axis=1)
     hit = np.zeros(len(V), bool)
     hit[pi[inside]] = True
@@ -447,10 +448,10 @@ def _face_contacts(tr, rr_, VR, NR, dR, fr, ti, ri, VI, NI, dI, scale, margin, s
     Q = VI[rows[:, None], ti.loops[ri, fi]]           # (n, M2, 3)
     tol = 1e-9 * scale
     eP = np.roll(P, -1, axis=1) - P
-    sP = np.cross(eP, nref[:, None, :])
+    sP = cross(eP, nref[:, None, :])
     lenP = np.linalg.norm(eP, axis=2)
     eQ = np.roll(Q, -1, axis=1) - Q
-    sQ = np.cross(eQ, ni[:, None, :])
+    sQ = cross(eQ, ni[:, None, :])
     lenQ = np.linalg.norm(eQ, axis=2)
     # 1. incident vertices inside the reference face prism
     g = np.einsum("nmi,nqi->nqm", sP, Q) - _dot(sP, P)[:, None, :]
@@ -470,12 +471,12 @@ def _face_contacts(tr, rr_, VR, NR, dR, fr, ti, ri, VI, NI, dI, scale, margin, s
     Qp = Q - (_dot(Q, nref[:, None, :]) - dref[:, None])[..., None] * nref[:, None, :]
     eQp = np.roll(Qp, -1, axis=1) - Qp
     nr = nref[:, None, None, :]
-    den3 = _dot(np.cross(eP[:, :, None, :], eQp[:, None, :, :]), nr)       # (n, M1, M2)
+    den3 = _dot(cross(eP[:, :, None, :], eQp[:, None, :, :]), nr)       # (n, M1, M2)
     w = Qp[:, None, :, :] - P[:, :, None, :]
     ok3 = np.abs(den3) > 1e-12 * (lenP[:, :, None] * lenQ[:, None, :]) + 1e-300
     dd = np.where(ok3, den3, 1.0)
-    alpha = _dot(np.cross(w, eQp[:, None, :, :]), nr) / dd
-    beta = _dot(np.cross(w, eP[:, :, None, :]), nr) / dd
+    alpha = _dot(cross(w, eQp[:, None, :, :]), nr) / dd
+    beta = _dot(cross(w, eP[:, :, None, :]), nr) / dd
     in3 = ok3 & (alpha >= 0) & (alpha <= 1) & (beta >= 0) & (beta <= 1)
     u3 = Q[:, None, :, :] + beta[..., None] * eQ[:, None, :, :]
     sep3 = _dot(u3, nr) - dref[:, None, None]
@@ -540,7 +541,7 @@ def mesh_poly(tm, rm, pm, Rm, closed, tp, rp, pp, Rp, margin, counters=None):
     d_a = dist[pi_a, vi_a]
     dirn = (VP[pi_a, vi_a] - qb[pi_a, vi_a]) / np.where(d_a > 0, d_a, 1)[:, None]
     tt = T[pi_a, j[pi_a, vi_a]]
-    tn = _unit(np.cross(tt[:, 1] - tt[:, 0], tt[:, 2] - tt[:, 0]))
+    tn = _unit(cross(tt[:, 1] - tt[:, 0], tt[:, 2] - tt[:, 0]))
     na = np.where((d_a > 1e-300)[:, None], np.where(inside[pi_a, vi_a][:, None], dirn, -dirn), -tn)
     dep_a = -sep[pi_a, vi_a]
     pt_a = VP[pi_a, vi_a] + 0.5 * dep_a[:, None] * na
@@ -586,7 +587,7 @@ def edge_face_hits(V, edges, N, d, VF, loops, eps=1e-12):
     t = a / (a - b)
     X = E0[pi, ei] + t[:, None] * (E1[pi, ei] - E0[pi, ei])
     loop = VF[pi[:, None], loops[pi, fi]]
-    side = np.cross(np.roll(loop, -1, axis=1) - loop, N[pi, fi][:, None, :])
+    side = cross(np.roll(loop, -1, axis=1) - loop, N[pi, fi][:, None, :])
     inside = np.all(_dot(side, X[:, None, :] - loop) <= eps, axis=1)
     k = np.flatnonzero(inside)
     return pi[k], X[k], N[pi[k], fi[k]], np.minimum(np.abs(a[k]), np.abs(b[k]))
