@@ -1,0 +1,56 @@
+"""Invariants on every contact of random poses: finite values, unit normals, points within ``depth``
+of both surfaces, and symmetry under swapping A and B."""
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim import quat
+
+RNG_POINTS = np.random.default_rng(7).normal(size=(24, 3)) * [0.3, 0.2, 0.25]
+SHAPES = {
+    "sphere": cs.Sphere(0.3),
+    "box": cs.Box([0.6, 0.4, 0.3]),
+    "convex": cs.Convex(RNG_POINTS),
+}
+
+
+def excess(shape, pos, q, p):
+    """Lower bound of the signed distance from points ``p (K, 3)`` to a shape (exact for spheres):
+    the largest face-plane excess of a polyhedron, ``|p − c| − r`` for a sphere."""
+    local = quat.rotate(quat.conj(q), p - pos)
+    if shape.type == "sphere":
+        return np.linalg.norm(local, axis=1) - shape.radius
+    return (local @ shape.plane_normals.T - shape.plane_offsets).max(axis=1)
+
+
+def random_pose(rng, spread):
+    return rng.uniform(-spread, spread, 3), quat.normalize(rng.normal(size=4))
+
+
+@pytest.mark.parametrize("ta, tb", [("sphere", "sphere"), ("sphere", "box"), ("box", "box"), ("convex", "box"),
+                                    ("convex", "convex"), ("convex", "sphere")])
+def test_contact_invariants_on_random_poses(ta, tb):
+    rng = np.random.default_rng(hash((ta, tb)) % 2**32)
+    a, b = SHAPES[ta], SHAPES[tb]
+    hits = 0
+    for _ in range(300):
+        pa, qa = random_pose(rng, 0.1)
+        pb, qb = random_pose(rng, 0.6)
+        c = cs.collide(a, (pa, qa), b, (pb, qb))
+        if not len(c):
+            continue
+        hits += 1
+        assert np.all(np.isfinite(c.point)) and np.all(np.isfinite(c.normal)) and np.all(np.isfinite(c.depth))
+        assert np.allclose(np.linalg.norm(c.normal, axis=1), 1.0, atol=1e-12)
+        assert np.all(c.depth >= -1e-12)
+        slack = c.depth + 1e-9
+        assert np.all(excess(a, pa, qa, c.point) <= slack), "point farther outside A than the depth"
+        assert np.all(excess(b, pb, qb, c.point) <= slack), "point farther outside B than the depth"
+        # B → A: moving A along the normal by the depth (plus a little) separates the pair
+        moved = cs.collide(a, (pa + c.normal[np.argmax(c.depth)] * (c.depth.max() + 1e-6), qa), b, (pb, qb))
+        assert len(moved) == 0 or moved.depth.max() < 1e-6
+        s = cs.collide(b, (pb, qb), a, (pa, qa))
+        assert len(s) and np.isclose(s.depth.max(), c.depth.max(), rtol=0, atol=1e-9)
+        ia, ib = np.argmax(c.depth), np.argmax(s.depth)
+        assert np.allclose(s.normal[ib], -c.normal[ia], atol=1e-6)
+    assert hits > 30  # the poses really produce contacts
