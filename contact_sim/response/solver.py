@@ -304,7 +304,7 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
     """Projected Jacobi with mass splitting, updating ``vel, omega (N,3)`` in place.
 
     Every contact is updated in the same vectorised pass; a body touched by ``c`` contacts lends
-    each of them ``1/c`` of its inverse mass and inverse inertia when the contact's impulse is
+    each of them ``1/c`` of its mass (``c`` × its inverse mass) and inverse inertia when the contact's impulse is
     computed (Tonge et al., mass splitting), which makes the simultaneous update convergent, while
     the impulses themselves act with the full inverse mass: the fixed point is the exact solution
     of the same complementarity problem that ``solve`` (Gauss–Seidel) solves. Same arguments and
@@ -319,8 +319,8 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
     n = len(vel)
     mov = rows.movable
     cnt = np.bincount(a[mov[a]], minlength=n) + np.bincount(b[mov[b]], minlength=n)
-    sa = 1.0 / np.maximum(cnt[a], 1)
-    sb = 1.0 / np.maximum(cnt[b], 1)
+    sa = np.maximum(cnt[a], 1).astype(float)   # a copy of the body per contact: c × the inverse mass
+    sb = np.maximum(cnt[b], 1).astype(float)
     d = rows.dirs
     ks = (rows.ima * sa + rows.imb * sb)[:, None, None] * np.eye(3) \
         + sa[:, None, None] * np.einsum("kdi,kei->kde", rows.ang_a, rows.iang_a) \
@@ -335,8 +335,8 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
 
     def push(delta):
         dd = np.concatenate([delta, delta])[:, :, None]
-        vel += scat @ (lin @ dd)[:, :, 0]
-        omega += scat @ (ang @ dd)[:, :, 0]
+        vel[...] += scat @ (lin @ dd)[:, :, 0]
+        omega[...] += scat @ (ang @ dd)[:, :, 0]
 
     if warm is not None and np.any(warm):
         push(lam)
@@ -382,24 +382,24 @@ def _regularised_solve(sub, r, eps, refine=2):
 
 def delassus(rows):
     """Dense Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)``, rows ordered (n, t1, t2) per contact:
-    ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``."""
+    ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``.
+    Built as a sparse product (12 non-zeros per row of ``J``), returned dense."""
+    from scipy import sparse
+
     k = len(rows.a)
-    bodies, inv = np.unique(np.concatenate([rows.a, rows.b]), return_inverse=True)
-    ca, cb = inv[:k], inv[k:]
-    m = len(bodies)
     d = rows.dirs
-    kk = np.arange(k)
-    J = np.zeros((k, 3, m, 6))
-    W = np.zeros((k, 3, m, 6))
-    J[kk, :, ca, :3] = d
-    J[kk, :, ca, 3:] = rows.ang_a
-    J[kk, :, cb, :3] = -d
-    J[kk, :, cb, 3:] = -rows.ang_b
-    W[kk, :, ca, :3] = rows.ima[:, None, None] * d
-    W[kk, :, ca, 3:] = rows.iang_a
-    W[kk, :, cb, :3] = -rows.imb[:, None, None] * d
-    W[kk, :, cb, 3:] = -rows.iang_b
-    return J.reshape(3 * k, 6 * m) @ W.reshape(3 * k, 6 * m).T
+    r = np.repeat(np.arange(3 * k), 12)
+    cols_a = 6 * rows.a[:, None] + np.arange(6)                          # (K,6)
+    cols_b = 6 * rows.b[:, None] + np.arange(6)
+    cols = np.concatenate([np.broadcast_to(cols_a[:, None, :], (k, 3, 6)),
+                           np.broadcast_to(cols_b[:, None, :], (k, 3, 6))], axis=2).ravel()
+    jv = np.concatenate([d, rows.ang_a, -d, -rows.ang_b], axis=2).ravel()            # (K,3,12)
+    wv = np.concatenate([rows.ima[:, None, None] * d, rows.iang_a, -rows.imb[:, None, None] * d,
+                         -rows.iang_b], axis=2).ravel()
+    n6 = 6 * (max(int(rows.a.max()), int(rows.b.max())) + 1) if k else 0
+    J = sparse.csr_matrix((jv, (r, cols)), shape=(3 * k, n6))
+    W = sparse.csr_matrix((wv, (r, cols)), shape=(3 * k, n6))
+    return (J @ W.T).toarray()
 
 
 def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None):
@@ -474,7 +474,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
     (mass splitting) or ``gs`` (coloured Gauss–Seidel) above. Same result type as ``solve``."""
     k = len(rows.a)
     if method == "auto":
-        method = "direct" if k <= DIRECT_MAX_CONTACTS else "jacobi"
+        method = "direct" if k <= DIRECT_MAX_CONTACTS else "gs"
     if method == "direct":
         res, ok = solve_direct(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm)
         if ok:
