@@ -37,7 +37,8 @@ from .response import toi as toi_mod
 
 DYNAMIC = 2
 FRACTIONAL_TOUCH = 1e-12  # m: a pair this close counts as touching after an exact time of impact
-IMPACT_SPEED_FRACTION = 1e-3  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
+IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
+REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
 SOLVER_METHOD = "auto"    # direct (small) / jacobi (large); "gs" or "jacobi" force one (benchmarks)
 
@@ -188,9 +189,9 @@ def _impulse_step(world, dt, m):
     """One step of the impulse (or kinematic) response. Per sub-step (split at times of impact):
     detect once, build the constraint rows once, then
 
-    * impacts: contacts that touch and approach faster than ``IMPACT_SPEED_FRACTION·|g|·dt`` with a
-      restitution > 0 get the instantaneous impulses of the lecture (with every touching contact in
-      the same solve, target ``-e·v_n``);
+    * impacts: when a contact touches and approaches faster than ``IMPACT_SPEED_FRACTION·|g|·dt``,
+      the touching contacts get the instantaneous impulses of the lecture together (target
+      ``-e·v_n``; a rebound slower than ``REST_REBOUND_FRACTION·|g|·dt`` rests instead, e = 0);
     * resting (all contacts within the margin): the impulse of a constant force over the rest of
       the step ``T`` such that the *end* normal velocity is at least ``min(depth,0)/T`` (never
       approaching; a gap may close exactly), friction sticking at the end or kinetic; warm
@@ -231,11 +232,11 @@ def _impulse_step(world, dt, m):
             e, mu_s, mu_d = _coefficients(world, c, m)
             fr = m.friction and m.response != "kinematic"
             vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+            if m.resting:   # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
+                e = np.where(e * np.maximum(-vn0, 0.0) < REST_REBOUND_FRACTION * gdt, 0.0, e)
             lam = np.zeros((k, 3))
             touching = c.depth >= -touch_eps
-            impact = touching & (vn0 < -v_imp) & (e > 0)
-            if not m.resting:
-                impact = touching & (vn0 < 0)
+            impact = touching & (vn0 < (-v_imp if m.resting else 0.0))
             if impact.any():
                 ti = np.flatnonzero(touching)
                 r1 = rows.select(ti)
@@ -246,26 +247,39 @@ def _impulse_step(world, dt, m):
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
-            if m.resting:
+            if m.resting and (touching.any() or not exact_toi) and not (impact.any() and np.all(
+                    solver.row_velocity(rows, s.vel, s.omega)[:, 0] > v_imp)):
                 v_end = s.vel + g * t_left
                 w_end = s.omega.copy()
                 v_start_end = v_end.copy()
                 w_start_end = w_end.copy()
-                target = np.minimum(c.depth, 0.0) / t_left   # close a gap, never open one
-                warm_rate = _warm_lookup(world, c, local)
-                warm = _project_warm(warm_rate * t_left, rows, mu_d)
-                res = solver.solve_auto(rows, v_end, w_end, target_n=target, mu_s=mu_s if fr else None,
-                                        mu_d=mu_d if fr else None, iterations=st.solver_iterations,
+                # with exact times of impact only touching contacts rest (the others get their impact
+                # time); with next_step every contact within the margin is a speculative one
+                # a contact that just rebounded is leaving: no resting force may hold it back
+                leaving = impact.any() & (solver.row_velocity(rows, s.vel, s.omega)[:, 0] > v_imp)
+                if exact_toi:   # touching or slowly approaching; a fast one within the margin gets its impact time
+                    ri = np.flatnonzero((touching | (vn0 >= -gdt)) & ~leaving)
+                else:
+                    ri = np.flatnonzero(~leaving)
+                r2 = rows.select(ri)
+                target = np.minimum(c.depth[ri], 0.0) / t_left   # close a gap, never open one
+                warm_rate = _warm_lookup(world, c.select(ri), local[ri])
+                warm = _project_warm(warm_rate * t_left, r2, mu_d[ri])
+                res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
+                                        mu_d=mu_d[ri] if fr else None, iterations=st.solver_iterations,
                                         tolerance=st.solver_tolerance, warm=warm, method=SOLVER_METHOD)
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
-                lam2 = res.impulse
+                lam2 = np.zeros((k, 3))
+                lam2[ri] = res.impulse
                 dv_rest = v_end - v_start_end
                 dw_rest = w_end - w_start_end
-                warm_out = (c.body_a, c.body_b, local, _to_world_tangent(lam2, rows) / t_left)
+                warm_out = (c.body_a[ri], c.body_b[ri], local[ri], _to_world_tangent(res.impulse, r2) / t_left)
             if first:
                 pseudo = _split_impulse(world, c, rows, dt)
-            near = touching | (c.depth >= -margin)
+            near = touching.copy()
+            if dv_rest is not None:
+                near[ri] = True
             exclude = {(int(a), int(b)) for a, b in zip(c.body_a[near], c.body_b[near])} if exact_toi else set()
             exclude |= {(b, a) for a, b in exclude}
         first = False

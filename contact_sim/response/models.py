@@ -124,10 +124,10 @@ def choose(world, dt=None):
     # resting
     if st.resting == "auto":
         lone = int(dyn.sum()) == 1 and response != "penalty"
-        bouncy = lone and np.all(world.restitution[dyn] > 0)
+        bouncy = lone and np.all(world.restitution[dyn] >= 1.0)   # e < 1: it comes to rest in finite time
         lone_sphere = lone and spheres_only and not friction
         resting = not (bouncy and lone_sphere) and response != "penalty"
-        reasons.append("resting-contact solver " + ("off: a lone bouncing body needs only impacts" if not resting and response != "penalty"
+        reasons.append("resting-contact solver " + ("off: a lone elastic (e = 1) body never comes to rest, impacts suffice" if not resting and response != "penalty"
                                                     else "off: penalty forces hold bodies" if response == "penalty"
                                                     else "on: bodies can rest on each other"))
     else:

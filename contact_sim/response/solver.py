@@ -413,6 +413,8 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     to the cone, for ``solve`` to finish from (warm start). Returns ``(SolveResult, converged)``;
     ``vel, omega`` are updated only when converged."""
     k = len(rows.a)
+    if k == 0:
+        return SolveResult(np.zeros((0, 3)), 0, 0.0), True
     if A is None:
         A = delassus(rows)
     v0 = row_velocity(rows, vel, omega)                  # (K,3)
