@@ -54,6 +54,46 @@ def run(name, world, seconds):
     return row
 
 
+def run_pybullet(seconds):
+    """The same 1000-sphere scene in pybullet (optional): wall time per simulated second and the
+    largest penetration it reports. Friction 0.5 on both bodies (Bullet multiplies: 0.25 per pair
+    would be wrong, so each gets sqrt(0.5)), restitution 0, dt 1/240, its default 50 iterations."""
+    try:
+        import pybullet as p
+    except ImportError:
+        return None
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0, 0, -9.81)
+    p.setTimeStep(1 / 240)
+    mu = float(np.sqrt(0.5))
+    for n, o in [([0, 0, 1], 0.0), ([1, 0, 0], -0.7), ([-1, 0, 0], -0.7), ([0, 1, 0], -0.7), ([0, -1, 0], -0.7)]:
+        shape = p.createCollisionShape(p.GEOM_PLANE, planeNormal=n)
+        b = p.createMultiBody(0, shape, basePosition=[-o * n[0], -o * n[1], 0])
+        p.changeDynamics(b, -1, lateralFriction=mu, restitution=0.0)
+    sph = p.createCollisionShape(p.GEOM_SPHERE, radius=0.05)
+    g = (np.arange(10) - 4.5) * 0.12
+    for x in g:
+        for y in g:
+            for z in range(10):
+                b = p.createMultiBody(0.5, sph, basePosition=[float(x), float(y), 0.1 + 0.12 * z])
+                p.changeDynamics(b, -1, lateralFriction=mu, restitution=0.0)
+    steps = int(round(seconds * 240))
+    pen = 0.0
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        p.stepSimulation()
+    wall = time.perf_counter() - t0
+    for _ in range(24):   # penetration measured on a few more steps (not timed)
+        p.stepSimulation()
+        pts = p.getContactPoints()
+        if pts:
+            pen = max(pen, -min(c[8] for c in pts))
+    p.disconnect(cid)
+    return {"scene": "spheres_1000_pybullet", "bodies": 1005, "simulated_s": steps / 240,
+            "wall_s_per_sim_s": wall / (steps / 240), "contacts_per_step": float(len(pts) if pts else 0),
+            "solver_iterations_mean": 50.0, "max_penetration_mm": 1e3 * pen}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=2.0)
@@ -61,6 +101,16 @@ def main():
     rows = [run("spheres_1000", cs.load_scene(spheres_scene()), args.seconds),
             run("box_stack_10", cs.load_scene(os.path.join(HERE, "..", "config", "scenes", "box_stack.yaml")),
                 args.seconds)]
+    pb = run_pybullet(args.seconds)
+    if pb is not None:
+        print(pb)
+        rows.append(pb)
+    print(f"\n{'scene':24s} {'wall s/sim s':>12s} {'contacts':>9s} {'iters':>6s} {'max pen mm':>10s}")
+    for r in rows:
+        print(f"{r['scene']:24s} {r['wall_s_per_sim_s']:12.3f} {r['contacts_per_step']:9.1f} "
+              f"{r['solver_iterations_mean']:6.1f} {r['max_penetration_mm']:10.3f}")
+    if pb is not None:
+        print(f"ratio contact_sim / pybullet (spheres): {rows[0]['wall_s_per_sim_s'] / pb['wall_s_per_sim_s']:.2f}")
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
     out = os.path.join(HERE, "results", "response.csv")
     with open(out, "w", newline="") as fh:
