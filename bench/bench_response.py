@@ -68,7 +68,7 @@ def run_pybullet(seconds):
     mu = float(np.sqrt(0.5))
     for n, o in [([0, 0, 1], 0.0), ([1, 0, 0], -0.7), ([-1, 0, 0], -0.7), ([0, 1, 0], -0.7), ([0, -1, 0], -0.7)]:
         shape = p.createCollisionShape(p.GEOM_PLANE, planeNormal=n)
-        b = p.createMultiBody(0, shape, basePosition=[-o * n[0], -o * n[1], 0])
+        b = p.createMultiBody(0, shape, basePosition=[o * n[0], o * n[1], 0])
         p.changeDynamics(b, -1, lateralFriction=mu, restitution=0.0)
     sph = p.createCollisionShape(p.GEOM_SPHERE, radius=0.05)
     g = (np.arange(10) - 4.5) * 0.12
