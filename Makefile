@@ -28,8 +28,13 @@ run: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest $(ARGS)
 
+# every benchmark in bench/ (tables on stdout, CSV/PNG in bench/results/); pybullet is the reference
 bench: $(STAMP)
-	$(PY) -m contact_sim bench all
+	$(PY) -m pip install --quiet pybullet $(QUIET)
+	$(PY) bench/bench_detect.py
+	$(PY) bench/bench_response.py
+	$(PY) bench/bench_accuracy.py
+	$(PY) bench/bench_node.py
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache

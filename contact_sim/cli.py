@@ -172,7 +172,7 @@ def build_parser():
     d.set_defaults(func=cmd_describe)
     s = sub.add_parser("scenes", help="list the shipped scenes")
     s.set_defaults(func=cmd_scenes)
-    b = sub.add_parser("bench", help="run a benchmark from bench/ (detect, response, node, accuracy)")
+    b = sub.add_parser("bench", help="run a benchmark from bench/ (detect, response, node, accuracy); `make bench` runs all")
     b.add_argument("name")
     b.add_argument("rest", nargs=argparse.REMAINDER)
     b.set_defaults(func=cmd_bench)
