@@ -8,30 +8,10 @@ int, and (convex shapes) the merged face planes ``normals (P, 3)``, ``offsets (P
 import numpy as np
 
 from .errors import ContactSimError
+from .validate import positive as _positive
+from .validate import vector as _vec
 
 _TINY = 1e-12
-
-
-def _vec(value, n, what):
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}") from None
-    if a.shape != (n,):
-        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}")
-    if not np.all(np.isfinite(a)):
-        raise ContactSimError(f"{what}: must be finite, got {a.tolist()}")
-    return a
-
-
-def _positive(value, what):
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ContactSimError(f"{what}: must be a number, got {value!r}") from None
-    if not np.isfinite(x) or x <= 0:
-        raise ContactSimError(f"{what}: must be > 0, got {value!r}")
-    return x
 
 
 class Shape:

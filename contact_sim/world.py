@@ -13,6 +13,9 @@ from .contacts import Contacts
 from .errors import ContactSimError
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .shapes import Plane, Shape
+from .validate import positive as _positive
+from .validate import unit_quaternion as _unit_quaternion
+from .validate import vector as _vector
 
 KINDS = ("static", "kinematic", "dynamic")
 MODELS = ("rigid", "particle")
@@ -60,28 +63,6 @@ class _State:
         for n in self.NAMES:
             setattr(c, n, getattr(self, n).copy())
         return c
-
-
-def _vector(value, n, what):
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}") from None
-    if a.shape != (n,):
-        raise ContactSimError(f"{what}: must be {n} numbers, got {value!r}")
-    if not np.all(np.isfinite(a)):
-        raise ContactSimError(f"{what}: must be finite, got {a.tolist()}")
-    return a
-
-
-def _unit_quaternion(value, what, tolerance):
-    q = _vector(value, 4, what)
-    norm = float(np.linalg.norm(q))
-    if norm < 1e-12:
-        raise ContactSimError(f"{what}: zero quaternion is not a rotation")
-    if abs(norm - 1.0) > tolerance:
-        raise ContactSimError(f"{what}: quaternion must be unit length (x, y, z, w), got norm {norm:.6g}")
-    return q / norm
 
 
 class World:
@@ -175,20 +156,20 @@ class World:
             if isinstance(shape, Plane):
                 raise ContactSimError(f"{w}.shape: a plane is a half-space with no mass; make the body static or kinematic")
             if mass is not None:
-                body_mass = self._positive(mass, f"{w}.mass")
+                body_mass = _positive(mass, f"{w}.mass")
                 try:
                     m1, com, i1 = shape.mass_properties(1.0)
                 except ContactSimError as exc:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
                 inertia = i1 * (body_mass / m1)  # uniform density
             else:
-                rho = DEFAULT_DENSITY if density is None else self._positive(density, f"{w}.density")
+                rho = DEFAULT_DENSITY if density is None else _positive(density, f"{w}.density")
                 try:
                     body_mass, com, inertia = shape.mass_properties(rho)
                 except ContactSimError as exc:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
         elif mass is not None or density is not None:
-            self._positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
+            _positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
         # centre the geometry on the centre of mass (round-off-sized offsets are not worth a copy)
         scale = max(float(np.ptp(getattr(shape, "vertices", np.zeros((1, 3))), axis=0).max()), 1e-12)
         centered = shape.translated(-com) if np.abs(com).max() > 1e-12 * scale else shape
@@ -239,18 +220,6 @@ class World:
         self.group = np.append(self.group, np.uint32(group))
         self.mask = np.append(self.mask, np.uint32(mask))
         return idx
-
-    @staticmethod
-    def _positive(value, what):
-        if isinstance(value, bool):
-            raise ContactSimError(f"{what}: must be a number, got {value!r}")
-        try:
-            x = float(value)
-        except (TypeError, ValueError):
-            raise ContactSimError(f"{what}: must be a number, got {value!r}") from None
-        if not np.isfinite(x) or x <= 0:
-            raise ContactSimError(f"{what}: must be > 0, got {value!r}")
-        return x
 
     def body(self, name):
         """Snapshot (copies) of a body by name: position, orientation, velocities, mass, shape."""
