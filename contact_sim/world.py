@@ -333,31 +333,30 @@ class World:
             s.quat[kin] = quat.normalize(quat.mul(turn, s.quat[kin]))
 
     # ------------------------------------------------------------------ reporting
+    def _spin(self, mask):
+        """World-frame spin angular momentum ``I_w ω (M, 3)`` of the bodies selected by ``mask``."""
+        r = quat.to_matrix(self.s.quat[mask])
+        inertia_w = r @ self.inertia_body[mask] @ np.swapaxes(r, -1, -2)
+        return np.einsum("ijk,ik->ij", inertia_w, self.s.omega[mask])
+
     def energy(self):
-        """Kinetic plus gravitational potential energy (J) of the dynamic bodies."""
+        """Kinetic (linear and rotational) plus gravitational potential energy (J) of the dynamic bodies."""
         d = self.kind == DYNAMIC
-        if not d.any():
-            return 0.0
         s = self.s
         m = self.mass[d]
         lin = 0.5 * np.sum(m * np.einsum("ij,ij->i", s.vel[d], s.vel[d]))
-        inertia_w = np.linalg.inv(dynamics.world_inverse_inertia(s.quat[d], self.inv_inertia_body[d])[~self.particle[d]]) \
-            if (~self.particle[d]).any() else np.zeros((0, 3, 3))
-        w = s.omega[d][~self.particle[d]]
-        rot = 0.5 * np.sum(np.einsum("ij,ijk,ik->i", w, inertia_w, w))
+        rigid = d & ~self.particle
+        rot = 0.5 * np.sum(np.einsum("ij,ij->i", s.omega[rigid], self._spin(rigid)))
         pot = -np.sum(m * (s.pos[d] @ self.gravity))
         return float(lin + rot + pot)
 
     def angular_momentum(self):
-        """Total angular momentum (3,) of the dynamic rigid bodies about the world origin."""
-        d = (self.kind == DYNAMIC) & ~self.particle
+        """Total angular momentum (3,) of the dynamic bodies about the world origin (spin of the
+        rigid ones plus every body's orbital part)."""
+        d = self.kind == DYNAMIC
         s = self.s
-        if not d.any():
-            return np.zeros(3)
-        iw = np.linalg.inv(dynamics.world_inverse_inertia(s.quat[d], self.inv_inertia_body[d]))
-        spin = np.einsum("ijk,ik->ij", iw, s.omega[d])
-        orbital = np.cross(s.pos[d], self.mass[d][:, None] * s.vel[d])
-        return spin.sum(axis=0) + orbital.sum(axis=0)
+        orbital = np.cross(s.pos[d], self.mass[d][:, None] * s.vel[d]).sum(axis=0)
+        return orbital + self._spin(d & ~self.particle).sum(axis=0)
 
     def describe(self):
         """A short human-readable account of the world: bodies, shapes, kinds and settings."""
