@@ -31,6 +31,7 @@ import numpy as np
 from . import dynamics
 from .contacts import Contacts
 from .settings import combine
+from .vec import cross
 from .response import models as _models
 from .response import narrow, solver
 from .response import toi as toi_mod
@@ -41,6 +42,8 @@ IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce,
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
 SOLVER_METHOD = "auto"    # direct (small) / jacobi (large); "gs" or "jacobi" force one (benchmarks)
+SPECULATIVE = True        # next_step: speculative contacts (detect ahead by speed × dt, arrive exactly touching)
+SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
 
 
 def describe_models(world):
@@ -51,6 +54,7 @@ def describe_models(world):
 def forget(world):
     """Drop what the stepper carries between steps (warm starts, preflight done): after a reset."""
     world._cs_warm = None
+    world._cs_spec = None
     world._cs_preflight_dt = None
 
 
@@ -98,12 +102,52 @@ def _gravity(world):
     return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
 
 
-def _local_points(world, c):
-    """Contact points ``(K,3)`` in body A's frame (what identifies a contact across steps)."""
+def _speculative_margin(world, dt):
+    """Detection margin (m) of a ``next_step`` step with speculative contacts: the largest closing
+    distance of any pair in ``dt`` (twice the fastest body's speed, including spin × size, times
+    ``dt``, plus ``|g| dt²``), at least ``settings.contact_margin`` and at most
+    ``SPECULATIVE_MAX_FRACTION`` × the thinnest finite body (a body moving farther than that in a
+    step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
+    s = world.s
+    base = world.settings.contact_margin
+    moving = world.kind != 0
+    if not moving.any():
+        return base
+    ext = _extent(world)
+    v2 = np.einsum("ij,ij->i", s.vel, s.vel)
+    w2 = np.einsum("ij,ij->i", s.omega, s.omega)
+    speed = np.sqrt(v2) + np.sqrt(w2) * np.where(np.isfinite(ext), ext, 0.0)
+    vmax = float(speed[moving].max())
+    reach = 2.0 * vmax * dt + float(np.linalg.norm(world.gravity)) * dt * dt
+    thin = getattr(world, "_cs_thin", None)
+    if thin is None or thin[0] != len(world):
+        t = np.array([sh.thinnest() for sh in world.shapes])
+        thin = (len(world), float(t[np.isfinite(t)].min()) if np.isfinite(t).any() else np.inf)
+        world._cs_thin = thin
+    return max(base, min(reach, SPECULATIVE_MAX_FRACTION * thin[1]))
+
+
+def _closing_filter(world, c, dt, base):
+    """Keep the contacts of ``c`` within ``base`` (touching) and the separated ones whose gap can
+    close within ``dt`` at the current normal velocity (``(K,) bool``): ``gap ≤ max(−v_n, 0)·dt +
+    |g|·dt² + base``, with ``v_n = n·(ṗ_A − ṗ_B)`` at the contact point."""
+    s = world.s
+    a, b = c.body_a, c.body_b
+    pa = s.vel[a] + cross(s.omega[a], c.point - s.pos[a])
+    pb = s.vel[b] + cross(s.omega[b], c.point - s.pos[b])
+    vn = np.einsum("ij,ij->i", c.normal, pa - pb)
+    g = float(np.linalg.norm(world.gravity))
+    return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
+
+
+def _local_points(world, c, point=None):
+    """Contact points ``(K,3)`` (``c.point`` or the given ``point (K,3)``) in body A's frame (what
+    identifies a contact across steps)."""
     from . import quat
 
     s = world.s
-    return quat.rotate(quat.conj(s.quat[c.body_a]), c.point - s.pos[c.body_a])
+    p = c.point if point is None else point
+    return quat.rotate(quat.conj(s.quat[c.body_a]), p - s.pos[c.body_a])
 
 
 def _extent(world):
@@ -153,6 +197,20 @@ def _warm_lookup(world, c, local):
     hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
     ok = hit >= 0
     out[ok] = rate[hit[ok]]
+    return out
+
+
+def _spec_lookup(world, c, local):
+    """Approach normal velocity ``(K,)`` that the contacts ``c`` had before an earlier speculative
+    impulse slowed them down to arrive touching (``+inf`` where none matches)."""
+    old = getattr(world, "_cs_spec", None)
+    out = np.full(len(c), np.inf)
+    if old is None or len(old[0]) == 0 or len(c) == 0:
+        return out
+    a0, b0, p0, vn = old
+    hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
+    ok = hit >= 0
+    out[ok] = vn[hit[ok]]
     return out
 
 
@@ -216,8 +274,13 @@ def _impulse_step(world, dt, m):
     warm_out = None
     first = True
     inv_i = _inv_inertia(world, m)
+    spec = SPECULATIVE and not exact_toi
+    spec_out = None
     while True:
-        c = narrow.detect(world, margin)
+        det_margin = _speculative_margin(world, t_left) if spec else margin
+        c = narrow.detect(world, det_margin)
+        if spec and det_margin > margin and len(c):
+            c = c.select(_closing_filter(world, c, t_left, margin))
         k = len(c)
         dv_rest = None
         dw_rest = None
@@ -232,23 +295,43 @@ def _impulse_step(world, dt, m):
             e, mu_s, mu_d = _coefficients(world, c, m)
             fr = m.friction and m.response != "kinematic"
             vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
-            if m.resting:   # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
-                e = np.where(e * np.maximum(-vn0, 0.0) < REST_REBOUND_FRACTION * gdt, 0.0, e)
-            lam = np.zeros((k, 3))
             touching = c.depth >= -touch_eps
-            impact = touching & (vn0 < (-v_imp if m.resting else 0.0))
-            if impact.any():
-                ti = np.flatnonzero(touching)
+            # approach speed for restitution: a speculative contact that closed in an earlier step
+            # arrived slowed down to touching; its restitution uses the speed it had before (Box2D's rule)
+            if spec:
+                # identified by the point on A's surface (the contact point is midway across the gap)
+                surf = _local_points(world, c, c.point - 0.5 * c.depth[:, None] * c.normal)
+                vn_in = np.minimum(vn0, _spec_lookup(world, c, surf))
+            else:
+                vn_in = vn0
+            if m.resting:   # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
+                e = np.where(e * np.maximum(-vn_in, 0.0) < REST_REBOUND_FRACTION * gdt, 0.0, e)
+            lam = np.zeros((k, 3))
+            impact = touching & (vn_in < (-v_imp if m.resting else 0.0))
+            closing = np.zeros(k, bool)
+            if spec:
+                # speculative contacts (apart, within the look-ahead): the impulse leaves the normal
+                # velocity at what closes exactly the gap over the step under gravity, v_n ≥ (−gap −
+                # g_n T²/2)/T, so the pair arrives touching instead of overlapping; no restitution yet
+                g_n = np.einsum("ij,ij->i", c.normal, g[c.body_a] - g[c.body_b])
+                spec_target = (c.depth - 0.5 * g_n * t_left * t_left) / t_left
+                closing = ~touching & (vn0 < spec_target)
+            if impact.any() or closing.any():
+                ti = np.flatnonzero(touching | closing)
                 r1 = rows.select(ti)
-                target = np.where(vn0[ti] < 0, -e[ti] * vn0[ti], 0.0)
+                target = np.where(touching[ti], np.where(vn_in[ti] < 0, -e[ti] * vn_in[ti], 0.0),
+                                  spec_target[ti] if spec else 0.0)
                 res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
                                         mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
                                         tolerance=st.solver_tolerance, method=SOLVER_METHOD)
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
-            if m.resting and (touching.any() or not exact_toi) and not (impact.any() and np.all(
-                    solver.row_velocity(rows, s.vel, s.omega)[:, 0] > v_imp)):
+                if spec and closing.any():
+                    keep = closing & (lam[:, 0] > 0) & (e > 0)
+                    spec_out = (c.body_a[keep], c.body_b[keep], surf[keep], vn_in[keep])
+            vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0] if impact.any() else vn0
+            if m.resting and (touching.any() or not exact_toi) and not (impact.any() and np.all(vn1 > v_imp)):
                 v_end = s.vel + g * t_left
                 w_end = s.omega.copy()
                 v_start_end = v_end.copy()
@@ -256,13 +339,19 @@ def _impulse_step(world, dt, m):
                 # with exact times of impact only touching contacts rest (the others get their impact
                 # time); with next_step every contact within the margin is a speculative one
                 # a contact that just rebounded is leaving: no resting force may hold it back
-                leaving = impact.any() & (solver.row_velocity(rows, s.vel, s.omega)[:, 0] > v_imp)
+                leaving = impact.any() & (vn1 > v_imp)
                 if exact_toi:   # touching or slowly approaching; a fast one within the margin gets its impact time
                     ri = np.flatnonzero((touching | (vn0 >= -gdt)) & ~leaving)
                 else:
                     ri = np.flatnonzero(~leaving)
                 r2 = rows.select(ri)
                 target = np.minimum(c.depth[ri], 0.0) / t_left   # close a gap, never open one
+                if spec:
+                    # a speculative contact: the displacement over T of the constant-force model,
+                    # (v_start + v_end)/2·T, may close the gap exactly, never more (and never asks the
+                    # pair to separate)
+                    vs = (solver.row_velocity(rows, s.vel, s.omega)[:, 0] if closing.any() else vn1)[ri]
+                    target = np.where(touching[ri], target, np.minimum(2.0 * c.depth[ri] / t_left - vs, 0.0))
                 warm_rate = _warm_lookup(world, c.select(ri), local[ri])
                 warm = _project_warm(warm_rate * t_left, r2, mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
@@ -295,7 +384,13 @@ def _impulse_step(world, dt, m):
         if k:
             if dv_rest is not None:
                 lam += lam2 * frac
-            records.append((_record(c, rows, lam, vn0), local))
+            rec = _record(c, rows, lam, vn0)
+            if spec:   # speculative contacts that did nothing are not contacts of this step
+                used = touching | (lam[:, 0] > 0)
+                rec, loc_rec = rec.select(used), local[used]
+            else:
+                loc_rec = local
+            records.append((rec, loc_rec))
         if dv_rest is None:
             world._advance_free(tau)
         else:
@@ -307,6 +402,8 @@ def _impulse_step(world, dt, m):
         vp, wp = pseudo
         _move(world, vp * dt, wp * dt)
     world._cs_warm = warm_out
+    if spec:
+        world._cs_spec = spec_out
     world.contacts = _merge_records(world, records)
     world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
                         "contacts": len(world.contacts), "impacts": events, "toi": m.toi,

@@ -51,6 +51,21 @@ def _can_touch(world):
     return ok
 
 
+def _shape_info(world):
+    """Per-world shape facts cached across steps: ``(thinnest (N,), dynamic bodies all spheres)``;
+    rebuilt when bodies are added (the shape list only grows)."""
+    n = len(world)
+    key = (n, id(world.shapes[-1]) if n else None, world.kind.tobytes())
+    hit = getattr(world, "_cs_shape_info", None)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    thin = np.array([sh.thinnest() for sh in world.shapes]) if n else np.zeros(0)
+    dyn = world.kind == 2
+    spheres = all(isinstance(world.shapes[i], Sphere) for i in np.flatnonzero(dyn))
+    world._cs_shape_info = (key, (thin, spheres))
+    return thin, spheres
+
+
 def step_travel(world, dt):
     """Distance ``(N,)`` each body can travel in one step at its current speed under gravity."""
     g = np.linalg.norm(world.gravity) * (world.kind == 2)
@@ -62,7 +77,7 @@ def thin_and_fast(world, dt):
     body they could meet (themselves included)."""
     if len(world) == 0:
         return []
-    thin = np.array([sh.thinnest() for sh in world.shapes])
+    thin = _shape_info(world)[0]
     travel = step_travel(world, dt)
     finite_min = np.min(thin[np.isfinite(thin)]) if np.isfinite(thin).any() else np.inf
     limit = np.minimum(thin, finite_min)
@@ -97,7 +112,7 @@ def choose(world, dt=None):
         response = st.response
         reasons.append(f"response {response}: set by the scene")
     # rotation work
-    spheres_only = all(isinstance(shapes[i], Sphere) for i in np.flatnonzero(dyn))
+    spheres_only = _shape_info(world)[1]
     rigid = dyn & ~world.particle
     rotation = bool(rigid.any()) and response != "kinematic" and not (spheres_only and not friction)
     if not rotation and rigid.any() and response != "kinematic":

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..vec import cross
+
 _TINY = 1e-300
 
 
@@ -43,14 +45,14 @@ def tangent_basis(normal, hint=None):
     axis = np.zeros((k, 3))
     smallest = np.argmin(np.abs(normal), axis=1)
     axis[np.arange(k), smallest] = 1.0
-    t1 = np.cross(normal, axis)
+    t1 = cross(normal, axis)
     if hint is not None:
         ht = hint - _dot(hint, normal)[:, None] * normal
         hn = np.linalg.norm(ht, axis=1)
         use = hn > 1e-12
         t1 = np.where(use[:, None], ht / np.where(use, hn, 1.0)[:, None], t1)
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(normal, t1)
+    t2 = cross(normal, t1)
     return t1, t2
 
 
@@ -126,11 +128,11 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
     rb = point - pos[b]
     hint = None
     if vel is not None:
-        hint = (vel[a] + np.cross(omega[a], ra)) - (vel[b] + np.cross(omega[b], rb))
+        hint = (vel[a] + cross(omega[a], ra)) - (vel[b] + cross(omega[b], rb))
     t1, t2 = tangent_basis(normal, hint)
     d = np.stack([normal, t1, t2], axis=1)                    # (K,3,3)
-    ang_a = np.cross(ra[:, None, :], d)                       # (K,3,3)
-    ang_b = np.cross(rb[:, None, :], d)
+    ang_a = cross(ra[:, None, :], d)                       # (K,3,3)
+    ang_b = cross(rb[:, None, :], d)
     iang_a = np.einsum("kij,kdj->kdi", inv_inertia[a], ang_a)
     iang_b = np.einsum("kij,kdj->kdi", inv_inertia[b], ang_b)
     ima, imb = inv_mass[a], inv_mass[b]
@@ -359,6 +361,9 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
 DIRECT_MAX_CONTACTS = 200       # dense Delassus matrix (3K)² up to this many contacts
 DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
 DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
+DIRECT_DENSE_MAX = 16           # above this many contacts the Delassus matrix stays sparse (SuperLU): most
+                                # large sets are many small islands, and a threaded dense BLAS factorisation
+                                # of a few hundred rows costs tens of ms on a loaded 2-core machine
 
 
 def _regularised_solve(sub, r, eps, refine=2):
@@ -380,10 +385,28 @@ def _regularised_solve(sub, r, eps, refine=2):
     return x
 
 
-def delassus(rows):
-    """Dense Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)``, rows ordered (n, t1, t2) per contact:
+def _regularised_solve_sparse(sub, r, eps, refine=2):
+    """``_regularised_solve`` for a sparse ``sub (m,m)`` (CSR/CSC): SuperLU of ``sub + eps·I``
+    with the same iterative refinement; dense least squares if the factorisation fails."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    m = sub.shape[0]
+    try:
+        f = splu((sub + eps * sparse.identity(m, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError:
+        return np.linalg.lstsq(sub.toarray(), r, rcond=None)[0]
+    x = f.solve(r)
+    for _ in range(refine):
+        x += f.solve(r - sub @ x)
+    return x
+
+
+def delassus(rows, dense=True):
+    """Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)``, rows ordered (n, t1, t2) per contact:
     ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``.
-    Built as a sparse product (12 non-zeros per row of ``J``), returned dense."""
+    Built as a sparse product (12 non-zeros per row of ``J``), returned dense (or CSR when
+    ``dense`` is false)."""
     from scipy import sparse
 
     k = len(rows.a)
@@ -399,7 +422,8 @@ def delassus(rows):
     n6 = 6 * (max(int(rows.a.max()), int(rows.b.max())) + 1) if k else 0
     J = sparse.csr_matrix((jv, (r, cols)), shape=(3 * k, n6))
     W = sparse.csr_matrix((wv, (r, cols)), shape=(3 * k, n6))
-    return (J @ W.T).toarray()
+    A = J @ W.T
+    return A.toarray() if dense else A.tocsr()
 
 
 def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None):
@@ -415,8 +439,11 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     k = len(rows.a)
     if k == 0:
         return SolveResult(np.zeros((0, 3)), 0, 0.0), True
+    dense = k <= DIRECT_DENSE_MAX
     if A is None:
-        A = delassus(rows)
+        A = delassus(rows, dense)
+    else:
+        dense = isinstance(A, np.ndarray)
     v0 = row_velocity(rows, vel, omega)                  # (K,3)
     rhs = -v0.copy()
     rhs[:, 0] += target_n
@@ -425,7 +452,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     act = v0[:, 0] < target_n
     if warm is not None:
         act |= warm[:, 0] > 0
-    diag = np.diag(A)
+    diag = np.diag(A) if dense else A.diagonal()
     eps = DIRECT_REGULARISATION * max(float(diag.max()), _TINY)
     tol = 1e-12 + 1e-9 * float(np.abs(rhs).max())
     lam = np.zeros((k, 3))
@@ -438,7 +465,10 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
         S = np.flatnonzero(sel.ravel())
         x = np.zeros(3 * k)
         if S.size:
-            x[S] = _regularised_solve(A[np.ix_(S, S)], rhs[S], eps)
+            if dense:
+                x[S] = _regularised_solve(A[np.ix_(S, S)], rhs[S], eps)
+            else:
+                x[S] = _regularised_solve_sparse(A[S][:, S], rhs[S], eps)
         lam = x.reshape(k, 3)
         vn = v0[:, 0] + (A @ x)[0::3]
         neg = act & (lam[:, 0] < 0)

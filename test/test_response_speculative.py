@@ -1,0 +1,113 @@
+"""Speculative contacts (next_step) and the per-step contact records of ``World.contacts``."""
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim import stepper
+
+G, R = 9.81, 0.1
+
+
+def _ball_scene(e, drop, dt, toi="next_step", friction=0.0, spheres=1):
+    bodies = [{"name": "ground", "kind": "static", "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 0.0},
+               "material": "m"}]
+    for i in range(spheres):
+        bodies.append({"name": f"ball{i}", "shape": {"type": "sphere", "radius": R}, "mass": 1.0,
+                       "position": [0.5 * i, 0.0, R + drop], "material": "m"})
+    return cs.load_scene({"gravity": [0, 0, -G], "settings": {"dt": dt, "toi": toi, "response": "impulse"},
+                          "materials": {"m": {"restitution": e, "friction": friction}}, "bodies": bodies})
+
+
+def _penetration_of_landing(dt, steps):
+    world = _ball_scene(0.0, 0.1, dt)            # lands at sqrt(2 g 0.1) = 1.4 m/s
+    worst = 0.0
+    for _ in range(steps):
+        world.step()
+        worst = max(worst, R - world.body("ball0").position[2])
+    return world, worst
+
+
+def test_landing_at_speed_does_not_penetrate_with_speculative_contacts():
+    dt = 1 / 240
+    world, worst = _penetration_of_landing(dt, 120)
+    u = np.sqrt(2 * G * 0.1)
+    print(f"speculative: worst penetration {worst:.3g} m (travel per step {u * dt:.3g} m)")
+    assert worst < 1e-6
+    assert abs(world.body("ball0").velocity[2]) < 1e-6       # at rest, no bounce (e = 0)
+    assert abs(world.body("ball0").position[2] - R) < 1e-6
+
+
+def test_without_speculative_contacts_the_same_landing_penetrates(monkeypatch):
+    """The comparison that makes the test above meaningful: the old next_step overlaps by ~u·dt/2."""
+    monkeypatch.setattr(stepper, "SPECULATIVE", False)
+    dt = 1 / 240
+    _, worst = _penetration_of_landing(dt, 120)
+    assert worst > 1e-4
+
+
+@pytest.mark.parametrize("e", [0.5, 0.8, 1.0])
+def test_restitution_applies_when_a_speculative_contact_closes(e):
+    """The ball is slowed to arrive exactly touching; the next step it rebounds with e × the speed it
+    arrived with before the speculative impulse (to within gravity over two steps)."""
+    dt = 1 / 60
+    world = _ball_scene(e, 0.9, dt)
+    v_prev, z_min, rebound, before = 0.0, np.inf, None, None
+    for _ in range(60):
+        world.step()
+        v = world.body("ball0").velocity[2]
+        z_min = min(z_min, world.body("ball0").position[2])
+        if v_prev < 0 < v:
+            rebound, before = v, v_prev
+            break
+        v_prev = v
+    u = np.sqrt(2 * G * 0.9)
+    assert rebound is not None
+    assert z_min > R - 1e-9                                 # never overlapped
+    assert abs(rebound - e * u) < 2 * G * dt + 1e-9, (rebound, e * u)
+
+
+def test_speculative_contacts_never_start_a_pair_moving_apart():
+    """A speculative contact may only slow an approach: a ball resting 1 mm above the ground (held
+    there by nothing but an initial upward velocity) follows free flight exactly."""
+    world = _ball_scene(0.0, 0.001, 1 / 240)
+    world.set_state("ball0", velocity=[0.0, 0.0, 0.5])
+    z0 = world.body("ball0").position[2]
+    world.step()
+    t = 1 / 240
+    assert abs(world.body("ball0").position[2] - (z0 + 0.5 * t - 0.5 * G * t * t)) < 1e-12
+    assert abs(world.body("ball0").velocity[2] - (0.5 - G * t)) < 1e-12
+
+
+def test_contacts_one_row_per_point_with_the_total_impulse_of_the_step():
+    """Fractional time of impact splits the step at the impact; ``world.contacts`` still has one
+    row for the ball–ground contact, whose impulse is the ball's whole momentum change minus gravity's."""
+    world = _ball_scene(0.8, 0.9, 1 / 60, toi="fractional")
+    m = 1.0
+    seen = 0
+    for _ in range(40):
+        v0 = world.body("ball0").velocity.copy()
+        world.step()
+        v1 = world.body("ball0").velocity
+        c = world.contacts
+        pairs = set(zip(c.body_a.tolist(), c.body_b.tolist()))
+        assert len(pairs) == len(c)                              # one row per contact point
+        if len(c) and np.any(c.impulse != 0):
+            seen += 1
+            sign = 1.0 if c.body_a[0] == world.index("ball0") else -1.0
+            expected = m * (v1 - v0) - m * np.array([0, 0, -G]) * world.settings.dt
+            assert np.allclose(sign * c.impulse[0], expected, rtol=0, atol=1e-9)
+            assert np.allclose(c.impulse[0], c.normal_impulse[0] * c.normal[0] + c.friction_impulse[0], atol=1e-15)
+    assert seen >= 1
+
+
+def test_resting_contact_rows_carry_the_weight():
+    """Balls resting on the ground: one row each, normal impulse m g dt per step (no double count
+    across the sub-steps of a step), depth within the contact margin."""
+    dt = 1 / 240
+    world = _ball_scene(0.0, 0.0, dt, spheres=3)
+    for _ in range(10):
+        world.step()
+    c = world.contacts
+    assert len(c) == 3
+    assert np.allclose(c.normal_impulse, 1.0 * G * dt, rtol=1e-9)
+    assert np.all(np.abs(c.depth) <= world.settings.contact_margin)
