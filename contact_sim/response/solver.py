@@ -426,7 +426,47 @@ def delassus(rows, dense=True):
     return A.toarray() if dense else A.tocsr()
 
 
-def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None):
+def _solve_singles(rows, v0, target_n, mu_s, friction):
+    """Exact impulses ``(k,3)`` of contacts that share no movable body with any other contact
+    (each its own 3×3 problem, batched) and a ``(k,) bool`` of those whose answer is consistent:
+    separating (λ = 0), or active with λ_n ≥ 0 and sticking inside the static cone (a sliding one
+    is left to the general path). ``v0 (k,3)`` row velocities, ``target_n (k,)``."""
+    k = len(v0)
+    lam = np.zeros((k, 3))
+    act = v0[:, 0] < target_n
+    ok = ~act
+    if not act.any():
+        return lam, ok
+    i = np.flatnonzero(act)
+    kk = rows.K[i]
+    rhs = -v0[i]
+    rhs[:, 0] += target_n[i]
+    fr = (mu_s[i] > 0) if friction else np.zeros(i.size, bool)
+    kn = kk[:, 0, 0]
+    # frictionless: normal row only; sticking: the full 3×3 block
+    x = np.zeros((i.size, 3))
+    x[:, 0] = np.where(kn > 0, rhs[:, 0] / np.where(kn > 0, kn, 1.0), 0.0)
+    if fr.any():
+        f = np.flatnonzero(fr)
+        det = np.linalg.det(kk[f])
+        good = np.abs(det) > 1e-300 * np.maximum(np.abs(kk[f]).max(axis=(1, 2)) ** 3, 1e-300)
+        xs = np.zeros((f.size, 3))
+        if good.any():
+            xs[good] = np.linalg.solve(kk[f][good], rhs[f][good][:, :, None])[:, :, 0]
+        x[f] = xs
+        bad = np.zeros(i.size, bool)
+        bad[f] = ~good
+    else:
+        bad = np.zeros(i.size, bool)
+    good_n = (kn > 0) & (x[:, 0] >= 0) & ~bad
+    if friction:
+        good_n &= np.linalg.norm(x[:, 1:], axis=1) <= mu_s[i] * x[:, 0] * (1 + 1e-12) + 1e-300
+    lam[i] = np.where(good_n[:, None], x, 0.0)
+    ok[i] = good_n
+    return lam, ok
+
+
+def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None, _split=True):
     """Exact contact impulses by an active-set method on the dense Delassus matrix.
 
     Solves ``v_n + (Aλ)_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction (tangential velocity
@@ -439,6 +479,35 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     k = len(rows.a)
     if k == 0:
         return SolveResult(np.zeros((0, 3)), 0, 0.0), True
+    if _split and A is None and k > DIRECT_DENSE_MAX:
+        # contacts that share no movable body with another contact are independent 3×3 problems:
+        # solved batched; the rest (islands of several contacts) by the active set below
+        mov = rows.movable
+        n = len(mov)
+        cnt = np.bincount(rows.a[mov[rows.a]], minlength=n) + np.bincount(rows.b[mov[rows.b]], minlength=n)
+        single = (~mov[rows.a] | (cnt[rows.a] == 1)) & (~mov[rows.b] | (cnt[rows.b] == 1))
+        if single.any():
+            friction = mu_s is not None and np.any(mu_s > 0)
+            si = np.flatnonzero(single)
+            v0s = row_velocity(rows, vel, omega, si)
+            lam_s, ok = _solve_singles(rows.select(si), v0s, target_n[si], mu_s[si] if friction else None,
+                                       friction)
+            single[si[~ok]] = False
+            rest = np.flatnonzero(~single)
+            lam = np.zeros((k, 3))
+            lam[si[ok]] = lam_s[ok]
+            res_r, conv = SolveResult(np.zeros((0, 3)), 1, 0.0), True
+            if rest.size:
+                res_r, conv = solve_direct(rows.select(rest), vel, omega, target_n=target_n[rest],
+                                           mu_s=None if mu_s is None else mu_s[rest],
+                                           mu_d=None if mu_d is None else mu_d[rest],
+                                           warm=None if warm is None else warm[rest], _split=False)
+                lam[rest] = res_r.impulse
+            if not conv:
+                return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
+            done = si[ok]
+            apply(rows.select(done), vel, omega, lam[done])
+            return SolveResult(lam, 1, res_r.residual), True
     dense = k <= DIRECT_DENSE_MAX
     if A is None:
         A = delassus(rows, dense)
