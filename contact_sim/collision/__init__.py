@@ -246,7 +246,9 @@ def _detect(bodies, shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings):
     a = np.where(swap, ib, ia)
     b = np.where(swap, ia, ib)
     t1 = time.perf_counter()
-    finite = ~bodies.is_plane[b]
+    # sphere–sphere pairs skip the bounding volumes: the sphere is its own bounding sphere and the
+    # narrow kernel is the same distance test (an OBB test on top only costs time)
+    finite = ~bodies.is_plane[b] & ~((bodies.rank[a] == 1) & (bodies.rank[b] == 1))
     if bv == "hull":
         _prepare_hulls(bodies, shapes)
     keep = np.ones(len(a), bool)

@@ -56,13 +56,15 @@ def tangent_basis(normal, hint=None):
     return t1, t2
 
 
-def color_contacts(a, b, movable):
-    """Partition contacts into colours no two of which share a movable body.
+COLOR_SEED = 0x9E3779B1   # multiplicative hash of the contact index: a fixed pseudo-random priority
+COLORING = "luby"         # "luby": maximal independent sets (few colours); "greedy": one contact per body per
+                          # round in index order (a column gets one colour per link: slower sweeps that
+                          # propagate along chains within one sweep)
 
-    ``a, b (K,) int``; ``movable (N,) bool``. Returns a list of index arrays covering ``range(K)``.
-    Each round keeps, for every movable body, its lowest-numbered uncoloured contact; a contact
-    joins the colour when it is the one kept by each of its movable bodies (vectorised rounds).
-    """
+
+def color_contacts_greedy(a, b, movable):
+    """The index-ordered colouring: each round keeps, for every movable body, its lowest-numbered
+    uncoloured contact; a contact joins when it is the one kept by each of its movable bodies."""
     remaining = np.arange(len(a))
     colors = []
     n = len(movable)
@@ -76,6 +78,52 @@ def color_contacts(a, b, movable):
         ok = (~ma | (best[ra] == pos)) & (~mb | (best[rb] == pos))
         colors.append(remaining[ok])
         remaining = remaining[~ok]
+    return colors
+
+
+def color_contacts(a, b, movable, method=None):
+    """Partition contacts into colours no two of which share a movable body.
+
+    ``a, b (K,) int``; ``movable (N,) bool``. Returns a list of index arrays covering ``range(K)``.
+    Each colour is a maximal independent set built by vectorised Luby rounds: a candidate joins when
+    it has the smallest priority (a fixed hash of its index) among the candidates at each of its
+    movable bodies; its bodies are then taken and the candidates touching them leave the round.
+    Chains (columns, stacks) get 2–3 colours instead of one colour per link, which is what an
+    index-ordered greedy rule gives them.
+    """
+    if (method or COLORING) == "greedy":
+        return color_contacts_greedy(a, b, movable)
+    k = len(a)
+    n = len(movable)
+    prio = (np.arange(k, dtype=np.uint64) * np.uint64(COLOR_SEED)) % np.uint64(2 ** 32)
+    order = np.argsort(prio, kind="stable")
+    rank = np.empty(k, np.int64)
+    rank[order] = np.arange(k)
+    ma_all, mb_all = movable[a], movable[b]
+    remaining = np.arange(k)
+    colors = []
+    while remaining.size:
+        color = []
+        cand = remaining
+        taken = np.zeros(n, bool)
+        while cand.size:
+            ra, rb, rk = a[cand], b[cand], rank[cand]
+            ma, mb = ma_all[cand], mb_all[cand]
+            best = np.full(n, k)
+            np.minimum.at(best, ra[ma], rk[ma])
+            np.minimum.at(best, rb[mb], rk[mb])
+            ok = (~ma | (best[ra] == rk)) & (~mb | (best[rb] == rk))
+            pick = cand[ok]
+            color.append(pick)
+            taken[a[pick][ma_all[pick]]] = True
+            taken[b[pick][mb_all[pick]]] = True
+            rest = cand[~ok]
+            cand = rest[~((ma_all[rest] & taken[a[rest]]) | (mb_all[rest] & taken[b[rest]]))]
+        color = np.sort(np.concatenate(color))
+        colors.append(color)
+        used = np.zeros(k, bool)
+        used[color] = True
+        remaining = remaining[~used[remaining]]
     return colors
 
 
