@@ -286,7 +286,7 @@ def _impulse_step(world, dt, m):
         k = len(c)
         dv_rest = None
         dw_rest = None
-        exclude = set()
+        exclude = np.zeros(0, np.int64)
         if k:
             if first:
                 max_pen = max(max_pen, float(c.depth.max()))
@@ -371,8 +371,9 @@ def _impulse_step(world, dt, m):
             near = touching.copy()
             if dv_rest is not None:
                 near[ri] = True
-            exclude = {(int(a), int(b)) for a, b in zip(c.body_a[near], c.body_b[near])} if exact_toi else set()
-            exclude |= {(b, a) for a, b in exclude}
+            if exact_toi:   # pairs already in contact: keys min·N + max (no time of impact for them)
+                ea, eb = c.body_a[near], c.body_b[near]
+                exclude = np.minimum(ea, eb) * len(world) + np.maximum(ea, eb)
         first = False
         tau = t_left
         if exact_toi and events < st.max_impacts_per_step:

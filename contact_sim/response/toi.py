@@ -169,12 +169,22 @@ def pair_toi(world, motion, i, j, T, swept=False):
     return np.inf
 
 
+def _extents(world):
+    """Bounding radius per body ``(N,)`` (inf for planes), cached on the world."""
+    hit = getattr(world, "_cs_toi_ext", None)
+    if hit is not None and len(hit) == len(world):
+        return hit
+    ext = np.array([_extent(sh) for sh in world.shapes])
+    world._cs_toi_ext = ext
+    return ext
+
+
 def candidate_pairs(world, motion, T, exclude, swept=False):
-    """Pairs ``(P,2)`` that may touch within ``T``: bounding spheres of the paths overlap (and,
-    with ``swept``, the swept-volume test of translating spheres). ``exclude`` a set of pairs."""
+    """Pairs ``(i, j)`` (two ``(P,) int`` arrays, ``i < j``) that may touch within ``T``: bounding
+    spheres of the paths overlap. ``exclude``: keys ``min·N + max (E,) int`` of pairs to skip."""
     n = len(world)
     kind = world.kind
-    ext = np.array([_extent(sh) for sh in world.shapes])
+    ext = _extents(world)
     m = motion
     mid = m.pos + 0.5 * m.vel * T + 0.125 * m.acc * T * T
     half_path = 0.5 * np.linalg.norm(m.vel * T + 0.5 * m.acc * T * T, axis=1) + 0.125 * np.linalg.norm(m.acc, axis=1) * T * T
@@ -187,15 +197,81 @@ def candidate_pairs(world, motion, T, exclude, swept=False):
     finite = np.isfinite(rad[i]) & np.isfinite(rad[j])
     close = ~finite | (np.linalg.norm(mid[i] - mid[j], axis=1) <= np.where(finite, rad[i] + rad[j], np.inf))
     i, j = i[close], j[close]
-    pairs = [(int(a), int(b)) for a, b in zip(i, j) if (int(a), int(b)) not in exclude]
-    return pairs
+    if len(exclude):
+        keep = ~np.isin(i * n + j, exclude)
+        i, j = i[keep], j[keep]
+    return i, j
+
+
+def _closed_form_tois(world, motion, i, j, T):
+    """First touching times ``(P,)`` in ``(0, T]`` of pairs ``(i, j)`` that have a closed form
+    (sphere–plane with a non-spinning plane; sphere–sphere with equal accelerations), ``nan``
+    for the pairs that need the sampled search. Vectorised over pairs."""
+    m = motion
+    shapes = world.shapes
+    typ = _types(world)
+    out = np.full(len(i), np.nan)
+    is_plane_i, is_plane_j = typ[i] == 0, typ[j] == 0
+    # sphere–plane
+    sp = (is_plane_i & (typ[j] == 1)) | (is_plane_j & (typ[i] == 1))
+    pl = np.where(is_plane_i, i, j)
+    ot = np.where(is_plane_i, j, i)
+    sp &= ~np.any(m.omega[pl] != 0, axis=1)
+    if sp.any():
+        k = np.flatnonzero(sp)
+        P, O = pl[k], ot[k]
+        normals = np.array([shapes[x].normal for x in P])
+        offsets = np.array([shapes[x].offset for x in P])
+        nw = quat.rotate(m.quat[P], normals)
+        off = offsets + np.einsum("ij,ij->i", nw, m.pos[P])
+        r = np.array([shapes[x].radius for x in O])
+        c0 = np.einsum("ij,ij->i", m.pos[O], nw) - off - r
+        c1 = np.einsum("ij,ij->i", m.vel[O] - m.vel[P], nw)
+        c2 = 0.5 * np.einsum("ij,ij->i", m.acc[O] - m.acc[P], nw)
+        out[k] = _first_quadratic_root(c0, c1, c2, T)
+    # sphere–sphere with equal accelerations
+    ss = (typ[i] == 1) & (typ[j] == 1) & np.all(m.acc[i] == m.acc[j], axis=1)
+    if ss.any():
+        k = np.flatnonzero(ss)
+        I, J = i[k], j[k]
+        dx = m.pos[I] - m.pos[J]
+        dv = m.vel[I] - m.vel[J]
+        R = np.array([shapes[x].radius for x in I]) + np.array([shapes[x].radius for x in J])
+        d = np.linalg.norm(dx, axis=1)
+        # |dx|² - R² = (|dx| - R)(|dx| + R): c0 without cancellation
+        out[k] = _first_quadratic_root((d - R) * (d + R), 2 * np.einsum("ij,ij->i", dx, dv),
+                                       np.einsum("ij,ij->i", dv, dv), T)
+    return out
+
+
+def _types(world):
+    """Shape type code per body ``(N,)``: 0 plane, 1 sphere, 2 other (cached on the world)."""
+    hit = getattr(world, "_cs_toi_types", None)
+    if hit is not None and len(hit) == len(world):
+        return hit
+    t = np.array([0 if isinstance(sh, Plane) else 1 if isinstance(sh, Sphere) else 2 for sh in world.shapes],
+                 np.int64)
+    world._cs_toi_types = t
+    return t
 
 
 def earliest_event(world, motion, T, exclude, swept=False):
-    """``(τ, (i, j))`` of the first touching event in ``(0, T]`` or ``(inf, None)``."""
+    """``(τ, (i, j))`` of the first touching event in ``(0, T]`` or ``(inf, None)``.
+
+    Closed-form pairs are solved together (vectorised); the pairs that need the sampled search
+    (``pair_toi``: bracket + Brent, inherently one root at a time) are searched only up to the
+    earliest closed-form time, nearest paths first."""
+    i, j = candidate_pairs(world, motion, T, exclude, swept)
+    if len(i) == 0:
+        return np.inf, None
+    tau = _closed_form_tois(world, motion, i, j, T)
     best, pair = np.inf, None
-    for i, j in candidate_pairs(world, motion, T, exclude, swept):
-        tau = pair_toi(world, motion, i, j, min(T, best), swept)
-        if tau < best:
-            best, pair = tau, (i, j)
+    closed = np.isfinite(tau)
+    if closed.any():
+        k = int(np.argmin(np.where(closed, tau, np.inf)))
+        best, pair = float(tau[k]), (int(i[k]), int(j[k]))
+    for k in np.flatnonzero(np.isnan(tau)):   # general shapes: the scalar root search
+        t = pair_toi(world, motion, int(i[k]), int(j[k]), min(T, best), swept)
+        if t < best:
+            best, pair = t, (int(i[k]), int(j[k]))
     return best, pair
