@@ -77,18 +77,17 @@ def grid_pairs(c, h, margin):
         keys = _key(cell)
         order = np.argsort(keys, kind="stable")
         ks = keys[order]
-        for o in _OFFS:      # 14 fixed offsets
-            q = _key(cell[order] + o)
-            lo = np.searchsorted(ks, q, side="left")
-            hi = np.searchsorted(ks, q, side="right")
-            if not o.any():
-                lo = np.arange(len(ks)) + 1    # same cell: only later entries
-            cnt = np.maximum(hi - lo, 0)
-            tot = int(cnt.sum())
-            if tot == 0:
-                continue
-            a = np.repeat(np.arange(len(ks)), cnt)
-            b = np.repeat(lo, cnt) + np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        m = len(ks)
+        # the 14 forward neighbour cells of every box at once: one searchsorted over (m, 14) keys
+        q = _key(cell[order][:, None, :] + _OFFS[None, :, :])
+        lo = np.searchsorted(ks, q, side="left")
+        hi = np.searchsorted(ks, q, side="right")
+        lo[:, 0] = np.arange(m) + 1              # same cell: only later entries
+        cnt = np.maximum(hi - lo, 0).ravel()
+        tot = int(cnt.sum())
+        if tot:
+            a = np.repeat(np.repeat(np.arange(m), len(_OFFS)), cnt)
+            b = np.repeat(lo.ravel(), cnt) + np.arange(tot) - np.repeat(np.cumsum(cnt) - cnt, cnt)
             out_i.append(small[order[a]])
             out_j.append(small[order[b]])
     bigi = np.flatnonzero(big)

@@ -260,24 +260,27 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
         inv_kt[:, 0, 1] = -kt[:, 0, 1] / safe
         inv_kt[:, 1, 0] = -kt[:, 1, 0] / safe
         inv_kt[~ok] = 0.0
-    # gather each colour's rows once (the sweep below then only does small dense products)
+    # gather each colour's rows once (the sweep below then only does small dense products on the
+    # stacked body velocities vw = [v, ω] (N,6): one gather and one scatter per side)
     dirs = rows.dirs
+    ja = np.concatenate([dirs, rows.ang_a], axis=2)                       # (K,3,6)
+    jb = np.concatenate([dirs, rows.ang_b], axis=2)
+    dt_ = dirs.transpose(0, 2, 1)
+    wa = np.concatenate([rows.ima[:, None, None] * dt_, rows.iang_a.transpose(0, 2, 1)], axis=1)   # (K,6,3)
+    wb = np.concatenate([rows.imb[:, None, None] * dt_, rows.iang_b.transpose(0, 2, 1)], axis=1)
     cols = []
-    for idx in rows.colors:
-        cols.append((idx, rows.a[idx], rows.b[idx], dirs[idx], rows.ang_a[idx], rows.ang_b[idx],
-                     rows.ima[idx][:, None, None] * dirs[idx].transpose(0, 2, 1), rows.imb[idx][:, None, None] * dirs[idx].transpose(0, 2, 1),
-                     rows.iang_a[idx].transpose(0, 2, 1), rows.iang_b[idx].transpose(0, 2, 1),
+    for idx in rows.colors:   # a few colours
+        cols.append((idx, rows.a[idx], rows.b[idx], ja[idx], jb[idx], wa[idx], wb[idx],
                      target_n[idx], inv_kn[idx], base_n[idx], rows.K[idx],
                      inv_kt[idx] if friction else None, mu_s[idx] if friction else None,
-                     mu_d[idx] if friction else None))
+                     mu_d[idx] if friction else None, lam[idx]))
+    vw = np.concatenate([vel, omega], axis=1)
     residual = 0.0
     it = 0
     for it in range(1, iterations + 1):
         residual = 0.0
-        for (idx, a, b, d, anga, angb, lina_t, linb_t, ianga_t, iangb_t, tn, ikn, bn, kk, ikt, mus, mud) in cols:
-            rv = (d @ (vel[a] - vel[b])[:, :, None])[:, :, 0] + (anga @ omega[a][:, :, None])[:, :, 0] \
-                - (angb @ omega[b][:, :, None])[:, :, 0]
-            old = lam[idx]
+        for (idx, a, b, jca, jcb, wca, wcb, tn, ikn, bn, kk, ikt, mus, mud, old) in cols:
+            rv = (jca @ vw[a][:, :, None] - jcb @ vw[b][:, :, None])[:, :, 0]
             new = old.copy()
             cn = alpha_n * rv[:, 0] + (1.0 - alpha_n) * bn
             new[:, 0] = np.maximum(old[:, 0] + (tn - cn) * ikn, 0.0)
@@ -297,16 +300,18 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
                                 trial / np.maximum(mag, _TINY)[:, None])
                 new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
             delta = new - old
-            lam[idx] = new
+            old[...] = new
             dl = delta[:, :, None]
-            vel[a] += (lina_t @ dl)[:, :, 0]
-            vel[b] -= (linb_t @ dl)[:, :, 0]
-            omega[a] += (ianga_t @ dl)[:, :, 0]
-            omega[b] -= (iangb_t @ dl)[:, :, 0]
+            vw[a] += (wca @ dl)[:, :, 0]
+            vw[b] -= (wcb @ dl)[:, :, 0]
             if delta.size:
                 residual = max(residual, float(np.abs(delta).max()))
         if residual <= tolerance:
             break
+    for c in cols:
+        lam[c[0]] = c[-1]
+    vel[...] = vw[:, :3]
+    omega[...] = vw[:, 3:]
     return SolveResult(lam, it, residual)
 
 
@@ -514,6 +519,25 @@ def _solve_singles(rows, v0, target_n, mu_s, friction):
     return lam, ok
 
 
+def _peel_singles(rows, vel, omega, target_n, mu_s):
+    """Contacts that share no movable body with any other contact, solved exactly and batched
+    (``_solve_singles``), without touching ``vel, omega``. Returns ``(done (d,) int, lam (d,3),
+    rest (r,) int)``: the consistent singles, their impulses, and every other contact."""
+    k = len(rows.a)
+    mov = rows.movable
+    n = len(mov)
+    cnt = np.bincount(rows.a[mov[rows.a]], minlength=n) + np.bincount(rows.b[mov[rows.b]], minlength=n)
+    single = (~mov[rows.a] | (cnt[rows.a] == 1)) & (~mov[rows.b] | (cnt[rows.b] == 1))
+    if not single.any():
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.arange(k)
+    friction = mu_s is not None and np.any(mu_s > 0)
+    si = np.flatnonzero(single)
+    v0s = row_velocity(rows, vel, omega, si)
+    lam_s, ok = _solve_singles(rows.select(si), v0s, target_n[si], mu_s[si] if friction else None, friction)
+    single[si[~ok]] = False
+    return si[ok], lam_s[ok], np.flatnonzero(~single)
+
+
 def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None, _split=True):
     """Exact contact impulses by an active-set method on the dense Delassus matrix.
 
@@ -530,20 +554,10 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     if _split and A is None and k > DIRECT_DENSE_MAX:
         # contacts that share no movable body with another contact are independent 3×3 problems:
         # solved batched; the rest (islands of several contacts) by the active set below
-        mov = rows.movable
-        n = len(mov)
-        cnt = np.bincount(rows.a[mov[rows.a]], minlength=n) + np.bincount(rows.b[mov[rows.b]], minlength=n)
-        single = (~mov[rows.a] | (cnt[rows.a] == 1)) & (~mov[rows.b] | (cnt[rows.b] == 1))
-        if single.any():
-            friction = mu_s is not None and np.any(mu_s > 0)
-            si = np.flatnonzero(single)
-            v0s = row_velocity(rows, vel, omega, si)
-            lam_s, ok = _solve_singles(rows.select(si), v0s, target_n[si], mu_s[si] if friction else None,
-                                       friction)
-            single[si[~ok]] = False
-            rest = np.flatnonzero(~single)
+        done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
+        if done.size:
             lam = np.zeros((k, 3))
-            lam[si[ok]] = lam_s[ok]
+            lam[done] = lam_s
             res_r, conv = SolveResult(np.zeros((0, 3)), 1, 0.0), True
             if rest.size:
                 res_r, conv = solve_direct(rows.select(rest), vel, omega, target_n=target_n[rest],
@@ -553,8 +567,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
                 lam[rest] = res_r.impulse
             if not conv:
                 return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
-            done = si[ok]
-            apply(rows.select(done), vel, omega, lam[done])
+            apply(rows.select(done), vel, omega, lam_s)
             return SolveResult(lam, 1, res_r.residual), True
     dense = k <= DIRECT_DENSE_MAX
     if A is None:
@@ -630,6 +643,20 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
             return res
         return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                      tolerance=tolerance, warm=res.impulse)
+    if method == "gs" and k > DIRECT_DENSE_MAX:
+        # independent single contacts exactly and batched; Gauss–Seidel for the coupled rest
+        done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
+        if done.size:
+            lam = np.zeros((k, 3))
+            lam[done] = lam_s
+            apply(rows.select(done), vel, omega, lam_s)
+            if rest.size == 0:
+                return SolveResult(lam, 1, 0.0)
+            res = solve(rows.select(rest), vel, omega, target_n=target_n[rest],
+                        mu_s=None if mu_s is None else mu_s[rest], mu_d=None if mu_d is None else mu_d[rest],
+                        iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[rest])
+            lam[rest] = res.impulse
+            return SolveResult(lam, res.iterations, res.residual)
     if method == "jacobi":
         return solve_jacobi(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                             tolerance=tolerance, warm=warm)
