@@ -183,6 +183,28 @@ def pose_input(cl, spin, rate, seconds, n_bodies):
                 latency_p99_ms=np.percentile(lat, 99) if lat.size else np.nan)
 
 
+def engine_timing(n_bodies, seconds, tmp):
+    """Direct engine timing of the same grid scene (no ROS): ``world.step()`` at the node's dt
+    (0.01 s), after a 1 s warm-up; p50/p99/max ms over ``seconds`` of simulated ticks."""
+    import warnings
+
+    import contact_sim as cs
+
+    world = cs.load_scene(grid_scene(n_bodies, os.path.join(tmp, f"grid_{n_bodies}.yaml")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _ in range(100):
+            world.step()
+        ms = []
+        for _ in range(int(round(seconds / world.settings.dt))):
+            t0 = time.perf_counter()
+            world.step()
+            ms.append(1e3 * (time.perf_counter() - t0))
+    ms = np.array(ms)
+    return dict(test="engine_step", bodies=n_bodies, rate_hz=100, samples=len(ms), p50_ms=np.percentile(ms, 50),
+                p99_ms=np.percentile(ms, 99), max_ms=ms.max(), contacts=len(world.contacts))
+
+
 COLUMNS = ["test", "bodies", "rate_hz", "samples", "p50_ms", "p99_ms", "max_ms", "overruns", "skipped_ticks",
            "contacts", "sent", "received", "dropped", "latency_p50_ms", "latency_p99_ms"]
 
@@ -191,9 +213,24 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=5.0, help="measurement window per case")
     ap.add_argument("--bodies", type=int, nargs="+", default=[10, 100, 500])
+    ap.add_argument("--engine", action="store_true",
+                    help="time only the engine's step on the same scenes (no ROS); writes bench/results/response_engine_step.csv")
     args = ap.parse_args()
     rows = []
     tmp = tempfile.mkdtemp(prefix="bench_node_")
+    if args.engine:
+        rows = [engine_timing(n, args.seconds, tmp) for n in args.bodies]
+        out = os.path.join(HERE, "results", "response_engine_step.csv")
+        with open(out, "w", newline="") as fh:
+            w = csv.DictWriter(fh, ["test", "bodies", "rate_hz", "samples", "p50_ms", "p99_ms", "max_ms", "contacts"])
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in r.items()})
+        for r in rows:
+            print(f"engine step {r['bodies']:>4} bodies: p50 {r['p50_ms']:.2f} ms  p99 {r['p99_ms']:.2f} ms  "
+                  f"max {r['max_ms']:.2f} ms  contacts {r['contacts']}")
+        print(f"wrote {out}")
+        return
     print(f"scenes and node logs in {tmp}")
     for n in args.bodies:
         run_scene(n, args.seconds, tmp, rows, pose_rates=(100, 1000) if n == 100 else ())
