@@ -168,12 +168,21 @@ def _match(world, a0, b0, p0, a1, b1, p1):
     out = np.full(len(a1), -1, np.int64)
     if len(a0) == 0 or len(a1) == 0:
         return out
+    ext = _extent(world)
+    n = len(world)
+    if len(a0) == len(a1) and np.array_equal(a0, a1) and np.array_equal(b0, b1):
+        # the same pairs in the same order, one contact each (strictly increasing keys): each new
+        # contact's only candidate is the old one in its row (what the k-d tree would find)
+        key = a1 * n + b1
+        if len(key) < 2 or np.all(key[1:] > key[:-1]):
+            d = np.sqrt(np.einsum("ij,ij->i", p1 - p0, p1 - p0))
+            ok = d <= MATCH_FRACTION * np.minimum(ext[a1], ext[b1])
+            out[ok] = np.flatnonzero(ok)
+            return out
     from scipy.spatial import cKDTree
 
-    ext = _extent(world)
     size = np.minimum(ext[a1], ext[b1])
     scale = float(np.max(np.abs(np.concatenate([p0, p1])))) + 1.0
-    n = len(world)
     k0 = (a0 * n + b0).astype(float) * (8.0 * scale)
     k1 = (a1 * n + b1).astype(float) * (8.0 * scale)
     tree = cKDTree(np.column_stack([k0, p0]))
@@ -300,7 +309,8 @@ def _impulse_step(world, dt, m):
             touching = c.depth >= -touch_eps
             # approach speed for restitution: a speculative contact that closed in an earlier step
             # arrived slowed down to touching; its restitution uses the speed it had before (Box2D's rule)
-            if spec:
+            surf = None
+            if spec and getattr(world, "_cs_spec", None) is not None:
                 # identified by the point on A's surface (the contact point is midway across the gap)
                 surf = _local_points(world, c, c.point - 0.5 * c.depth[:, None] * c.normal)
                 vn_in = np.minimum(vn0, _spec_lookup(world, c, surf))
@@ -331,7 +341,10 @@ def _impulse_step(world, dt, m):
                 residual = max(residual, res.residual)
                 if spec and closing.any():
                     keep = closing & (lam[:, 0] > 0) & (e > 0)
-                    spec_out = (c.body_a[keep], c.body_b[keep], surf[keep], vn_in[keep])
+                    if keep.any():
+                        if surf is None:
+                            surf = _local_points(world, c, c.point - 0.5 * c.depth[:, None] * c.normal)
+                        spec_out = (c.body_a[keep], c.body_b[keep], surf[keep], vn_in[keep])
             vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0] if impact.any() else vn0
             if m.resting and (touching.any() or not exact_toi) and not (impact.any() and np.all(vn1 > v_imp)):
                 v_end = s.vel + g * t_left
@@ -422,10 +435,19 @@ def _to_basis(lam_sub, r_sub, rows, idx):
     return out
 
 
+def _fixed_basis(rows):
+    """Tangent basis without hint ``(K,3), (K,3)`` of ``rows`` (computed once per rows object)."""
+    fb = getattr(rows, "_fixed_basis", None)
+    if fb is None:
+        fb = solver.tangent_basis(rows.n)
+        rows._fixed_basis = fb
+    return fb
+
+
 def _to_world_tangent(lam, rows):
     """``(K,3)``: normal impulse and the tangential impulse as (x,y) in a fixed per-contact frame —
     stored as normal, then the world tangent vector projected on a basis without hint."""
-    t1, t2 = solver.tangent_basis(rows.n)
+    t1, t2 = _fixed_basis(rows)
     wt = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
     return np.column_stack([lam[:, 0], np.einsum("ij,ij->i", wt, t1), np.einsum("ij,ij->i", wt, t2)])
 
@@ -434,7 +456,7 @@ def _project_warm(w, rows, mu):
     """Warm impulses ``(K,3)`` from the fixed-frame form back to ``rows``' basis, inside the cone."""
     if not np.any(w):
         return None
-    t1, t2 = solver.tangent_basis(rows.n)
+    t1, t2 = _fixed_basis(rows)
     wt = w[:, 1:2] * t1 + w[:, 2:3] * t2
     out = np.column_stack([np.maximum(w[:, 0], 0.0), np.einsum("ij,ij->i", wt, rows.t1),
                            np.einsum("ij,ij->i", wt, rows.t2)])

@@ -239,8 +239,8 @@ def _narrow(bodies, pos, R, a, b, margin, counters):
     return tuple(np.concatenate(p) for p in zip(*out)), unsupported
 
 
-def _detect(bodies, shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings):
-    R = Q.to_matrix(quat)
+def _detect(bodies, shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
+    R = Q.to_matrix(quat) if R is None else R
     # canonical order: A has the higher rank; remember to flip normals back
     swap = bodies.rank[ia] < bodies.rank[ib]
     a = np.where(swap, ib, ia)
@@ -298,6 +298,7 @@ def detect_world(world, margin=None):
     bodies = _bodies_of(world)
     pos, quat = world.s.pos, world.s.quat
     timings = {}
+    R = None
     if bodies.n < 2:
         ia = ib = np.zeros(0, np.int64)
     else:
@@ -319,7 +320,7 @@ def detect_world(world, margin=None):
         ia, ib = i[keep][order], j[keep][order]
     timings["broad"] = time.perf_counter() - t0
     stats.candidate_pairs = len(ia)
-    return _detect(bodies, world.shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings)
+    return _detect(bodies, world.shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)
 
 
 def _check_pose(pose, what):

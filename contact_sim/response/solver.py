@@ -460,10 +460,25 @@ def delassus(rows, dense=True):
     ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``.
     Built as a sparse product (12 non-zeros per row of ``J``), returned dense (or CSR when
     ``dense`` is false)."""
-    from scipy import sparse
-
     k = len(rows.a)
     d = rows.dirs
+    if dense:   # small: dense J and W over the bodies involved, one small matrix product
+        _, inv = np.unique(np.concatenate([rows.a, rows.b]), return_inverse=True)
+        nb = int(inv.max()) + 1 if k else 0
+        ca = (6 * inv[:k])[:, None] + np.arange(6)                      # (K,6) columns of A's body
+        cb = (6 * inv[k:])[:, None] + np.arange(6)
+        r3 = np.arange(k)[:, None, None]
+        d3 = np.arange(3)[None, :, None]
+        J = np.zeros((k, 3, 6 * nb))
+        W = np.zeros((k, 3, 6 * nb))
+        J[r3, d3, ca[:, None, :]] = np.concatenate([d, rows.ang_a], axis=2)
+        J[r3, d3, cb[:, None, :]] = -np.concatenate([d, rows.ang_b], axis=2)
+        W[r3, d3, ca[:, None, :]] = np.concatenate([rows.ima[:, None, None] * d, rows.iang_a], axis=2)
+        W[r3, d3, cb[:, None, :]] = -np.concatenate([rows.imb[:, None, None] * d, rows.iang_b], axis=2)
+        J = J.reshape(3 * k, 6 * nb)
+        return J @ W.reshape(3 * k, 6 * nb).T
+    from scipy import sparse
+
     r = np.repeat(np.arange(3 * k), 12)
     cols_a = 6 * rows.a[:, None] + np.arange(6)                          # (K,6)
     cols_b = 6 * rows.b[:, None] + np.arange(6)
@@ -475,8 +490,7 @@ def delassus(rows, dense=True):
     n6 = 6 * (max(int(rows.a.max()), int(rows.b.max())) + 1) if k else 0
     J = sparse.csr_matrix((jv, (r, cols)), shape=(3 * k, n6))
     W = sparse.csr_matrix((wv, (r, cols)), shape=(3 * k, n6))
-    A = J @ W.T
-    return A.toarray() if dense else A.tocsr()
+    return (J @ W.T).tocsr()
 
 
 def _solve_singles(rows, v0, target_n, mu_s, friction):
