@@ -214,13 +214,13 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0, help="measurement window per case")
     ap.add_argument("--bodies", type=int, nargs="+", default=[10, 100, 500])
     ap.add_argument("--engine", action="store_true",
-                    help="time only the engine's step on the same scenes (no ROS); writes bench/results/response_engine_step.csv")
+                    help="time only the engine's step on the same scenes (no ROS); writes bench/results/response.engine_step.csv")
     args = ap.parse_args()
     rows = []
     tmp = tempfile.mkdtemp(prefix="bench_node_")
     if args.engine:
         rows = [engine_timing(n, args.seconds, tmp) for n in args.bodies]
-        out = os.path.join(HERE, "results", "response_engine_step.csv")
+        out = os.path.join(HERE, "results", "response.engine_step.csv")
         with open(out, "w", newline="") as fh:
             w = csv.DictWriter(fh, ["test", "bodies", "rate_hz", "samples", "p50_ms", "p99_ms", "max_ms", "contacts"])
             w.writeheader()

@@ -111,3 +111,29 @@ def test_resting_contact_rows_carry_the_weight():
     assert len(c) == 3
     assert np.allclose(c.normal_impulse, 1.0 * G * dt, rtol=1e-9)
     assert np.all(np.abs(c.depth) <= world.settings.contact_margin)
+
+
+def test_head_on_spheres_meet_without_overlap_and_keep_momentum():
+    """Two free spheres (no gravity, e = 0) closing at 4 m/s with next_step: they arrive touching
+    (no overlap beyond round-off), stop together, and momentum is conserved to round-off."""
+    bodies = [{"name": n, "shape": {"type": "sphere", "radius": R}, "mass": m, "position": [x, 0, 0],
+               "velocity": [v, 0, 0], "material": "m"}
+              for n, m, x, v in (("a", 1.0, -0.25, 2.0), ("b", 3.0, 0.25, -2.0))]
+    world = cs.load_scene({"gravity": [0, 0, 0], "settings": {"dt": 1 / 60, "toi": "next_step", "response": "impulse"},
+                           "materials": {"m": {"restitution": 0.0, "friction": 0.0}}, "bodies": bodies})
+    p0 = 1.0 * 2.0 + 3.0 * -2.0
+    worst = 0.0
+    for _ in range(20):
+        world.step()
+        gap = world.body("b").position[0] - world.body("a").position[0] - 2 * R
+        worst = max(worst, -gap)
+        p = 1.0 * world.body("a").velocity[0] + 3.0 * world.body("b").velocity[0]
+        assert abs(p - p0) < 1e-12
+    assert worst < 1e-12
+    assert abs(world.body("a").velocity[0] - p0 / 4.0) < 1e-12     # e = 0: common velocity
+    assert abs(world.body("b").velocity[0] - p0 / 4.0) < 1e-12
+
+
+def test_describe_names_speculative_contacts():
+    world = _ball_scene(0.0, 0.1, 1 / 240)
+    assert any("speculative contacts on" in line for line in world.describe().splitlines())

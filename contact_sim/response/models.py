@@ -136,6 +136,12 @@ def choose(world, dt=None):
     if response == "penalty" and toi != "next_step":
         reasons.append("penalty forces act on penetration: time of impact is handled at the next step")
         toi = "next_step"
+    if toi == "next_step" and response != "penalty":
+        from .. import stepper
+
+        if stepper.SPECULATIVE:
+            reasons.append("speculative contacts on (next_step): pairs that can close within a step (look-ahead "
+                           "2·speed·dt, at most half the thinnest body) are slowed to arrive exactly touching")
     # resting
     if st.resting == "auto":
         lone = int(dyn.sum()) == 1 and response != "penalty"
