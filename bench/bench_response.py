@@ -101,33 +101,38 @@ def run_pybullet(seconds):
 
 def run_variant(method, iterations, coloring, seconds):
     """The sphere scene with the large-set solver forced to ``method`` (``gs`` coloured Gauss–Seidel,
-    ``jacobi`` mass-splitting Jacobi), ``iterations`` per solve and the Gauss–Seidel colouring
-    (``luby`` few colours, ``greedy`` index order): the speed/penetration trade-off."""
+    ``jacobi`` mass-splitting Jacobi), ``iterations`` per solve and the Gauss–Seidel colouring:
+    ``hybrid`` (the default: few Luby colours, index-ordered colours for large impact solves),
+    ``luby`` (few colours everywhere) or ``greedy`` (index order everywhere): the speed/penetration
+    trade-off."""
     from contact_sim import stepper
     from contact_sim.response import solver
 
-    old = stepper.SOLVER_METHOD, solver.COLORING
-    stepper.SOLVER_METHOD, solver.COLORING = method, coloring
+    old = stepper.SOLVER_METHOD, solver.COLORING, stepper.IMPACT_COLORING
+    stepper.SOLVER_METHOD = method
+    solver.COLORING = "greedy" if coloring == "greedy" else "luby"
+    stepper.IMPACT_COLORING = {"hybrid": "greedy", "luby": None, "greedy": None}[coloring]
     try:
         world = cs.load_scene(spheres_scene())
         world.settings.solver_iterations = iterations
         return run(f"spheres_1000_{method}{iterations}_{coloring}", world, seconds)
     finally:
-        stepper.SOLVER_METHOD, solver.COLORING = old
+        stepper.SOLVER_METHOD, solver.COLORING, stepper.IMPACT_COLORING = old
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--variants", nargs="*", default=[], metavar="METHOD:ITERATIONS[:COLORING]",
-                    help="extra runs of the sphere scene, e.g. gs:10 gs:20:greedy jacobi:20 (solver trade-off)")
+                    help="extra runs of the sphere scene, e.g. gs:10 gs:20:luby gs:20:greedy jacobi:20 "
+                         "(solver trade-off; colouring hybrid (default), luby or greedy)")
     args = ap.parse_args()
     rows = [run("spheres_1000", cs.load_scene(spheres_scene()), args.seconds),
             run("box_stack_10", cs.load_scene(os.path.join(HERE, "..", "config", "scenes", "box_stack.yaml")),
                 args.seconds)]
     for v in args.variants:
         method, iters, *col = v.split(":")
-        rows.append(run_variant(method, int(iters), col[0] if col else "luby", args.seconds))
+        rows.append(run_variant(method, int(iters), col[0] if col else "hybrid", args.seconds))
     pb = run_pybullet(args.seconds)
     if pb is not None:
         print(pb)

@@ -45,6 +45,8 @@ SOLVER_METHOD = "auto"    # direct (small) / jacobi (large); "gs" or "jacobi" fo
 SPECULATIVE = True        # next_step: speculative contacts (detect ahead by speed × dt, arrive exactly touching)
 SPLIT_SLOP = 1e-7         # m: penetrations up to this are left alone by the split impulse (round-off of
                           # resting contacts; correcting them costs a whole solve per step)
+IMPACT_COLORING = "greedy"  # colouring of large impact solves (None: solver.COLORING; "greedy": one colour per
+                          # chain link, sweeps that carry an impact down a column within one iteration)
 SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
 
 
@@ -331,6 +333,8 @@ def _impulse_step(world, dt, m):
             if impact.any() or closing.any():
                 ti = np.flatnonzero(touching | closing)
                 r1 = rows.select(ti)
+                if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
+                    r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
                 target = np.where(touching[ti], np.where(vn_in[ti] < 0, -e[ti] * vn_in[ti], 0.0),
                                   spec_target[ti] if spec else 0.0)
                 res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
