@@ -89,7 +89,7 @@ def _stack(scale=1.0, n=10, dt=1 / 60):
 def test_stack_of_ten_boxes_holds_for_ten_seconds():
     rec = Recorder(_stack()).run(10.0)
     drift = rec.drift("box9")
-    print(f"10-box stack, 10 s: top drift {drift * 1e3:.3g} mm, max penetration {rec.max_pen * 1e3:.3g} mm, "
+    print(f"HARD 10-box stack, 10 s: top drift {drift * 1e3:.3g} mm, max penetration {rec.max_pen * 1e3:.3g} mm, "
           f"max speed {rec.max_speed:.3g} m/s")
     assert drift < 1e-3
     assert rec.max_pen < 1e-3
@@ -106,7 +106,7 @@ def test_pyramid_of_fifteen_boxes_stands():
     world = cs.load_scene(_scene("pyramid"))
     assert int(np.sum(world.kind == 2)) == 15
     rec = Recorder(world).run(10.0)
-    print(f"pyramid: max drift {rec.max_drift() * 1e3:.3g} mm, penetration {rec.max_pen * 1e3:.3g} mm, "
+    print(f"HARD pyramid: max drift {rec.max_drift() * 1e3:.3g} mm, penetration {rec.max_pen * 1e3:.3g} mm, "
           f"max speed {rec.max_speed:.3g} m/s")
     assert rec.max_drift() < 1e-3          # no box moved a millimetre: no collapse
     assert rec.max_pen < 1e-3
@@ -116,7 +116,7 @@ def test_pyramid_of_fifteen_boxes_stands():
 def test_box_on_plank_on_spheres_stands():
     world = cs.load_scene(_scene("plank_on_spheres"))
     rec = Recorder(world).run(10.0)
-    print(f"plank on spheres: max drift {rec.max_drift() * 1e3:.3g} mm, penetration {rec.max_pen * 1e3:.3g} mm")
+    print(f"HARD plank on spheres: max drift {rec.max_drift() * 1e3:.3g} mm, penetration {rec.max_pen * 1e3:.3g} mm")
     box, plank = world.body("box").position, world.body("plank").position
     assert abs(box[2] - 0.35) < 1e-3 and abs(plank[2] - 0.225) < 1e-3     # nothing fell or sank
     assert np.linalg.norm(box[:2] - plank[:2]) < 1e-3                      # the box stayed on the plank
@@ -134,7 +134,7 @@ def test_heavy_box_on_light_box(ratio):
         rec = Recorder(world).run(3.0)
     warned = [w for w in caught if issubclass(w.category, MassRatioWarning) and "heavy" in str(w.message)]
     assert bool(warned) == (ratio > world.settings.mass_ratio_limit)   # the preflight says so above the limit ...
-    print(f"mass ratio {ratio:g}: penetration {rec.max_pen * 1e3:.3g} mm, drift {rec.max_drift() * 1e3:.3g} mm")
+    print(f"HARD mass ratio {ratio:g}: penetration {rec.max_pen * 1e3:.3g} mm, drift {rec.max_drift() * 1e3:.3g} mm")
     assert rec.max_pen < 1e-3                               # ... and it still holds
     assert rec.max_drift() < 1e-3
     assert abs(world.body("light").position[2] - 0.1) < 1e-3
@@ -164,7 +164,7 @@ def test_deep_initial_overlap_separates_without_exploding():
         worst_excess = max(worst_excess, kinetic() - (k0 + work))
         worst_speed = max(worst_speed, float(np.linalg.norm(world.s.vel[dyn], axis=1).max()))
     c = world.detect()
-    print(f"deep overlap: max speed {worst_speed:.3g} m/s, final penetration {c.depth.max() * 1e3:.3g} mm, "
+    print(f"HARD deep overlap: max speed {worst_speed:.3g} m/s, final penetration {c.depth.max() * 1e3:.3g} mm, "
           f"kinetic energy minus (initial + gravity work) at most {worst_excess:.3g} J")
     assert c.depth.max() < 1e-3                                          # separated
     assert world.body("upper").position[2] > world.body("lower").position[2] + 0.199
@@ -177,7 +177,7 @@ def test_resting_box_does_not_jitter_for_a_minute():
     rec = Recorder(world).run(60.0)
     late = np.array(rec.speeds[int(round(1.0 / world.settings.dt)):])
     om = float(np.linalg.norm(world.s.omega[1]))
-    print(f"resting box: speed after 1 s at most {late.max():.3g} m/s, final angular speed {om:.3g} rad/s")
+    print(f"HARD resting box: speed after 1 s at most {late.max():.3g} m/s, final angular speed {om:.3g} rad/s")
     assert late.max() < 1e-4
     assert om * 0.1 < 1e-4
 
@@ -231,7 +231,7 @@ def test_degenerate_contact_geometry(case):
     c0 = world.detect()
     assert len(c0) and np.all(np.abs(c0.depth) < 1e-9)          # really exactly touching
     worst = _normals_stable(world, 0.5)
-    print(f"{case}: smallest cosine between consecutive normals {worst:.6f}")
+    print(f"HARD {case}: smallest cosine between consecutive normals {worst:.6f}")
     assert worst > 0.5
     if case in ("coplanar_faces", "sphere_tangent"):            # these are at rest: nothing moves
         assert np.linalg.norm(world.s.vel[world.kind == 2], axis=1).max() < 1e-6
@@ -246,7 +246,7 @@ def test_stack_same_at_every_scale(scale):
     for s in (1.0, scale):
         rec = Recorder(_stack(scale=s)).run(2.0)
         runs[s] = (rec.drift("box9") / (0.2 * s), rec.max_pen / (0.2 * s), rec.max_speed / s)
-    print(f"scale {scale:g}: relative drift/penetration/speed {runs[scale]}, reference {runs[1.0]}")
+    print(f"HARD scale {scale:g}: relative drift/penetration/speed {runs[scale]}, reference {runs[1.0]}")
     for s, (drift, pen, speed) in runs.items():
         assert drift < 5e-3 and pen < 5e-3 and speed < 5e-2
     assert abs(runs[scale][0] - runs[1.0][0]) < 1e-4 and abs(runs[scale][1] - runs[1.0][1]) < 1e-4
@@ -283,7 +283,7 @@ def _plate(toi):
 @pytest.mark.parametrize("toi", ["fractional", "swept"])
 def test_thin_plate_edge_first_does_not_tunnel(toi):
     world, low = _plate(toi)
-    print(f"thin plate ({toi}): lowest point {low.min() * 1e3:.4g} mm (slab top at 5 mm)")
+    print(f"HARD thin plate ({toi}): lowest point {low.min() * 1e3:.4g} mm (slab top at 5 mm)")
     assert low.min() > 0.005 - 1e-3          # never through the slab's top face (1 mm tolerance)
     assert world.body("plate").velocity[2] > -20.0 * 0.5   # it was stopped
 
@@ -315,7 +315,7 @@ def test_elastic_bouncing_keeps_energy_for_a_minute():
         vz = world.body("ball").velocity[2]
         bounces += prev_vz < 0 < vz
         prev_vz = vz
-    print(f"e = 1, 60 s, {bounces} bounces: largest relative energy change {worst:.3g}")
+    print(f"HARD e = 1, 60 s, {bounces} bounces: largest relative energy change {worst:.3g}")
     assert bounces >= 60
     assert worst < 1e-9
 
@@ -330,5 +330,5 @@ def test_inelastic_bouncing_never_gains_energy():
         e = world.energy()
         worst = max(worst, e - e_prev)
         e_prev = e
-    print(f"e = 0.8, 60 s: largest energy increase in a step {worst:.3g} J (of {scale:.3g} J)")
+    print(f"HARD e = 0.8, 60 s: largest energy increase in a step {worst:.3g} J (of {scale:.3g} J)")
     assert worst <= 1e-12 * scale
