@@ -74,7 +74,8 @@ PARAMETERS = {
         "Kinematic bodies driven by body_poses: pose i drives tracked_bodies[i]. Unset or empty: all kinematic "
         "bodies of the scene, in scene order.", ptype=ParameterType.PARAMETER_STRING_ARRAY)),
     "publish_markers": (True, _d("Publish contact_markers (MarkerArray) for RViz.")),
-    "max_marker_arrows": (100, _d("At most this many impulse arrows per tick (largest first).", ir=(0, 100000))),
+    "max_marker_arrows": (10, _d("Arrows for at most this many of the largest impulses per tick (every impulse is "
+                                 "also drawn as a line segment).", ir=(0, 100000))),
     "impulse_marker_scale": (1.0, _d("Impulse arrow length in m per N*s.", dynamic_typing=True, fp=(0.0, 1e6))),
     "pose_timeout": (0.5, _d("Seconds without a pose after which a tracked body holds its last pose and its "
                              "velocity decays to zero.", dynamic_typing=True, fp=(0.001, 3600.0))),

@@ -218,7 +218,13 @@ def test_markers_show_points_and_the_largest_impulses():
     m = cv.contact_markers(c, header(), impulse_scale=0.5, max_arrows=5)
     assert m.markers[0].action == Marker.DELETEALL
     assert m.markers[1].type == Marker.SPHERE_LIST and len(m.markers[1].points) == 20
-    arrows = m.markers[2:]
+    lines = m.markers[2]
+    assert lines.type == Marker.LINE_LIST and len(lines.points) == 40  # every impulse as a segment
+    seg = np.array([[p.x, p.y, p.z] for p in lines.points]).reshape(20, 2, 3)
+    order = np.argsort(-np.linalg.norm(c.impulse, axis=1), kind="stable")
+    np.testing.assert_allclose(seg[:, 0], c.point[order])
+    np.testing.assert_allclose(seg[:, 1] - seg[:, 0], 0.5 * c.impulse[order], atol=1e-12)
+    arrows = m.markers[3:]
     assert len(arrows) == 5 and all(a.type == Marker.ARROW for a in arrows)
     biggest = np.argmax(np.linalg.norm(c.impulse, axis=1))
     a0 = arrows[0].points
