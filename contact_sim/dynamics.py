@@ -74,14 +74,19 @@ def rotate_free(q, omega, principal_q, moments, dt):
     L = quat.rotate(qp, moments * body_w)  # world angular momentum, fixed during free flight
     rate = inv_m - inv_m[:, 1:2]           # (1/I_i - 1/I_2): zero on the middle axis
     split_rate = np.linalg.norm(L, axis=1) * np.abs(rate).max(axis=1)
-    n_sub = np.clip(np.ceil(split_rate * dt / MAX_SPLIT_ANGLE), 1, MAX_SUBSTEPS).astype(int)
-    h = dt / n_sub
-    for k in range(int(n_sub.max())):
-        active = (k < n_sub)[:, None]
-        for axis, frac in ((0, 0.5), (2, 1.0), (0, 0.5)):
-            pi_axis = quat.rotate(quat.conj(qp), L)[:, axis]
-            angle = np.where(active[:, 0], pi_axis * rate[:, axis] * frac * h, 0.0)
-            qp = quat.mul(qp, quat.axis_rotation(axis, angle))
+    # isotropic bodies (spheres, cubes) and non-spinning ones have no split term: only the exact turn
+    sp = np.flatnonzero(split_rate > 0)
+    if sp.size:
+        n_sub = np.clip(np.ceil(split_rate[sp] * dt / MAX_SPLIT_ANGLE), 1, MAX_SUBSTEPS).astype(int)
+        h = dt / n_sub
+        qs, Ls, rs = qp[sp], L[sp], rate[sp]
+        for k in range(int(n_sub.max())):
+            active = k < n_sub
+            for axis, frac in ((0, 0.5), (2, 1.0), (0, 0.5)):
+                pi_axis = quat.rotate(quat.conj(qs), Ls)[:, axis]
+                angle = np.where(active, pi_axis * rs[:, axis] * frac * h, 0.0)
+                qs = quat.mul(qs, quat.axis_rotation(axis, angle))
+        qp[sp] = qs
     qp = quat.mul(quat.from_rotvec(L * (inv_m[:, 1:2] * dt)), qp)  # commutes: one exact turn for the whole step
     qp = quat.normalize(qp)  # removes round-off only; every factor above is unit
     omega_new = quat.rotate(qp, quat.rotate(quat.conj(qp), L) * inv_m)
