@@ -68,7 +68,7 @@ def grid_pairs(c, h, margin):
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     ext = 2.0 * h.max(axis=1) + margin
-    big = ext > 4.0 * np.median(ext)
+    big = ext > 4.0 * np.partition(ext, n // 2)[n // 2]  # (upper) median; np.median costs ~0.2 ms here
     small = np.flatnonzero(~big)
     out_i, out_j = [], []
     if small.size > 1:
