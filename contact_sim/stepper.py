@@ -199,32 +199,31 @@ def _match(world, a0, b0, p0, a1, b1, p1):
     return out
 
 
+def _carried(world, attr, c, local, fill, trailing=()):
+    """Per-contact values ``(K, *trailing)`` that the previous step stored under ``world.<attr>``
+    as ``(body_a, body_b, local points, values)``, for the contacts ``c`` that match one of its
+    contacts (same pair, nearest point); ``fill`` where none matches."""
+    out = np.full((len(c),) + trailing, fill)
+    old = getattr(world, attr, None)
+    if old is None or len(old[0]) == 0 or len(c) == 0:
+        return out
+    a0, b0, p0, values = old
+    hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
+    ok = hit >= 0
+    out[ok] = values[hit[ok]]
+    return out
+
+
 def _warm_lookup(world, c, local):
     """Previous step's resting impulses per unit time ``(K,3)`` (normal, tangent in the fixed
     per-contact frame of ``_to_world_tangent``) for the contacts ``c`` that match one (else 0)."""
-    old = getattr(world, "_cs_warm", None)
-    out = np.zeros((len(c), 3))
-    if old is None or len(c) == 0 or len(old[0]) == 0:
-        return out
-    a0, b0, p0, rate = old
-    hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
-    ok = hit >= 0
-    out[ok] = rate[hit[ok]]
-    return out
+    return _carried(world, "_cs_warm", c, local, 0.0, (3,))
 
 
 def _spec_lookup(world, c, local):
     """Approach normal velocity ``(K,)`` that the contacts ``c`` had before an earlier speculative
     impulse slowed them down to arrive touching (``+inf`` where none matches)."""
-    old = getattr(world, "_cs_spec", None)
-    out = np.full(len(c), np.inf)
-    if old is None or len(old[0]) == 0 or len(c) == 0:
-        return out
-    a0, b0, p0, vn = old
-    hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
-    ok = hit >= 0
-    out[ok] = vn[hit[ok]]
-    return out
+    return _carried(world, "_cs_spec", c, local, np.inf)
 
 
 def _merge_records(world, records):
