@@ -33,6 +33,7 @@ from .. import quat as Q
 from ..contacts import Contacts
 from ..errors import ContactSimError
 from ..shapes import Shape
+from ..validate import unit_quaternion, vector
 from . import bounding, broadphase, narrow
 from .geometry import PolyTable, poly_geom
 
@@ -324,24 +325,12 @@ def detect_world(world, margin=None):
 
 
 def _check_pose(pose, what):
+    """``(position (3,), unit orientation (4,))`` from a pose; any non-zero quaternion is normalised."""
     try:
         p, q = pose
-        p = np.array(p, dtype=float)
-        q = np.array(q, dtype=float)
     except (TypeError, ValueError):
         raise ContactSimError(f"{what}: must be (position (3,), orientation (4,) x,y,z,w), got {pose!r}") from None
-    if p.shape != (3,):
-        raise ContactSimError(f"{what}.position: must be 3 numbers, got {p.tolist()}")
-    if q.shape != (4,):
-        raise ContactSimError(f"{what}.orientation: must be 4 numbers x,y,z,w, got {q.tolist()}")
-    if not np.all(np.isfinite(p)):
-        raise ContactSimError(f"{what}.position: must be finite (no NaN/inf), got {p.tolist()}")
-    if not np.all(np.isfinite(q)):
-        raise ContactSimError(f"{what}.orientation: must be finite (no NaN/inf), got {q.tolist()}")
-    nq = float(np.linalg.norm(q))
-    if nq < 1e-12:
-        raise ContactSimError(f"{what}.orientation: zero quaternion is not a rotation")
-    return p, q / nq
+    return vector(p, 3, f"{what}.position"), unit_quaternion(q, f"{what}.orientation", np.inf)
 
 
 def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto", stats=False):
