@@ -8,7 +8,7 @@
    ``j`` with both bodies' world inverse inertia, Coulomb friction), solved together by projected
    Gauss–Seidel (``response.solver``);
 3. **resting contact** (when on): contacts that stay touching get the impulse that acts as a constant
-   force over ``T``: non-negative, zero when separating, the average normal velocity over ``T`` not
+   force over ``T``: non-negative, zero when separating, the normal velocity at the end of ``T`` not
    approaching (no sinking), friction inside the cone (sticking = stopped at the end of ``T``);
 4. **time of impact**: ``next_step`` advances by ``T``; ``fractional`` and ``swept`` find the first
    instant in ``(0, T]`` at which a pair that is apart touches (closed form for sphere–plane and

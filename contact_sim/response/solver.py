@@ -16,8 +16,8 @@ Three uses of the same machinery:
   many simultaneous contacts with Coulomb friction; one contact converges in one iteration to the
   formula exactly).
 * ``resting``: the contact impulse that acts as a constant force over the rest of the step
-  (held against gravity): the normal constraint is on the *average* velocity over the interval
-  (position does not sink), the friction constraint on the *end* velocity (sticking means stopped).
+  (held against gravity): the normal and friction constraints are on the velocity at the *end* of
+  the interval (never approaching; sticking means stopped).
 * ``position``: split-impulse pseudo-velocities that push penetrating bodies apart; they move
   positions only and are thrown away, so no energy is added.
 """
@@ -227,12 +227,11 @@ class SolveResult:
     residual: float         # largest impulse change of the last sweep (N·s)
 
 
-def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu_d=None,
-          iterations=20, tolerance=1e-9, warm=None):
+def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None):
     """Projected Gauss–Seidel over coloured contacts, updating ``vel, omega (N,3)`` in place.
 
-    Normal row: ``alpha_n · (n·v_rel) + (1 − alpha_n) · base_n ≥ target_n`` with a non-negative
-    impulse (complementarity: zero impulse where the row is satisfied, i.e. separating).
+    Normal row: ``n·v_rel ≥ target_n`` with a non-negative impulse (complementarity: zero impulse
+    where the row is satisfied, i.e. separating).
     Friction rows (when ``mu_s``/``mu_d (K,)`` are given): tangential relative velocity driven to
     zero by a 2-D impulse kept in the cone: if the sticking impulse is within ``mu_s·λn`` it is
     taken, otherwise it is scaled to ``mu_d·λn`` (kinetic friction). ``warm (K,3)`` starting
@@ -244,22 +243,10 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
         return SolveResult(lam, 0, 0.0)
     if warm is not None and np.any(warm):
         apply(rows, vel, omega, lam)
-    base_n = np.zeros(k) if base_n is None else base_n
     friction = mu_s is not None and np.any(mu_s > 0)
-    kn = alpha_n * rows.K[:, 0, 0]
+    kn = rows.K[:, 0, 0]
     inv_kn = np.where(kn > 0, 1.0 / np.maximum(kn, _TINY), 0.0)
-    inv_kt = None
-    if friction:
-        kt = rows.K[:, 1:, 1:]
-        det = kt[:, 0, 0] * kt[:, 1, 1] - kt[:, 0, 1] * kt[:, 1, 0]
-        ok = det > 1e-300
-        inv_kt = np.zeros_like(kt)
-        safe = np.where(ok, det, 1.0)
-        inv_kt[:, 0, 0] = kt[:, 1, 1] / safe
-        inv_kt[:, 1, 1] = kt[:, 0, 0] / safe
-        inv_kt[:, 0, 1] = -kt[:, 0, 1] / safe
-        inv_kt[:, 1, 0] = -kt[:, 1, 0] / safe
-        inv_kt[~ok] = 0.0
+    inv_kt = _inv2(rows.K[:, 1:, 1:]) if friction else None
     # gather each colour's rows once (the sweep below then only does small dense products on the
     # stacked body velocities vw = [v, ω] (N,6): one gather and one scatter per side)
     dirs = rows.dirs
@@ -271,7 +258,7 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
     cols = []
     for idx in rows.colors:   # a few colours
         cols.append((idx, rows.a[idx], rows.b[idx], ja[idx], jb[idx], wa[idx], wb[idx],
-                     target_n[idx], inv_kn[idx], base_n[idx], rows.K[idx],
+                     target_n[idx], inv_kn[idx], rows.K[idx],
                      inv_kt[idx] if friction else None, mu_s[idx] if friction else None,
                      mu_d[idx] if friction else None, lam[idx]))
     vw = np.concatenate([vel, omega], axis=1)
@@ -279,26 +266,9 @@ def solve(rows, vel, omega, *, target_n, alpha_n=1.0, base_n=None, mu_s=None, mu
     it = 0
     for it in range(1, iterations + 1):
         residual = 0.0
-        for (idx, a, b, jca, jcb, wca, wcb, tn, ikn, bn, kk, ikt, mus, mud, old) in cols:
+        for (idx, a, b, jca, jcb, wca, wcb, tn, ikn, kk, ikt, mus, mud, old) in cols:
             rv = (jca @ vw[a][:, :, None] - jcb @ vw[b][:, :, None])[:, :, 0]
-            new = old.copy()
-            cn = alpha_n * rv[:, 0] + (1.0 - alpha_n) * bn
-            new[:, 0] = np.maximum(old[:, 0] + (tn - cn) * ikn, 0.0)
-            if friction:
-                dn = new[:, 0] - old[:, 0]
-                vt = rv[:, 1:] + kk[:, 1:, 0] * dn[:, None]
-                trial = old[:, 1:] - (ikt @ vt[:, :, None])[:, :, 0]
-                mag = np.sqrt(np.einsum("ki,ki->k", trial, trial))
-                stick = mag <= mus * new[:, 0]
-                lim = mud * new[:, 0]
-                # sliding: kinetic friction opposes the sliding velocity this contact would have
-                # without its own friction impulse (maximal dissipation), magnitude mu_d·λn
-                free = vt - (kk[:, 1:, 1:] @ old[:, 1:, None])[:, :, 0]
-                fmag = np.sqrt(np.einsum("ki,ki->k", free, free))
-                use = fmag > 1e-14
-                dirn = np.where(use[:, None], -free / np.maximum(fmag, _TINY)[:, None],
-                                trial / np.maximum(mag, _TINY)[:, None])
-                new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
+            new = _project_row(old, rv, tn, ikn, kk, ikt, mus, mud)
             delta = new - old
             old[...] = new
             dl = delta[:, :, None]
@@ -346,9 +316,11 @@ def _project_row(old, rv, tn, inv_kn, kk, inv_kt, mus, mud):
     mag = np.sqrt(np.einsum("ki,ki->k", trial, trial))
     stick = mag <= mus * new[:, 0]
     lim = mud * new[:, 0]
+    # sliding: kinetic friction opposes the sliding velocity this contact would have without its own
+    # friction impulse (maximal dissipation), magnitude mu_d·λn
     free = vt - (kk[:, 1:, 1:] @ old[:, 1:, None])[:, :, 0]
     fmag = np.sqrt(np.einsum("ki,ki->k", free, free))
-    use = fmag > 1e-14 * (1.0 + np.abs(rv[:, 0]))
+    use = fmag > 1e-14
     dirn = np.where(use[:, None], -free / np.maximum(fmag, _TINY)[:, None], trial / np.maximum(mag, _TINY)[:, None])
     new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
     return new
