@@ -24,8 +24,6 @@ Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`
 friction parts), ``world.last_solve`` a dict with the solver's iterations, residual, maximum
 penetration at the start of the step, contact and impact counts, and the models used.
 """
-import warnings
-
 import numpy as np
 
 from . import dynamics
@@ -33,7 +31,8 @@ from .contacts import Contacts
 from .settings import combine
 from .vec import cross
 from .response import models as _models
-from .response import narrow, solver
+from .collision import detect_world
+from .response import solver
 from .response import toi as toi_mod
 
 DYNAMIC = 2
@@ -76,6 +75,13 @@ def step(world, dt):
 
 
 # ---------------------------------------------------------------------------- helpers
+def _detect(world, margin):
+    """Contacts of the current state within ``margin``; the detection statistics go to
+    ``world.last_detection``."""
+    contacts, world.last_detection = detect_world(world, margin=margin)
+    return contacts
+
+
 def _inv_inertia(world, m):
     """World inverse inertia ``(N,3,3)`` (zeros when the models skip rotation)."""
     if not m.rotation:
@@ -117,18 +123,13 @@ def _speculative_margin(world, dt):
     moving = world.kind != 0
     if not moving.any():
         return base
-    ext = _extent(world)
+    ext = toi_mod._extents(world)
     v2 = np.einsum("ij,ij->i", s.vel, s.vel)
     w2 = np.einsum("ij,ij->i", s.omega, s.omega)
     speed = np.sqrt(v2) + np.sqrt(w2) * np.where(np.isfinite(ext), ext, 0.0)
     vmax = float(speed[moving].max())
     reach = 2.0 * vmax * dt + float(np.linalg.norm(world.gravity)) * dt * dt
-    thin = getattr(world, "_cs_thin", None)
-    if thin is None or thin[0] != len(world):
-        t = np.array([sh.thinnest() for sh in world.shapes])
-        thin = (len(world), float(t[np.isfinite(t)].min()) if np.isfinite(t).any() else np.inf)
-        world._cs_thin = thin
-    return max(base, min(reach, SPECULATIVE_MAX_FRACTION * thin[1]))
+    return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
 
 
 def _closing_filter(world, c, dt, base):
@@ -154,15 +155,6 @@ def _local_points(world, c, point=None):
     return quat.rotate(quat.conj(s.quat[c.body_a]), p - s.pos[c.body_a])
 
 
-def _extent(world):
-    """Per-body size ``(N,)`` (bounding radius; inf for planes): the scale of matching tolerances."""
-    ext = getattr(world, "_cs_extent", None)
-    if ext is None or len(ext) != len(world):
-        ext = np.array([toi_mod._extent(sh) for sh in world.shapes])
-        world._cs_extent = ext
-    return ext
-
-
 def _match(world, a0, b0, p0, a1, b1, p1):
     """For each new contact ``(a1, b1, p1 (K1,3))`` the index of the old contact ``(a0, b0, p0 (K0,3))``
     of the same pair whose point in A's frame is nearest, within ``MATCH_FRACTION`` of the smaller
@@ -170,7 +162,7 @@ def _match(world, a0, b0, p0, a1, b1, p1):
     out = np.full(len(a1), -1, np.int64)
     if len(a0) == 0 or len(a1) == 0:
         return out
-    ext = _extent(world)
+    ext = toi_mod._extents(world)
     n = len(world)
     if len(a0) == len(a1) and np.array_equal(a0, a1) and np.array_equal(b0, b1):
         # the same pairs in the same order, one contact each (strictly increasing keys): each new
@@ -290,7 +282,7 @@ def _impulse_step(world, dt, m):
     spec_out = None
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
-        c = narrow.detect(world, det_margin)
+        c = _detect(world, det_margin)
         if spec and det_margin > margin and len(c):
             c = c.select(_closing_filter(world, c, t_left, margin))
         k = len(c)
@@ -429,15 +421,6 @@ def _impulse_step(world, dt, m):
                         "response": m.response}
 
 
-def _to_basis(lam_sub, r_sub, rows, idx):
-    """Express impulses ``(k,3)`` given in ``r_sub``'s tangent basis in ``rows``' basis at ``idx``."""
-    world_t = lam_sub[:, 1:2] * r_sub.t1 + lam_sub[:, 2:3] * r_sub.t2
-    out = lam_sub.copy()
-    out[:, 1] = np.einsum("ij,ij->i", world_t, rows.t1[idx])
-    out[:, 2] = np.einsum("ij,ij->i", world_t, rows.t2[idx])
-    return out
-
-
 def _fixed_basis(rows):
     """Tangent basis without hint ``(K,3), (K,3)`` of ``rows`` (computed once per rows object)."""
     fb = getattr(rows, "_fixed_basis", None)
@@ -516,7 +499,7 @@ def _penalty_step(world, dt, m):
     impulse ``F·dt`` kick before the drift (symplectic Euler): at rest ``k·depth = m g`` exactly."""
     st = world.settings
     s = world.s
-    c = narrow.detect(world, 0.0)
+    c = _detect(world, 0.0)
     k = len(c)
     max_pen = float(c.depth.max()) if k else 0.0
     if k:

@@ -1,5 +1,4 @@
 """The command line: run a scene, per-second summary, trajectory and plot files, clear errors."""
-import os
 import subprocess
 import sys
 

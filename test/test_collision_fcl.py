@@ -13,7 +13,7 @@ import pytest
 
 import contact_sim as cs
 from contact_sim import quat as Q
-from contact_sim.collision import collide_pairs, detect_world
+from contact_sim.collision import collide_pairs
 
 fcl = pytest.importorskip("fcl")
 

@@ -6,7 +6,6 @@ gives finite results and normals that do not flip, the same stack behaves the sa
 100 m, thin and fast bodies do not tunnel with continuous time of impact, and elastic bouncing
 keeps its energy.
 """
-import copy
 import os
 import warnings
 

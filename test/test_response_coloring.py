@@ -54,7 +54,6 @@ def test_single_contacts_batched_equal_the_active_set_answer(spin, converged):
     """Spheres each touching only the ground (independent contacts): the batched 3×3 path gives the
     active-set solver's impulses to round-off, separating contacts get none, sliding ones (outside
     the static cone) are left to the general path and still come out the same."""
-    from contact_sim import quat
 
     rng = np.random.default_rng(5)
     k = 60                                             # > DIRECT_DENSE_MAX: the split path runs

@@ -78,6 +78,10 @@ def test_rod_impact_matches_lecture_formula():
     assert len(c) == 1 and world.last_solve["impacts"] == 1
     assert abs(c.normal_impulse[0] - j) <= 1e-9 * abs(j)
     assert abs(c.relative_normal_velocity[0] - v_rel) <= 1e-9 * abs(v_rel)
+    # after the exact impact the centre of mass flies ballistically with v+
+    t = world.time - tc
+    expect = pc + v_plus * t + 0.5 * np.array([0, 0, -g]) * t * t
+    assert np.abs(world.s.pos[i] - expect).max() <= 1e-9
     # after the impact the rod flies freely: v exact, world angular momentum conserved (torque-free)
     t_after = world.time - tc
     v_expect = v_plus + np.array([0, 0, -g]) * t_after

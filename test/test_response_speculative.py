@@ -51,13 +51,13 @@ def test_restitution_applies_when_a_speculative_contact_closes(e):
     arrived with before the speculative impulse (to within gravity over two steps)."""
     dt = 1 / 60
     world = _ball_scene(e, 0.9, dt)
-    v_prev, z_min, rebound, before = 0.0, np.inf, None, None
+    v_prev, z_min, rebound = 0.0, np.inf, None
     for _ in range(60):
         world.step()
         v = world.body("ball0").velocity[2]
         z_min = min(z_min, world.body("ball0").position[2])
         if v_prev < 0 < v:
-            rebound, before = v, v_prev
+            rebound = v
             break
         v_prev = v
     u = np.sqrt(2 * G * 0.9)

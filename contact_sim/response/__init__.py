@@ -3,7 +3,6 @@
 * ``solver``  — contact rows, graph colouring, projected Gauss–Seidel impulses (pure functions of
   body arrays and contact arrays);
 * ``toi``     — time of impact: closed forms, bracket + Brent, swept test;
-* ``narrow``  — signed distances / stand-in contacts for plane, sphere and box pairs;
 * ``models``  — ``auto`` model choice, ``describe`` and preflight warnings.
 
 The step pipeline that uses them is ``contact_sim.stepper``.

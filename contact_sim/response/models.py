@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..shapes import Plane, Sphere
+from ..shapes import Sphere
 
 PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the explicit spring is near its stability edge (2)
 FRACTIONAL_AUTO_MAX_BODIES = 16
@@ -66,6 +66,12 @@ def _shape_info(world):
     return thin, spheres
 
 
+def thinnest_finite(world):
+    """The smallest thinnest size (m) of any finite body (``inf`` when there is none)."""
+    thin = _shape_info(world)[0]
+    return float(thin[np.isfinite(thin)].min()) if np.isfinite(thin).any() else np.inf
+
+
 def step_travel(world, dt):
     """Distance ``(N,)`` each body can travel in one step at its current speed under gravity."""
     g = np.linalg.norm(world.gravity) * (world.kind == 2)
@@ -79,8 +85,7 @@ def thin_and_fast(world, dt):
         return []
     thin = _shape_info(world)[0]
     travel = step_travel(world, dt)
-    finite_min = np.min(thin[np.isfinite(thin)]) if np.isfinite(thin).any() else np.inf
-    limit = np.minimum(thin, finite_min)
+    limit = np.minimum(thin, thinnest_finite(world))
     bad = np.flatnonzero((world.kind == 2) & (travel > limit))
     return [(world.body_names[i], float(travel[i]), float(limit[i])) for i in bad]
 
@@ -90,7 +95,6 @@ def choose(world, dt=None):
     st = world.settings
     dt = st.dt if dt is None else dt
     dyn = world.kind == 2
-    shapes = world.shapes
     reasons = []
     # friction
     if st.friction == "auto":

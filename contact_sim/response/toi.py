@@ -19,9 +19,14 @@ from scipy.optimize import brentq
 
 from .. import dynamics, quat
 from ..shapes import Box, Plane, Polyhedron, Sphere
-from .narrow import plane_world
 
 XTOL = 1e-15
+
+
+def plane_world(shape, pos, q):
+    """World normal ``(3,)`` and offset of a plane shape posed at centre ``pos``, orientation ``q``."""
+    n = quat.rotate(q, shape.normal)
+    return n, shape.offset + float(n @ pos)
 
 
 def _first_quadratic_root(c0, c1, c2, T):
@@ -160,12 +165,12 @@ def pair_toi(world, motion, i, j, T, swept=False):
     thin = min(si.thinnest(), sj.thinnest())
     n = int(np.clip(np.ceil((rel + spin) / (0.5 * thin)), 4, 4096))
     taus = np.linspace(0.0, T, n + 1)
-    prev_t, prev_f = 0.0, f0
+    prev_t = 0.0
     for tau in taus[1:]:
         ft = f(tau)
         if ft <= 0:
             return float(brentq(f, prev_t, tau, xtol=XTOL, rtol=4 * np.finfo(float).eps)) if ft < 0 else tau
-        prev_t, prev_f = tau, ft
+        prev_t = tau
     return np.inf
 
 
