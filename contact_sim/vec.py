@@ -14,3 +14,8 @@ def cross(a, b):
     out[..., 1] = a2 * b0 - a0 * b2
     out[..., 2] = a0 * b1 - a1 * b0
     return out
+
+
+def dot(a, b):
+    """Row-wise dot products of ``(..., 3)`` arrays, ``(...)``."""
+    return np.einsum("...i,...i->...", a, b)

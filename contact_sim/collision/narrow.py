@@ -17,6 +17,7 @@ import numpy as np
 
 from ..contacts import FEATURES
 from ..vec import cross
+from ..vec import dot as _dot
 
 F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
@@ -24,10 +25,6 @@ F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n 
 _EMPTY = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64))
 # elements of (pairs x edgesA x edgesB) handled at once by the edge-axis stage (memory bound)
 EDGE_CHUNK = 300_000
-
-
-def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
 
 
 def _unit(v):

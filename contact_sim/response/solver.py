@@ -26,16 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..vec import cross
+from ..vec import dot as _dot
 
 _TINY = 1e-300
-
-
-def _dot(x, y):
-    return np.einsum("ij,ij->i", x, y)
-
-
-def _mv(m, v):
-    return np.einsum("ijk,ik->ij", m, v)
 
 
 def tangent_basis(normal, hint=None):
