@@ -249,32 +249,69 @@ class World:
         ``stamp`` (s; default the world time). From the second pose on its linear and angular
         velocity are the finite differences of successive poses over their stamps, so responses
         see how fast it really moves. Stamps must increase. Bad input changes nothing."""
-        i = self.index(name)
-        if self.kind[i] != KINEMATIC:
-            raise ContactSimError(f"set_pose({name!r}): only kinematic bodies are posed from outside; "
-                                  f"{name!r} is {KINDS[self.kind[i]]} (use set_state for dynamic bodies)")
-        pos = _vector(position, 3, f"set_pose({name!r}).position")
-        q = _unit_quaternion(orientation, f"set_pose({name!r}).orientation", self.settings.quaternion_tolerance)
+        self.set_poses([name], [position], [orientation], stamp)
+
+    def set_poses(self, names, positions, orientations, stamp=None):
+        """``set_pose`` for several kinematic bodies at one ``stamp``, vectorised: ``names (M,)``,
+        ``positions (M, 3)``, ``orientations (M, 4)``. The whole batch is checked before anything
+        changes, so a bad row leaves every body as it was; errors name the body and the reason."""
+        names = list(names)
+        m = len(names)
+        idx = np.array([self.index(n) for n in names], dtype=np.int64)
+
+        def where(i):
+            return f"set_pose({names[i]!r})"
+
+        if len(set(idx.tolist())) != m:
+            raise ContactSimError(f"set_poses: a body is named twice in {names!r}")
+        bad = np.flatnonzero(self.kind[idx] != KINEMATIC)
+        if bad.size:
+            i = bad[0]
+            raise ContactSimError(f"{where(i)}: only kinematic bodies are posed from outside; {names[i]!r} is "
+                                  f"{KINDS[self.kind[idx[i]]]} (use set_state for dynamic bodies)")
+        try:
+            pos = np.asarray(positions, dtype=float)
+            q = np.asarray(orientations, dtype=float)
+            ok = pos.shape == (m, 3) and q.shape == (m, 4) and bool(np.isfinite(pos).all() and np.isfinite(q).all())
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:  # the slow path only finds and names the first bad row
+            if len(positions) != m or len(orientations) != m:
+                raise ContactSimError(f"set_poses: {m} names but {len(positions)} positions and "
+                                      f"{len(orientations)} orientations")
+            for i in range(m):
+                _vector(positions[i], 3, f"{where(i)}.position")
+                _vector(orientations[i], 4, f"{where(i)}.orientation")
+        norm = np.linalg.norm(q, axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1.0) > self.settings.quaternion_tolerance)
+        if bad.size:
+            _unit_quaternion(q[bad[0]], f"{where(bad[0])}.orientation", self.settings.quaternion_tolerance)
+        q = q / norm[:, None]
         t = self.time if stamp is None else stamp
         if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
-            raise ContactSimError(f"set_pose({name!r}).stamp: must be a finite number of seconds, got {stamp!r}")
+            raise ContactSimError(f"{where(0) if m == 1 else 'set_poses'}.stamp: must be a finite number of "
+                                  f"seconds, got {stamp!r}")
         t = float(t)
         s = self.s
-        com_world = pos + quat.rotate(q, self.com_local[i])
-        if s.posed[i]:
-            dt = t - s.stamp[i]
-            if dt <= 0:
-                raise ContactSimError(f"set_pose({name!r}).stamp: must be after the previous pose "
-                                      f"({s.stamp[i]!r}), got {t!r}")
-            q_prev = s.quat[i]
-            if np.dot(q, q_prev) < 0:  # same rotation, other sign: keep the shorter way round
-                q = -q
-            s.omega[i] = quat.to_rotvec(quat.mul(q, quat.conj(q_prev))) / dt
-            s.vel[i] = (com_world - s.pos[i]) / dt
-        s.pos[i] = com_world
-        s.quat[i] = q
-        s.stamp[i] = t
-        s.posed[i] = True
+        posed = s.posed[idx]
+        bad = np.flatnonzero(posed & (t - s.stamp[idx] <= 0))
+        if bad.size:
+            i = bad[0]
+            raise ContactSimError(f"{where(i)}.stamp: must be after the previous pose ({s.stamp[idx[i]]!r}), got {t!r}")
+        # ---- commit (nothing below can fail)
+        com_world = pos + quat.rotate(q, self.com_local[idx])
+        j, ij = np.flatnonzero(posed), idx[posed]
+        if j.size:
+            dt = (t - s.stamp[ij])[:, None]
+            q_prev = s.quat[ij]
+            qj = np.where(np.sum(q[j] * q_prev, axis=1, keepdims=True) < 0, -q[j], q[j])  # shorter way round
+            q[j] = qj
+            s.omega[ij] = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev))) / dt
+            s.vel[ij] = (com_world[j] - s.pos[ij]) / dt
+        s.pos[idx] = com_world
+        s.quat[idx] = q
+        s.stamp[idx] = t
+        s.posed[idx] = True
 
     def set_state(self, name, position=None, orientation=None, velocity=None, angular_velocity=None):
         """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first."""

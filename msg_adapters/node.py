@@ -317,12 +317,9 @@ class ContactSimNode(Node):
         if self._t0_ns is None:
             self._t0_ns = stamp_ns
         t = (stamp_ns - self._t0_ns) * 1e-9
-        saved = self.world.s.copy()
-        try:
-            for name, pi, qi in zip(self.tracked, p, q):
-                self.world.set_pose(name, pi, qi, t)
+        try:  # checked as a whole by the engine: a refused batch changes nothing
+            self.world.set_poses(self.tracked, p, q, t)
         except contact_sim.ContactSimError as exc:
-            self.world.s = saved
             return self._reject_pose("engine", str(exc))
         self._last_pose_stamp_ns = stamp_ns
         self._last_rx[:] = now_ns * 1e-9

@@ -74,3 +74,40 @@ def test_set_state_and_reset():
     w.reset()
     assert np.array_equal(w.body("b").position, [0, 0, 1]) and w.time == 0.0
     assert np.array_equal(w.body("b").velocity, [0, 0, 0])
+
+
+def two_paddles():
+    w = cs.World(gravity=(0, 0, 0))
+    w.add_body("left", cs.Box([0.3, 0.3, 0.05]), kind="kinematic")
+    w.add_body("right", cs.Box([0.3, 0.3, 0.05]), kind="kinematic")
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[5, 5, 5])
+    return w
+
+
+def test_set_poses_batch_differences_each_body():
+    w = two_paddles()
+    w.set_pose("left", [0, 0, 0], [0, 0, 0, 1], stamp=1.0)  # right has no pose yet
+    q = quat.from_rotvec([0.2, 0.0, 0.0])
+    w.set_poses(["left", "right"], [[0.1, 0, 0], [3, 3, 3]], [q, [0, 0, 0, 1]], stamp=1.5)
+    assert np.allclose(w.body("left").velocity, [0.2, 0, 0], atol=1e-15)
+    assert np.allclose(w.body("left").angular_velocity, [0.4, 0, 0], atol=1e-12)
+    assert np.array_equal(w.body("right").velocity, [0, 0, 0])  # first pose: position only
+    assert np.array_equal(w.body("right").position, [3, 3, 3])
+
+
+@pytest.mark.parametrize("names, positions, orientations, message", [
+    (["left", "right"], [[0, 0, 0], [0, np.nan, 0]], [[0, 0, 0, 1]] * 2, r"set_pose\('right'\)\.position: must be finite"),
+    (["left", "right"], [[0, 0, 0], [0, 0, 0]], [[0, 0, 0, 1], [0, 0, 0, 3]], r"set_pose\('right'\)\.orientation: quaternion must be unit"),
+    (["left", "right"], [[0, 0, 0], [0, 0]], [[0, 0, 0, 1]] * 2, r"set_pose\('right'\)\.position: must be 3 numbers"),
+    (["left", "left"], [[0, 0, 0]] * 2, [[0, 0, 0, 1]] * 2, "named twice"),
+    (["left", "right"], [[0, 0, 0]], [[0, 0, 0, 1]] * 2, "2 names but 1 positions"),
+    (["left", "ball"], [[0, 0, 0]] * 2, [[0, 0, 0, 1]] * 2, r"set_pose\('ball'\): only kinematic"),
+])
+def test_set_poses_refuses_the_whole_batch(names, positions, orientations, message):
+    w = two_paddles()
+    w.set_poses(["left", "right"], [[1, 1, 1], [2, 2, 2]], [[0, 0, 0, 1]] * 2, stamp=0.0)
+    before = [a.copy() for a in (w.s.pos, w.s.vel, w.s.quat, w.s.omega, w.s.stamp)]
+    with pytest.raises(cs.ContactSimError, match=message):
+        w.set_poses(names, positions, orientations, stamp=1.0)
+    after = (w.s.pos, w.s.vel, w.s.quat, w.s.omega, w.s.stamp)
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after))
