@@ -54,3 +54,15 @@ def test_contact_invariants_on_random_poses(ta, tb):
         ia, ib = np.argmax(c.depth), np.argmax(s.depth)
         assert np.allclose(s.normal[ib], -c.normal[ia], atol=1e-6)
     assert hits > 30  # the poses really produce contacts
+
+
+def test_detection_keeps_no_reference_to_discarded_worlds():
+    import gc
+    import weakref
+
+    w = cs.load_scene(cs.default_scene_path())
+    w.detect()
+    refs = [weakref.ref(w)] + [weakref.ref(s) for s in w.shapes]
+    del w
+    gc.collect()
+    assert all(r() is None for r in refs)  # the cached shape arrays went with the world

@@ -122,17 +122,15 @@ class _Bodies:
         self.is_plane = self.rank == 0
 
 
-_CACHE = {}
-
-
 def _bodies_of(world):
-    key = id(world)
-    hit = _CACHE.get(key)
+    """The world's shape arrays, built once and kept on the world itself (so they go with it),
+    rebuilt when bodies are added (the shape list only grows)."""
     shapes = world.shapes
-    if hit is not None and hit[0] is shapes and hit[1] == len(shapes) and (not shapes or hit[3] is shapes[-1]):
+    hit = getattr(world, "_cs_bodies", None)
+    if hit is not None and hit[0] == len(shapes) and (not shapes or hit[1] is shapes[-1]):
         return hit[2]
     b = _Bodies(shapes)
-    _CACHE[key] = (shapes, len(shapes), b, shapes[-1] if shapes else None)
+    world._cs_bodies = (len(shapes), shapes[-1] if shapes else None, b)
     return b
 
 
