@@ -6,9 +6,10 @@ query for one pair and runs exactly the same stages and kernels on a two-body ta
 
 Pipeline (cheapest test first, no Python loop over bodies, pairs or contacts):
 
-1. broad phase: world AABBs (object AABB carried by the pose) on a uniform hash grid (sorted
-   cell keys + ``searchsorted`` over the 14 forward neighbour cells; ``sweep_and_prune`` is kept
-   as an alternative, it degrades to N^(5/3) on grid-like scenes); planes against every AABB; static–static pairs and pairs whose
+1. broad phase: world AABBs (object AABB carried by the pose), paired by the cheapest exact
+   method for the layout (``broadphase.candidate_pairs``: all pairs for a few bodies,
+   sweep-and-prune while the sweep axis stays sparse, else a uniform hash grid: sorted cell keys
+   + ``searchsorted`` over the 14 forward neighbour cells); planes against every AABB; static–static pairs and pairs whose
    ``group``/``mask`` bits exclude each other are dropped;
 2. bounding volumes of the pair (``settings.bounding_volume``): ``sphere`` (the lecture's
    bounding sphere), ``aabb`` (world AABB = the broad phase itself), ``obb`` (object AABB
@@ -304,7 +305,7 @@ def detect_world(world, margin=None):
         R = Q.to_matrix(quat)
         fin = np.flatnonzero(~bodies.is_plane)
         c, h = broadphase.world_aabbs(pos[fin], R[fin], bodies.aabb_c[fin], bodies.aabb_h[fin])
-        i, j = broadphase.grid_pairs(c, h, margin)
+        i, j = broadphase.candidate_pairs(c, h, margin)
         i, j = fin[i], fin[j]
         pl = np.flatnonzero(bodies.is_plane)
         if pl.size:

@@ -1,5 +1,36 @@
-"""Broad phase: world AABBs and a vectorised sweep-and-prune; planes tested against AABBs directly."""
+"""Broad phase: world AABBs, then candidate pairs by the cheapest exact method for the scene: all
+pairs (few bodies), sweep-and-prune (few overlaps on the sweep axis), or a uniform hash grid
+(crowded, grid-like 3-D scenes, where SAP degrades to N^(5/3)); planes are tested against AABBs
+directly. Every method returns exactly the pairs whose AABBs overlap within the margin."""
 import numpy as np
+
+BRUTE_MAX = 32      # up to this many boxes, testing all N(N-1)/2 pairs at once is fastest
+SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64), else the grid (measured
+                    # crossover: ~20 candidates per box)
+_TRIU = {}          # n -> cached np.triu_indices(n, 1)
+
+
+def candidate_pairs(c, h, margin):
+    """Pairs ``(i (K,), j (K,))``, ``i < j``, of boxes (centres, half sizes ``(N, 3)``) overlapping
+    within ``margin``, by the cheapest method for the layout (measured: ``bench/bench_detect.py``;
+    all pairs 18 µs at 10 boxes against 60 µs for SAP and 100 µs for the grid; SAP 2× faster than
+    the grid on a 2-D layer of 500 spheres, 10× slower on a 3-D lattice of 2000)."""
+    n = len(c)
+    if n <= BRUTE_MAX:
+        return all_pairs(c, h, margin)
+    out = sweep_and_prune(c, h, margin, budget=SAP_BUDGET * n + 64)
+    return grid_pairs(c, h, margin) if out is None else out
+
+
+def all_pairs(c, h, margin):
+    """Same contract as ``sweep_and_prune``, by testing every pair (for a few boxes)."""
+    n = len(c)
+    tri = _TRIU.get(n)
+    if tri is None:
+        tri = _TRIU[n] = np.triu_indices(n, 1)
+    i, j = tri
+    keep = np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+    return i[keep], j[keep]
 
 
 def world_aabbs(pos, R, centre_local, half_local):
@@ -9,11 +40,12 @@ def world_aabbs(pos, R, centre_local, half_local):
     return c, h
 
 
-def sweep_and_prune(c, h, margin):
+def sweep_and_prune(c, h, margin, budget=None):
     """Pairs ``(i (K,), j (K,))``, ``i < j``, of boxes (centres, half sizes ``(N, 3)``) overlapping
     within ``margin``. Sort the lower bounds along the axis of largest spread; each box's partners
     are the boxes whose lower bound falls within its interval (``searchsorted``), then the other
-    two axes filter. O(N log N + pairs on the sweep axis), no Python loop over boxes."""
+    two axes filter. O(N log N + pairs on the sweep axis), no Python loop over boxes. ``None``
+    when the sweep-axis candidates exceed ``budget`` (the caller then uses the grid)."""
     n = len(c)
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
@@ -26,6 +58,8 @@ def sweep_and_prune(c, h, margin):
     start = np.arange(n) + 1
     counts = np.maximum(end - start, 0)
     total = int(counts.sum())
+    if budget is not None and total > budget:
+        return None
     if total == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     i_s = np.repeat(np.arange(n), counts)
