@@ -46,7 +46,19 @@ def integrate_free(state, dt, gravity, moving, rotating):
     accel = np.where(moving[:, None], gravity, 0.0)
     state.pos += state.vel * dt + 0.5 * accel * dt * dt
     state.vel += accel * dt
-    idx = np.flatnonzero(rotating)
+    # a body that does not spin keeps its orientation exactly (L = 0: every factor is the identity)
+    spin = rotating & state.omega.any(axis=1)
+    if not spin.any():
+        return
+    # equal principal moments (spheres, cubes; equal to 1e-12 relative, the round-off of a mesh's
+    # inertia): no split term and L = I ω is parallel to ω, so the exact turn is the whole motion:
+    # q ← exp(ω dt) ⊗ q with ω unchanged
+    m = state.principal_moments
+    iso = m[:, 0] >= (1.0 - ISOTROPIC_TOLERANCE) * m[:, 2]   # ascending moments: smallest vs largest
+    idx = np.flatnonzero(spin & iso)
+    if idx.size:
+        state.quat[idx] = quat.normalize(quat.mul(quat.from_rotvec(state.omega[idx] * dt), state.quat[idx]))
+    idx = np.flatnonzero(spin & ~iso)
     if idx.size:
         q, w = rotate_free(state.quat[idx], state.omega[idx], state.principal_q[idx],
                            state.principal_moments[idx], dt)
@@ -54,6 +66,7 @@ def integrate_free(state, dt, gravity, moving, rotating):
         state.omega[idx] = w
 
 
+ISOTROPIC_TOLERANCE = 1e-12  # relative spread of principal moments below which a body spins as a sphere
 MAX_SPLIT_ANGLE = 0.25  # rad: largest non-commuting sub-rotation per sub-step (accuracy knob)
 MAX_SUBSTEPS = 64  # beyond this, spin stays stable and L exact but accuracy degrades gracefully
 

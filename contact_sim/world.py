@@ -363,7 +363,7 @@ class World:
         torque-free rotation, kinematic bodies at their constant linear and angular velocity."""
         dynamic = self.kind == DYNAMIC
         dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
-        kin = np.flatnonzero(self.kind == KINEMATIC)
+        kin = np.flatnonzero((self.kind == KINEMATIC) & self.s.omega.any(axis=1))
         if kin.size:
             s = self.s
             turn = quat.from_rotvec(s.omega[kin] * dt)

@@ -109,6 +109,23 @@ def test_axisymmetric_and_isotropic_rotation_is_exact():
         assert np.abs(Es - E0).max() <= 1e-12 * E0
 
 
+def test_isotropic_spin_is_the_closed_form_turn_and_a_still_body_keeps_its_orientation_bitwise():
+    # sphere: q(t) = exp(ω t) ⊗ q0 and ω constant (bitwise); a body with ω = 0 never changes its quaternion
+    w = _free_world(gravity=(0.0, 0.0, 0.0))
+    q0 = quat.normalize(np.array([0.3, -0.1, 0.2, 0.9]))
+    omega = np.array([2.0, -1.0, 4.0])
+    w.add_body("spin", cs.Sphere(0.3), mass=2.0, orientation=q0, angular_velocity=omega)
+    w.add_body("still", cs.Box([0.2, 0.4, 0.6]), mass=1.0, position=[5.0, 0.0, 0.0], orientation=q0)
+    still0 = w.body("still").orientation.copy()
+    for _ in range(90):
+        w.step(1 / 30)
+    spin, still = w.body("spin"), w.body("still")
+    assert np.array_equal(spin.angular_velocity, omega)
+    ref = quat.mul(quat.from_rotvec(omega * 3.0), q0)
+    assert _angle_between(spin.orientation[None], ref[None]).max() < 1e-12
+    assert np.array_equal(still.orientation, still0)
+
+
 def test_fast_spin_stays_accurate():
     omega = np.array([30.0, 70.0, -50.0])  # ~90 rad/s at dt = 1/60: 1.5 rad per step
     q0 = np.array([0.0, 0.0, 0.0, 1.0])
