@@ -191,31 +191,31 @@ def _match(world, a0, b0, p0, a1, b1, p1):
     return out
 
 
-def _carried(world, attr, c, local, fill, trailing=()):
+def _carried(world, attr, a, b, local, fill, trailing=()):
     """Per-contact values ``(K, *trailing)`` that the previous step stored under ``world.<attr>``
-    as ``(body_a, body_b, local points, values)``, for the contacts ``c`` that match one of its
-    contacts (same pair, nearest point); ``fill`` where none matches."""
-    out = np.full((len(c),) + trailing, fill)
+    as ``(body_a, body_b, local points, values)``, for the contacts ``(a, b (K,), local (K,3))``
+    that match one of its contacts (same pair, nearest point); ``fill`` where none matches."""
+    out = np.full((len(a),) + trailing, fill)
     old = getattr(world, attr, None)
-    if old is None or len(old[0]) == 0 or len(c) == 0:
+    if old is None or len(old[0]) == 0 or len(a) == 0:
         return out
     a0, b0, p0, values = old
-    hit = _match(world, a0, b0, p0, c.body_a, c.body_b, local)
+    hit = _match(world, a0, b0, p0, a, b, local)
     ok = hit >= 0
     out[ok] = values[hit[ok]]
     return out
 
 
-def _warm_lookup(world, c, local):
-    """Previous step's resting impulses per unit time ``(K,3)`` (normal, tangent in the fixed
-    per-contact frame of ``_to_world_tangent``) for the contacts ``c`` that match one (else 0)."""
-    return _carried(world, "_cs_warm", c, local, 0.0, (3,))
+def _warm_lookup(world, a, b, local):
+    """Previous step's resting impulses per unit time ``(K,4)`` (normal, then the world tangential
+    impulse vector) for the contacts ``(a, b, local)`` that match one (else 0)."""
+    return _carried(world, "_cs_warm", a, b, local, 0.0, (4,))
 
 
 def _spec_lookup(world, c, local):
     """Approach normal velocity ``(K,)`` that the contacts ``c`` had before an earlier speculative
     impulse slowed them down to arrive touching (``+inf`` where none matches)."""
-    return _carried(world, "_cs_spec", c, local, np.inf)
+    return _carried(world, "_cs_spec", c.body_a, c.body_b, local, np.inf)
 
 
 def _merge_records(world, records):
@@ -284,7 +284,9 @@ def _impulse_step(world, dt, m):
         det_margin = _speculative_margin(world, t_left) if spec else margin
         c = _detect(world, det_margin)
         if spec and det_margin > margin and len(c):
-            c = c.select(_closing_filter(world, c, t_left, margin))
+            near = _closing_filter(world, c, t_left, margin)
+            if not near.all():
+                c = c.select(near)
         k = len(c)
         dv_rest = None
         dw_rest = None
@@ -362,8 +364,8 @@ def _impulse_step(world, dt, m):
                     # pair to separate)
                     vs = (solver.row_velocity(rows, s.vel, s.omega)[:, 0] if closing.any() else vn1)[ri]
                     target = np.where(touching[ri], target, np.minimum(2.0 * c.depth[ri] / t_left - vs, 0.0))
-                warm_rate = _warm_lookup(world, c.select(ri), local[ri])
-                warm = _project_warm(warm_rate * t_left, r2, mu_d[ri])
+                warm = _project_warm(_warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
+                                     mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
                                         mu_d=mu_d[ri] if fr else None, iterations=st.solver_iterations,
                                         tolerance=st.solver_tolerance, warm=warm, method=SOLVER_METHOD)
@@ -373,7 +375,7 @@ def _impulse_step(world, dt, m):
                 lam2[ri] = res.impulse
                 dv_rest = v_end - v_start_end
                 dw_rest = w_end - w_start_end
-                warm_out = (c.body_a[ri], c.body_b[ri], local[ri], _to_world_tangent(res.impulse, r2) / t_left)
+                warm_out = (c.body_a[ri], c.body_b[ri], local[ri], _warm_record(res.impulse, r2) / t_left)
             if first:
                 pseudo = _split_impulse(world, c, rows, dt)
             near = touching.copy()
@@ -421,29 +423,22 @@ def _impulse_step(world, dt, m):
                         "response": m.response}
 
 
-def _fixed_basis(rows):
-    """Tangent basis without hint ``(K,3), (K,3)`` of ``rows`` (computed once per rows object)."""
-    fb = getattr(rows, "_fixed_basis", None)
-    if fb is None:
-        fb = solver.tangent_basis(rows.n)
-        rows._fixed_basis = fb
-    return fb
-
-
-def _to_world_tangent(lam, rows):
-    """``(K,3)``: normal impulse and the tangential impulse as (x,y) in a fixed per-contact frame —
-    stored as normal, then the world tangent vector projected on a basis without hint."""
-    t1, t2 = _fixed_basis(rows)
-    wt = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
-    return np.column_stack([lam[:, 0], np.einsum("ij,ij->i", wt, t1), np.einsum("ij,ij->i", wt, t2)])
+def _warm_record(lam, rows):
+    """``(K,4)``: impulses ``lam (K,3)`` in ``rows``' (n, t1, t2) basis as the normal impulse and the
+    world tangential impulse vector (basis-free, so the next step's rows can take it whatever
+    tangents they pick)."""
+    out = np.empty((len(lam), 4))
+    out[:, 0] = lam[:, 0]
+    out[:, 1:] = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
+    return out
 
 
 def _project_warm(w, rows, mu):
-    """Warm impulses ``(K,3)`` from the fixed-frame form back to ``rows``' basis, inside the cone."""
+    """Warm impulses ``(K,3)`` in ``rows``' basis from the ``_warm_record`` form ``w (K,4)``: the
+    tangential vector projected on the contact's tangent plane, inside the cone."""
     if not np.any(w):
         return None
-    t1, t2 = _fixed_basis(rows)
-    wt = w[:, 1:2] * t1 + w[:, 2:3] * t2
+    wt = w[:, 1:]
     out = np.column_stack([np.maximum(w[:, 0], 0.0), np.einsum("ij,ij->i", wt, rows.t1),
                            np.einsum("ij,ij->i", wt, rows.t2)])
     mag = np.linalg.norm(out[:, 1:], axis=1)
