@@ -39,24 +39,31 @@ def rotate(q, v):
     return v + w * t + cross(u, t)
 
 
+def _matrix_coefficients():
+    """``(16, 9)``: each rotation-matrix entry as a linear form in the products ``q_i q_j``."""
+    x, y, z, w = range(4)
+    terms = {(0, 0): [(y, y, -2), (z, z, -2)], (0, 1): [(x, y, 2), (w, z, -2)], (0, 2): [(x, z, 2), (w, y, 2)],
+             (1, 0): [(x, y, 2), (w, z, 2)], (1, 1): [(x, x, -2), (z, z, -2)], (1, 2): [(y, z, 2), (w, x, -2)],
+             (2, 0): [(x, z, 2), (w, y, -2)], (2, 1): [(y, z, 2), (w, x, 2)], (2, 2): [(x, x, -2), (y, y, -2)]}
+    c = np.zeros((16, 9))
+    for (r, col), lin in terms.items():
+        for i, j, coef in lin:
+            c[4 * i + j, 3 * r + col] += coef
+    return c
+
+
+_TO_MATRIX = _matrix_coefficients()
+_EYE9 = np.eye(3).ravel()
+
+
 def to_matrix(q):
-    """Rotation matrices ``(..., 3, 3)`` of unit quaternions ``(..., 4)``."""
+    """Rotation matrices ``(..., 3, 3)`` of unit quaternions ``(..., 4)``: ``I + 2 w [v]× + 2 [v]×²``
+    written as one product of the 16 ``q_i q_j`` with a constant ``(16, 9)`` matrix (3 numpy calls
+    instead of ~25 on the short arrays of a step)."""
     q = np.asarray(q, dtype=float)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz = x * y, x * z, y * z
-    wx, wy, wz = w * x, w * y, w * z
-    m = np.empty(q.shape[:-1] + (3, 3))
-    m[..., 0, 0] = 1 - 2 * (yy + zz)
-    m[..., 0, 1] = 2 * (xy - wz)
-    m[..., 0, 2] = 2 * (xz + wy)
-    m[..., 1, 0] = 2 * (xy + wz)
-    m[..., 1, 1] = 1 - 2 * (xx + zz)
-    m[..., 1, 2] = 2 * (yz - wx)
-    m[..., 2, 0] = 2 * (xz - wy)
-    m[..., 2, 1] = 2 * (yz + wx)
-    m[..., 2, 2] = 1 - 2 * (xx + yy)
-    return m
+    lead = q.shape[:-1]
+    qq = (q[..., :, None] * q[..., None, :]).reshape(lead + (16,))
+    return (qq @ _TO_MATRIX + _EYE9).reshape(lead + (3, 3))
 
 
 def from_matrix(m):

@@ -5,7 +5,7 @@ import trimesh
 
 import contact_sim as cs
 from contact_sim import quat as Q
-from contact_sim.collision import collide, collide_pairs
+from contact_sim.collision import collide, collide_pairs, detect_world
 from contact_sim.collision import bounding
 from contact_sim.collision.narrow import points_in_meshes
 from contact_sim.contacts import FEATURES
@@ -138,3 +138,15 @@ def test_mesh_mesh_refused_by_collide():
     m = box_mesh((1, 1, 1))
     with pytest.raises(cs.ContactSimError, match="mesh-mesh"):
         collide(m, ((0, 0, 0), I), m, ((0, 0, 0.5), I))
+
+
+def test_mesh_mesh_pairs_in_a_world_are_counted_as_unsupported_not_fatal():
+    # alone (one shape-type pair in the batch) and next to a supported pair (two batches)
+    w = cs.World(gravity=(0, 0, 0))
+    w.add_body("m1", box_mesh((1, 1, 1)), mass=1.0)
+    w.add_body("m2", box_mesh((1, 1, 1)), mass=1.0, position=(0, 0, 0.5))
+    c, st = detect_world(w)
+    assert len(c) == 0 and st.unsupported_pairs == 1
+    w.add_body("ball", cs.Sphere(0.3), mass=1.0, position=(0, 0, 1.2))
+    c, st = detect_world(w)
+    assert st.unsupported_pairs == 1 and len(c) >= 1 and set(c.body_b) == {2}

@@ -198,10 +198,12 @@ def _narrow(bodies, pos, R, a, b, margin, counters):
     out = []
     key = bodies.rank[a] * 5 + bodies.rank[b]
     unsupported = 0
-    for k in np.unique(key):   # loop over the few shape-type pairs present
-        sel = np.flatnonzero(key == k)
+    present = np.flatnonzero(np.bincount(key, minlength=25)) if len(key) else []
+    for k in present:   # loop over the few shape-type pairs present
+        # one type pair (the usual case): the whole batch, no gather
+        sel = None if len(present) == 1 else np.flatnonzero(key == k)
         ta, tb = divmod(int(k), 5)
-        A, B = a[sel], b[sel]
+        A, B = (a, b) if len(present) == 1 else (a[sel], b[sel])
         pa, pb, Ra, Rb = pos[A], pos[B], R[A], R[B]
         if tb == 0:
             if ta == 0:
@@ -224,7 +226,7 @@ def _narrow(bodies, pos, R, a, b, margin, counters):
                                          bodies.closed[A])
         elif ta == 4:
             if tb == 4:
-                unsupported += len(sel)
+                unsupported += len(A)
                 continue
             res = narrow.mesh_poly(bodies.tables[4], bodies.row[A], pa, Ra, bodies.closed[A],
                                    bodies.tables[tb], bodies.row[B], pb, Rb, margin, counters)
@@ -232,10 +234,12 @@ def _narrow(bodies, pos, R, a, b, margin, counters):
             res = narrow.poly_poly(bodies.tables[ta], bodies.row[A], pa, Ra, bodies.tables[tb], bodies.row[B],
                                    pb, Rb, margin, counters)
         pi, pt, nrm, dep, ft = res
-        out.append((sel[pi], pt, nrm, dep, ft))
+        out.append((pi if sel is None else sel[pi], pt, nrm, dep, ft))
     if not out:
         return (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64)), \
             unsupported
+    if len(out) == 1:
+        return out[0], unsupported
     return tuple(np.concatenate(p) for p in zip(*out)), unsupported
 
 
@@ -275,7 +279,9 @@ def _detect(bodies, shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings, R
     stats.needed_edge_face = counters.edge_face
     stats.edge_face_hits = counters.edge_hits
     stats.unsupported_pairs = unsupported
-    stats.colliding_pairs = int(np.unique(pair).size)
+    hit = np.zeros(len(ia), bool)
+    hit[pair] = True
+    stats.colliding_pairs = int(np.count_nonzero(hit))
     stats.contacts = k
     timings["total"] = time.perf_counter() - t0
     stats.seconds = timings

@@ -42,14 +42,14 @@ def world_aabbs(pos, R, centre_local, half_local):
 
 def sweep_and_prune(c, h, margin, budget=None):
     """Pairs ``(i (K,), j (K,))``, ``i < j``, of boxes (centres, half sizes ``(N, 3)``) overlapping
-    within ``margin``. Sort the lower bounds along the axis of largest spread; each box's partners
+    within ``margin``. Sort the lower bounds along the axis of widest extent; each box's partners
     are the boxes whose lower bound falls within its interval (``searchsorted``), then the other
     two axes filter. O(N log N + pairs on the sweep axis), no Python loop over boxes. ``None``
     when the sweep-axis candidates exceed ``budget`` (the caller then uses the grid)."""
     n = len(c)
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    ax = int(np.argmax(c.var(axis=0)))
+    ax = int(np.argmax(c.max(axis=0) - c.min(axis=0)))   # widest spread (np.var costs 10× more)
     lo = c[:, ax] - h[:, ax]
     hi = c[:, ax] + h[:, ax] + margin
     order = np.argsort(lo, kind="stable")
