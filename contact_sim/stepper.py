@@ -26,7 +26,7 @@ penetration at the start of the step, contact and impact counts, and the models 
 """
 import numpy as np
 
-from . import dynamics
+from . import quat
 from .contacts import Contacts
 from .settings import combine
 from .vec import cross
@@ -82,11 +82,12 @@ def _detect(world, margin):
     return contacts
 
 
-def _inv_inertia(world, m):
-    """World inverse inertia ``(N,3,3)`` (zeros when the models skip rotation)."""
+def _inv_inertia(world, m, R):
+    """World inverse inertia ``R I⁻¹ Rᵀ (N,3,3)`` from the bodies' rotation matrices ``R (N,3,3)``
+    (zeros when the models skip rotation)."""
     if not m.rotation:
         return np.zeros((len(world), 3, 3))
-    return dynamics.world_inverse_inertia(world.s.quat, world.inv_inertia_body)
+    return R @ world.inv_inertia_body @ np.swapaxes(R, -1, -2)
 
 
 def _coefficients(world, c, m):
@@ -102,10 +103,17 @@ def _coefficients(world, c, m):
     return e, mu_s, mu_d
 
 
-def _rows(world, c, inv_inertia):
+def _rows(world, c, inv_inertia, rel_vel):
+    return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, world.s.pos, world.inv_mass, inv_inertia,
+                             movable=world.kind == DYNAMIC, rel_vel=rel_vel)
+
+
+def _relative_velocity(world, c):
+    """Velocity ``(K,3)`` of A's material point at each contact relative to B's, ``ṗ_A − ṗ_B``
+    (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it)."""
     s = world.s
-    return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, s.pos, world.inv_mass, inv_inertia,
-                             s.vel, s.omega, movable=world.kind == DYNAMIC)
+    a, b = c.body_a, c.body_b
+    return (s.vel[a] + cross(s.omega[a], c.point - s.pos[a])) - (s.vel[b] + cross(s.omega[b], c.point - s.pos[b]))
 
 
 def _gravity(world):
@@ -132,27 +140,21 @@ def _speculative_margin(world, dt):
     return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
 
 
-def _closing_filter(world, c, dt, base):
+def _closing_filter(world, c, rel_vel, dt, base):
     """Keep the contacts of ``c`` within ``base`` (touching) and the separated ones whose gap can
     close within ``dt`` at the current normal velocity (``(K,) bool``): ``gap ≤ max(−v_n, 0)·dt +
-    |g|·dt² + base``, with ``v_n = n·(ṗ_A − ṗ_B)`` at the contact point."""
-    s = world.s
-    a, b = c.body_a, c.body_b
-    pa = s.vel[a] + cross(s.omega[a], c.point - s.pos[a])
-    pb = s.vel[b] + cross(s.omega[b], c.point - s.pos[b])
-    vn = np.einsum("ij,ij->i", c.normal, pa - pb)
+    |g|·dt² + base``, with ``v_n = n·rel_vel`` (``rel_vel (K,3)`` from ``_relative_velocity``)."""
+    vn = np.einsum("ij,ij->i", c.normal, rel_vel)
     g = float(np.linalg.norm(world.gravity))
     return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
 
 
-def _local_points(world, c, point=None):
+def _local_points(world, c, R, point=None):
     """Contact points ``(K,3)`` (``c.point`` or the given ``point (K,3)``) in body A's frame (what
-    identifies a contact across steps)."""
-    from . import quat
-
-    s = world.s
+    identifies a contact across steps); ``R (N,3,3)`` the bodies' rotation matrices."""
+    a = c.body_a
     p = c.point if point is None else point
-    return quat.rotate(quat.conj(s.quat[c.body_a]), p - s.pos[c.body_a])
+    return np.einsum("kji,kj->ki", R[a], p - world.s.pos[a])
 
 
 def _match(world, a0, b0, p0, a1, b1, p1):
@@ -277,16 +279,16 @@ def _impulse_step(world, dt, m):
     pseudo = None
     warm_out = None
     first = True
-    inv_i = _inv_inertia(world, m)
     spec = SPECULATIVE and not exact_toi
     spec_out = None
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
         c = _detect(world, det_margin)
+        rel_vel = _relative_velocity(world, c)
         if spec and det_margin > margin and len(c):
-            near = _closing_filter(world, c, t_left, margin)
+            near = _closing_filter(world, c, rel_vel, t_left, margin)
             if not near.all():
-                c = c.select(near)
+                c, rel_vel = c.select(near), rel_vel[near]
         k = len(c)
         dv_rest = None
         dw_rest = None
@@ -294,20 +296,19 @@ def _impulse_step(world, dt, m):
         if k:
             if first:
                 max_pen = max(max_pen, float(c.depth.max()))
-            else:
-                inv_i = _inv_inertia(world, m)
-            rows = _rows(world, c, inv_i)
-            local = _local_points(world, c)
+            R = quat.to_matrix(s.quat)
+            rows = _rows(world, c, _inv_inertia(world, m, R), rel_vel)
+            local = _local_points(world, c, R)
             e, mu_s, mu_d = _coefficients(world, c, m)
             fr = m.friction and m.response != "kinematic"
-            vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+            vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
             touching = c.depth >= -touch_eps
             # approach speed for restitution: a speculative contact that closed in an earlier step
             # arrived slowed down to touching; its restitution uses the speed it had before (Box2D's rule)
             surf = None
             if spec and getattr(world, "_cs_spec", None) is not None:
                 # identified by the point on A's surface (the contact point is midway across the gap)
-                surf = _local_points(world, c, c.point - 0.5 * c.depth[:, None] * c.normal)
+                surf = _local_points(world, c, R, c.point - 0.5 * c.depth[:, None] * c.normal)
                 vn_in = np.minimum(vn0, _spec_lookup(world, c, surf))
             else:
                 vn_in = vn0
@@ -340,7 +341,7 @@ def _impulse_step(world, dt, m):
                     keep = closing & (lam[:, 0] > 0) & (e > 0)
                     if keep.any():
                         if surf is None:
-                            surf = _local_points(world, c, c.point - 0.5 * c.depth[:, None] * c.normal)
+                            surf = _local_points(world, c, R, c.point - 0.5 * c.depth[:, None] * c.normal)
                         spec_out = (c.body_a[keep], c.body_b[keep], surf[keep], vn_in[keep])
             vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0] if impact.any() else vn0
             if m.resting and (touching.any() or not exact_toi) and not (impact.any() and np.all(vn1 > v_imp)):
@@ -461,8 +462,6 @@ def _advance(world, tau, half_dv, half_dw):
 
 def _move(world, dx, dtheta):
     """Displace centres by ``dx (N,3)`` and rotate by rotation vectors ``dtheta (N,3)``."""
-    from . import quat
-
     s = world.s
     s.pos += dx
     turn = np.flatnonzero(np.any(dtheta != 0, axis=1))
@@ -498,8 +497,9 @@ def _penalty_step(world, dt, m):
     k = len(c)
     max_pen = float(c.depth.max()) if k else 0.0
     if k:
-        rows = _rows(world, c, _inv_inertia(world, m))
-        vn0 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+        rel_vel = _relative_velocity(world, c)
+        rows = _rows(world, c, _inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel)
+        vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
         force = np.maximum(st.penalty.stiffness * np.maximum(c.depth, 0.0) - st.penalty.damping * vn0, 0.0)
         lam = np.zeros((k, 3))
         lam[:, 0] = force * dt

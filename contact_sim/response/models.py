@@ -52,8 +52,10 @@ def _can_touch(world):
 
 
 def _shape_info(world):
-    """Per-world shape facts cached across steps: ``(thinnest (N,), dynamic bodies all spheres)``;
-    rebuilt when bodies are added (the shape list only grows)."""
+    """Per-world shape facts cached across steps (rebuilt when bodies are added: the shape list only
+    grows, or kinds change): ``(thinnest (N,), dynamic bodies all spheres, thinnest finite size,
+    limit (N,))`` with ``limit`` the thinnest size each body can meet (its own or the thinnest
+    finite body's, whichever is smaller)."""
     n = len(world)
     key = (n, id(world.shapes[-1]) if n else None, world.kind.tobytes())
     hit = getattr(world, "_cs_shape_info", None)
@@ -62,20 +64,23 @@ def _shape_info(world):
     thin = np.array([sh.thinnest() for sh in world.shapes]) if n else np.zeros(0)
     dyn = world.kind == 2
     spheres = all(isinstance(world.shapes[i], Sphere) for i in np.flatnonzero(dyn))
-    world._cs_shape_info = (key, (thin, spheres))
-    return thin, spheres
+    finite = np.isfinite(thin)
+    thinnest = float(thin[finite].min()) if finite.any() else np.inf
+    info = (thin, spheres, thinnest, np.minimum(thin, thinnest))
+    world._cs_shape_info = (key, info)
+    return info
 
 
 def thinnest_finite(world):
     """The smallest thinnest size (m) of any finite body (``inf`` when there is none)."""
-    thin = _shape_info(world)[0]
-    return float(thin[np.isfinite(thin)].min()) if np.isfinite(thin).any() else np.inf
+    return _shape_info(world)[2]
 
 
 def step_travel(world, dt):
     """Distance ``(N,)`` each body can travel in one step at its current speed under gravity."""
-    g = np.linalg.norm(world.gravity) * (world.kind == 2)
-    return np.linalg.norm(world.s.vel, axis=1) * dt + 0.5 * g * dt * dt
+    v = world.s.vel
+    g = float(np.sqrt(world.gravity @ world.gravity))
+    return np.sqrt(np.einsum("ij,ij->i", v, v)) * dt + np.where(world.kind == 2, 0.5 * g * dt * dt, 0.0)
 
 
 def thin_and_fast(world, dt):
@@ -83,9 +88,8 @@ def thin_and_fast(world, dt):
     body they could meet (themselves included)."""
     if len(world) == 0:
         return []
-    thin = _shape_info(world)[0]
+    limit = _shape_info(world)[3]
     travel = step_travel(world, dt)
-    limit = np.minimum(thin, thinnest_finite(world))
     bad = np.flatnonzero((world.kind == 2) & (travel > limit))
     return [(world.body_names[i], float(travel[i]), float(limit[i])) for i in bad]
 

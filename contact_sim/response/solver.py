@@ -31,13 +31,13 @@ from ..vec import dot as _dot
 _TINY = 1e-300
 
 
+_AXES = np.eye(3)
+
+
 def tangent_basis(normal, hint=None):
     """Two unit tangents ``(K,3), (K,3)`` orthogonal to ``normal (K,3)``; ``t1`` along the
     tangential part of ``hint (K,3)`` where it is non-zero (the sliding direction)."""
-    k = len(normal)
-    axis = np.zeros((k, 3))
-    smallest = np.argmin(np.abs(normal), axis=1)
-    axis[np.arange(k), smallest] = 1.0
+    axis = _AXES[np.argmin(np.abs(normal), axis=1)]   # the coordinate axis least aligned with the normal
     t1 = cross(normal, axis)
     if hint is not None:
         ht = hint - _dot(hint, normal)[:, None] * normal
@@ -139,12 +139,9 @@ class Rows:
     ima: np.ndarray     # (K,)
     imb: np.ndarray
     K: np.ndarray       # (K, 3, 3) effective inverse mass in the (n, t1, t2) basis
+    dirs: np.ndarray    # (K, 3, 3) the directions n, t1, t2 as rows
     movable: np.ndarray  # (N,) bool: bodies whose velocity the solver changes
     _colors: list = None
-
-    @property
-    def dirs(self):
-        return np.stack([self.n, self.t1, self.t2], axis=1)  # (K, 3, 3)
 
     @property
     def colors(self):
@@ -164,17 +161,18 @@ class Rows:
         k = len(self.a)
         if (idx.all() if idx.dtype == bool else np.array_equal(idx, np.arange(k))) and len(idx) == k:
             return self
-        f = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K")
+        f = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
         return Rows(*[getattr(self, x)[idx] for x in f], self.movable)
 
 
-def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None):
-    """Constraint rows for contacts. ``pos (N,3)`` centres of mass; ``vel/omega`` (optional) pick
-    the first tangent along the current sliding direction. Returns ``Rows``."""
+def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None, rel_vel=None):
+    """Constraint rows for contacts. ``pos (N,3)`` centres of mass; ``vel/omega (N,3)`` (optional) or
+    the contact points' relative velocity ``rel_vel (K,3)`` when already known pick the first
+    tangent along the current sliding direction. Returns ``Rows``."""
     ra = point - pos[a]
     rb = point - pos[b]
-    hint = None
-    if vel is not None:
+    hint = rel_vel
+    if hint is None and vel is not None:
         hint = (vel[a] + cross(omega[a], ra)) - (vel[b] + cross(omega[b], rb))
     t1, t2 = tangent_basis(normal, hint)
     d = np.stack([normal, t1, t2], axis=1)                    # (K,3,3)
@@ -188,7 +186,7 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
     K = (ima + imb)[:, None, None] * lin + ang_a @ iang_a.transpose(0, 2, 1) + ang_b @ iang_b.transpose(0, 2, 1)
     if movable is None:
         movable = inv_mass > 0
-    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, movable)
+    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable)
 
 
 def row_velocity(rows, vel, omega, idx=slice(None)):
