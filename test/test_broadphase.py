@@ -69,3 +69,39 @@ def test_one_or_no_box_has_no_pairs():
     for n in (0, 1):
         i, j = bp.candidate_pairs(np.zeros((n, 3)), np.ones((n, 3)), 0.0)
         assert len(i) == len(j) == 0
+
+
+def test_pair_cache_equals_a_fresh_search_every_step_of_a_random_motion():
+    # drifting, jittering and teleported boxes, with a margin that shrinks and grows: the cached
+    # pairs (fat boxes) filtered exactly must be the reference pairs at every step
+    rng = np.random.default_rng(7)
+    n = 120
+    c, h = clustered(n, rng)
+    v = rng.normal(scale=0.003, size=(n, 3))
+    v[: n // 2] = 0.0                       # half of them at rest
+    cache = bp.PairCache()
+    for step in range(60):
+        margin = [0.0, 0.01, 0.05][step % 3]
+        if step % 17 == 5:
+            c[rng.integers(n)] = rng.uniform(-2, 2, 3)     # a teleport (set_pose)
+        c = c + v + rng.normal(scale=1e-4, size=(n, 3)) * (v != 0)
+        assert as_set(cache.pairs(c, h, margin)) == reference(c, h, margin), step
+    assert cache.reuses > 0 and cache.rebuilds > 1
+
+
+def test_pair_cache_reused_at_rest_and_rebuilt_when_a_box_leaves_its_fat_box():
+    rng = np.random.default_rng(1)
+    c, h = layer(50, rng, spacing=0.3)
+    cache = bp.PairCache()
+    cache.pairs(c, h, 0.001)
+    cache.pairs(c, h, 0.001)
+    assert (cache.rebuilds, cache.reuses) == (1, 1)
+    c2 = c.copy()
+    c2[3, 0] += 0.5 * bp.FAT_FRACTION * 0.1        # inside the fat box: reused
+    cache.pairs(c2, h, 0.001)
+    assert (cache.rebuilds, cache.reuses) == (1, 2)
+    c2[3, 0] += 2.0 * bp.FAT_FRACTION * 0.1        # out of it: rebuilt
+    cache.pairs(c2, h, 0.001)
+    assert cache.rebuilds == 2
+    cache.pairs(c2, h, 1.0)                         # a margin larger than cached: rebuilt
+    assert cache.rebuilds == 3

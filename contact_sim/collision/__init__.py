@@ -9,7 +9,8 @@ Pipeline (cheapest test first, no Python loop over bodies, pairs or contacts):
 1. broad phase: world AABBs (object AABB carried by the pose), paired by the cheapest exact
    method for the layout (``broadphase.candidate_pairs``: all pairs for a few bodies,
    sweep-and-prune while the sweep axis stays sparse, else a uniform hash grid: sorted cell keys
-   + ``searchsorted`` over the 14 forward neighbour cells); planes against every AABB; static–static pairs and pairs whose
+   + ``searchsorted`` over the 14 forward neighbour cells), kept across steps on fat boxes while no
+   body leaves its fat box (``broadphase.PairCache``); planes against every AABB; static–static pairs and pairs whose
    ``group``/``mask`` bits exclude each other are dropped;
 2. bounding volumes of the pair (``settings.bounding_volume``): ``sphere`` (the lecture's
    bounding sphere), ``aabb`` (world AABB = the broad phase itself), ``obb`` (object AABB
@@ -79,6 +80,7 @@ class _Bodies:
         n = len(shapes)
         self.n = n
         self.rank = np.array([RANK[s.type] for s in shapes], np.int64)
+        self.pair_cache = broadphase.PairCache()   # broad-phase pairs carried across steps
         self.plane_n = np.zeros((n, 3))
         self.plane_d = np.zeros(n)
         self.radius = np.zeros(n)
@@ -311,7 +313,7 @@ def detect_world(world, margin=None):
         R = Q.to_matrix(quat)
         fin = np.flatnonzero(~bodies.is_plane)
         c, h = broadphase.world_aabbs(pos[fin], R[fin], bodies.aabb_c[fin], bodies.aabb_h[fin])
-        i, j = broadphase.candidate_pairs(c, h, margin)
+        i, j = bodies.pair_cache.pairs(c, h, margin)
         i, j = fin[i], fin[j]
         pl = np.flatnonzero(bodies.is_plane)
         if pl.size:

@@ -22,6 +22,45 @@ def candidate_pairs(c, h, margin):
     return grid_pairs(c, h, margin) if out is None else out
 
 
+FAT_FRACTION = 0.2  # a fat box is the tight AABB grown by this × its largest half size
+
+
+class PairCache:
+    """Candidate pairs carried across steps (temporal coherence, as Box2D's fat AABBs).
+
+    The pairs are computed for *fat* boxes (each tight box grown by ``FAT_FRACTION`` of its size)
+    with twice the margin. While every tight box stays inside its fat box and the margin does not
+    grow past the cached one, the cached pairs are a superset of the overlapping pairs, and one
+    exact test on the tight boxes gives exactly what ``candidate_pairs`` would (a resting or slowly
+    moving scene skips the sort/grid work); otherwise the cache is rebuilt from the current boxes.
+    ``rebuilds``/``reuses`` count what happened."""
+
+    def __init__(self):
+        self.fat_c = self.fat_h = None
+        self.margin = -1.0
+        self.i = self.j = None
+        self.rebuilds = 0
+        self.reuses = 0
+
+    def pairs(self, c, h, margin):
+        """Same contract as ``candidate_pairs`` for boxes ``c, h (N, 3)``."""
+        if (self.fat_c is not None and len(self.fat_c) == len(c) and margin <= self.margin
+                and np.all(np.abs(c - self.fat_c) + h <= self.fat_h)):
+            self.reuses += 1
+        else:
+            self.fat_c = c.copy()
+            self.fat_h = h + FAT_FRACTION * h.max(axis=1, keepdims=True)
+            # twice the margin (a growing look-ahead keeps the cache a while), plus round-off slack
+            # of the coordinates so that the superset argument holds in floating point
+            scale = float(np.abs(c).max() + h.max()) if len(c) else 0.0
+            self.margin = 2.0 * margin + 1e-9 * (1.0 + scale)
+            self.i, self.j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
+            self.rebuilds += 1
+        i, j = self.i, self.j
+        keep = np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+        return i[keep], j[keep]
+
+
 def all_pairs(c, h, margin):
     """Same contract as ``sweep_and_prune``, by testing every pair (for a few boxes)."""
     n = len(c)
