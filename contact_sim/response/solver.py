@@ -198,14 +198,16 @@ def row_velocity(rows, vel, omega, idx=slice(None)):
             - np.einsum("kdi,ki->kd", rows.ang_b[idx], omega[b]))
 
 
-def apply(rows, vel, omega, lam, idx=slice(None)):
+def apply(rows, vel, omega, lam, idx=slice(None), unique=False):
     """Apply impulses ``lam (k,3)`` (n, t1, t2 components, on A; −on B) to the velocity arrays in
-    place. Within one colour no movable body repeats, so plain fancy indexing is exact."""
+    place. Within one colour (an index array ``idx``), or when ``unique`` says so, no movable body
+    repeats, so plain fancy indexing is exact (a repeated static or kinematic body gets zero from
+    every contact); otherwise the contributions are accumulated."""
     a, b = rows.a[idx], rows.b[idx]
     imp = np.einsum("kd,kdi->ki", lam, rows.dirs[idx])
     dwa = np.einsum("kd,kdi->ki", lam, rows.iang_a[idx])
     dwb = np.einsum("kd,kdi->ki", lam, rows.iang_b[idx])
-    if isinstance(idx, slice):
+    if isinstance(idx, slice) and not unique:
         np.add.at(vel, a, rows.ima[:, None] * imp)
         np.add.at(vel, b, -rows.imb[:, None] * imp)
         np.add.at(omega, a, dwa)
@@ -462,18 +464,24 @@ def delassus(rows, dense=True):
     return (J @ W.T).tocsr()
 
 
+_NEXT = np.array([1, 2, 0])
+_PREV = np.array([2, 0, 1])
+
+
 def _solve3(m, r):
     """Batched 3×3 solves ``m (k,3,3) x = r (k,3)`` by the adjugate (Cramer's rule: a handful of
     vectorised products instead of LAPACK's per-call setup, which dominates at this size), and a
     ``(k,) bool`` of the systems that are not singular (``|det|`` above round-off of the entries'
-    scale; ``x = 0`` for the others). The Delassus blocks solved here are symmetric positive
-    definite (sticking contacts), where the adjugate is as accurate as pivoted LU."""
-    r0, r1, r2 = m[:, 0], m[:, 1], m[:, 2]
-    c0, c1, c2 = cross(r1, r2), cross(r2, r0), cross(r0, r1)   # columns of the adjugate
-    det = _dot(r0, c0)
-    scale = np.abs(m).max(axis=(1, 2))
+    scale, the trace for these positive semi-definite Delassus blocks; ``x = 0`` for the others).
+    The blocks solved here are symmetric positive definite (sticking contacts), where the adjugate
+    is as accurate as pivoted LU."""
+    # row j of the adjugate's transpose is r_{j+1} × r_{j+2}: all three cross products at once
+    r1, r2 = m[:, _NEXT, :], m[:, _PREV, :]
+    adj = r1[:, :, _NEXT] * r2[:, :, _PREV] - r1[:, :, _PREV] * r2[:, :, _NEXT]
+    det = np.einsum("ki,ki->k", m[:, 0], adj[:, 0])
+    scale = np.einsum("kii->k", m)
     good = np.abs(det) > 1e-300 * np.maximum(scale ** 3, 1e-300)
-    x = (c0 * r[:, 0:1] + c1 * r[:, 1:2] + c2 * r[:, 2:3]) / np.where(good, det, 1.0)[:, None]
+    x = np.einsum("kji,kj->ki", adj, r) / np.where(good, det, 1.0)[:, None]
     x[~good] = 0.0
     return x, good
 
@@ -506,7 +514,7 @@ def _solve_singles(rows, v0, target_n, mu_s, friction):
         bad[f] = ~good
     good_n = (kn > 0) & (x[:, 0] >= 0) & ~bad
     if friction:
-        good_n &= np.linalg.norm(x[:, 1:], axis=1) <= mu_s[i] * x[:, 0] * (1 + 1e-12) + 1e-300
+        good_n &= np.sqrt(np.einsum("ij,ij->i", x[:, 1:], x[:, 1:])) <= mu_s[i] * x[:, 0] * (1 + 1e-12) + 1e-300
     lam[i] = np.where(good_n[:, None], x, 0.0)
     ok[i] = good_n
     return lam, ok
@@ -523,9 +531,9 @@ def _peel_singles(rows, vel, omega, target_n, mu_s):
     single = (~mov[rows.a] | (cnt[rows.a] == 1)) & (~mov[rows.b] | (cnt[rows.b] == 1))
     if not single.any():
         return np.zeros(0, np.int64), np.zeros((0, 3)), np.arange(k)
-    friction = mu_s is not None and np.any(mu_s > 0)
+    friction = mu_s is not None and bool((mu_s > 0).any())
     si = np.flatnonzero(single)
-    v0s = row_velocity(rows, vel, omega, si)
+    v0s = row_velocity(rows, vel, omega, slice(None) if si.size == k else si)
     lam_s, ok = _solve_singles(rows.select(si), v0s, target_n[si], mu_s[si] if friction else None, friction)
     single[si[~ok]] = False
     return si[ok], lam_s[ok], np.flatnonzero(~single)
@@ -560,7 +568,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
                 lam[rest] = res_r.impulse
             if not conv:
                 return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
-            apply(rows.select(done), vel, omega, lam_s)
+            apply(rows.select(done), vel, omega, lam_s, unique=True)
             return SolveResult(lam, 1, res_r.residual), True
     dense = k <= DIRECT_DENSE_MAX
     if A is None:
@@ -642,7 +650,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
         if done.size:
             lam = np.zeros((k, 3))
             lam[done] = lam_s
-            apply(rows.select(done), vel, omega, lam_s)
+            apply(rows.select(done), vel, omega, lam_s, unique=True)
             if rest.size == 0:
                 return SolveResult(lam, 1, 0.0)
             res = solve(rows.select(rest), vel, omega, target_n=target_n[rest],
