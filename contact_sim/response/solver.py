@@ -552,9 +552,10 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     k = len(rows.a)
     if k == 0:
         return SolveResult(np.zeros((0, 3)), 0, 0.0), True
-    if _split and A is None and k > DIRECT_DENSE_MAX:
+    if _split and A is None:
         # contacts that share no movable body with another contact are independent 3×3 problems:
-        # solved batched; the rest (islands of several contacts) by the active set below
+        # solved batched, whatever their number (cheaper than the dense active set even for a few);
+        # the rest (islands of several contacts) by the active set below
         done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
         if done.size:
             lam = np.zeros((k, 3))
