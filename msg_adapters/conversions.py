@@ -123,14 +123,23 @@ def array_to_contacts(a):
     )
 
 
+_CONTACT_FIELDS_MSG = None   # the contact layout's PointFields, built once (a tuple: published, never edited)
+
+
 def array_to_pointcloud2(a, header):
     """Any structured array → unorganised ``PointCloud2`` (height 1, little-endian, dense)."""
+    global _CONTACT_FIELDS_MSG
     a = np.ascontiguousarray(a)
     msg = PointCloud2()
     msg.header = header
     msg.height = 1
     msg.width = int(a.shape[0])
-    msg.fields = point_fields(a.dtype)
+    if a.dtype == CONTACT_DTYPE:
+        if _CONTACT_FIELDS_MSG is None:
+            _CONTACT_FIELDS_MSG = tuple(point_fields(CONTACT_DTYPE))
+        msg.fields = _CONTACT_FIELDS_MSG
+    else:
+        msg.fields = point_fields(a.dtype)
     msg.is_bigendian = False
     msg.point_step = a.dtype.itemsize
     msg.row_step = msg.point_step * msg.width

@@ -81,8 +81,10 @@ PARAMETERS = {
                              "velocity decays to zero.", dynamic_typing=True, fp=(0.001, 3600.0))),
     "velocity_decay": (0.1, _d("Time constant (s) of that decay; 0 stops the body at once.",
                                dynamic_typing=True, fp=(0.0, 3600.0))),
-    "diagnostics_period": (0.0, _d("Seconds between /diagnostics messages; 0 publishes every tick.",
+    "diagnostics_period": (1.0, _d("Seconds between /diagnostics messages; 0 publishes every tick.",
                                    dynamic_typing=True, fp=(0.0, 3600.0))),
+    "stats_window": (1000, _d("Number of most recent ticks over which the diagnostics' tick_time_ms_p50/p99/max "
+                              "are computed.", read_only=True, ir=(1, 1000000))),
     "model.toi": ("", _d("Override the scene's time-of-impact policy ('' keeps the scene's).",
                          constraints="'' | auto | next_step | fractional | swept")),
     "model.response": ("", _d("Override the scene's contact response ('' keeps the scene's).",
@@ -113,7 +115,7 @@ def validate_config(values):
         if fp and not fp[0].from_value <= v <= fp[0].to_value:
             raise ConfigError(f"parameter {name}: must be in [{fp[0].from_value:g}, {fp[0].to_value:g}], got {v:g}")
         cfg[name] = v
-    for name in ("substeps", "max_marker_arrows", "model.solver_iterations"):
+    for name in ("substeps", "max_marker_arrows", "model.solver_iterations", "stats_window"):
         v = cfg[name]
         ir = PARAMETERS[name][1].integer_range[0]
         if isinstance(v, bool) or not isinstance(v, int) or not ir.from_value <= v <= ir.to_value:
@@ -207,7 +209,9 @@ class ContactSimNode(Node):
 
         self.paused = False
         self.counts = collections.Counter()
-        self.tick_times = collections.deque(maxlen=2000)
+        # tick times (s) of the last stats_window ticks: a ring buffer (no per-publish list conversion)
+        self._tick_buf = np.zeros(self.cfg["stats_window"])
+        self._ticks_timed = 0
         self.step_time = 0.0
         self._last_tick_start = None
         self._last_diag = -math.inf
@@ -467,7 +471,9 @@ class ContactSimNode(Node):
             self.pub_markers.publish(contact_markers(contacts, header, self.cfg["impulse_marker_scale"],
                                                      self.cfg["max_marker_arrows"]))
         elapsed = time.perf_counter() - start
-        self.tick_times.append(elapsed)
+        self._tick_buf[self._ticks_timed % len(self._tick_buf)] = elapsed
+        self._ticks_timed += 1
+        self._last_tick_time = elapsed
         if elapsed > self.period:
             self.counts["overruns"] += 1
         self._maybe_diagnostics(now_ns)
@@ -487,8 +493,10 @@ class ContactSimNode(Node):
 
     def diagnostics_values(self):
         c = self.counts
-        times = np.array(self.tick_times) * 1e3 if self.tick_times else np.zeros(1)
+        n = min(self._ticks_timed, len(self._tick_buf))
+        times = self._tick_buf[:n] * 1e3 if n else np.zeros(1)
         p50, p99 = np.percentile(times, [50, 99])
+        last = self._last_tick_time * 1e3 if n else 0.0
         contacts = getattr(self, "contacts", None)
         contacts = contact_sim.Contacts.empty() if contacts is None else contacts
         solve = getattr(self.world, "last_solve", None)  # a dict (stepper) or an object; may not exist
@@ -504,7 +512,7 @@ class ContactSimNode(Node):
             "paused": self.paused,
             "ticks": c["ticks"],
             "step_time_ms": self.step_time * 1e3,
-            "tick_time_ms_last": float(times[-1]),
+            "tick_time_ms_last": float(last),
             "tick_time_ms_p50": float(p50),
             "tick_time_ms_p99": float(p99),
             "tick_time_ms_max": float(times.max()),

@@ -234,3 +234,22 @@ def test_bad_scene_at_start_up_is_a_clear_error(ros, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "cannot start" in err and "bodies[0].mass" in err and str(scene) in err
     assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_tick_time_statistics_cover_the_last_stats_window_ticks(ros):
+    node = make_node(ros, stats_window=5)
+    try:
+        node.timer.cancel()                 # ticks driven here, one by one
+        for _ in range(12):
+            node._on_timer()
+        assert node.counts["ticks"] == 12
+        window = node._tick_buf * 1e3       # the 5 most recent tick times, in ring order
+        assert len(window) == 5 and np.all(window > 0)
+        d = node.diagnostics_values()
+        assert d["tick_time_ms_max"] == pytest.approx(window.max(), rel=1e-12)
+        assert d["tick_time_ms_p50"] == pytest.approx(np.median(window), rel=1e-12)
+        assert d["tick_time_ms_last"] == pytest.approx(node._tick_buf[(12 - 1) % 5] * 1e3, rel=1e-12)
+    finally:
+        node.destroy_node()
+    with pytest.raises(ConfigError, match="stats_window"):
+        make_node(ros, stats_window=0)
