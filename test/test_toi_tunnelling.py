@@ -47,3 +47,26 @@ def test_auto_picks_swept():
     world.settings.toi = "auto"
     lines = stepper.describe_models(world)
     assert any(line.startswith("time of impact swept") for line in lines), lines
+
+
+def test_cached_model_choice_follows_settings_bodies_and_speed():
+    from contact_sim.response import models
+
+    world = cs.World()
+    world.add_body("ground", cs.Plane((0, 0, 1), 0.0), kind="static")
+    world.add_body("ball", cs.Sphere(0.1), mass=1.0, position=(0, 0, 1))
+    m1 = models.choose(world, 0.01)
+    assert models.choose(world, 0.01) is m1                 # nothing changed: cached
+    assert m1.toi == "fractional"
+    world.settings.toi = "next_step"                        # a setting edited in place
+    assert models.choose(world, 0.01).toi == "next_step"
+    world.settings.toi = "auto"
+    for i in range(5):                                      # more dynamic bodies: next_step
+        world.add_body(f"b{i}", cs.Sphere(0.1), mass=1.0, position=(i, 0, 1))
+    assert models.choose(world, 0.01).toi == "next_step"
+    world.s.vel[1] = (0.0, 0.0, -100.0)                     # thin and fast this step: swept
+    assert models.choose(world, 0.01).toi == "swept"
+    world.s.vel[1] = 0.0                                    # and back
+    assert models.choose(world, 0.01).toi == "next_step"
+    world.settings.friction = False
+    assert models.choose(world, 0.01).friction is False

@@ -95,9 +95,31 @@ def thin_and_fast(world, dt):
 
 
 def choose(world, dt=None):
-    """Resolve the ``auto`` settings of ``world`` for a step of ``dt`` (default ``settings.dt``)."""
+    """Resolve the ``auto`` settings of ``world`` for a step of ``dt`` (default ``settings.dt``).
+
+    The choice depends on the settings, the bodies (kinds, shapes, materials) and, for an ``auto``
+    time of impact, on whether a body is thin-and-fast this step; it is cached on the world and
+    recomputed when any of these changes (the velocity test runs every call). Treat the returned
+    ``Models`` as read-only."""
+    from .. import stepper
+
     st = world.settings
     dt = st.dt if dt is None else dt
+    fast = thin_and_fast(world, dt) if st.toi == "auto" else []
+    _shape_info(world)   # refreshes the shape key when bodies were added or kinds changed
+    # material and model arrays are replaced (never edited in place) when a body is added
+    key = (dt, st.toi, st.response, st.friction, st.resting, stepper.SPECULATIVE, id(world.friction),
+           id(world.restitution), id(world.particle), world._cs_shape_info[0])
+    hit = getattr(world, "_cs_models", None)
+    if hit is not None and not fast and not hit[2] and hit[0] == key:
+        return hit[1]
+    m = _choose(world, dt, fast)
+    world._cs_models = (key, m, bool(fast))
+    return m
+
+
+def _choose(world, dt, fast):
+    st = world.settings
     dyn = world.kind == 2
     reasons = []
     # friction
@@ -126,7 +148,6 @@ def choose(world, dt=None):
     if not rotation and rigid.any() and response != "kinematic":
         reasons.append("rotation skipped in responses: frictionless spheres (contact forces pass through the centre)")
     # time of impact
-    fast = thin_and_fast(world, dt)
     if st.toi == "auto":
         if fast:
             toi = "swept"
