@@ -354,10 +354,12 @@ def _impulse_step(world, dt, m):
                 # a contact that just rebounded is leaving: no resting force may hold it back
                 leaving = impact.any() & (vn1 > v_imp)
                 if exact_toi:   # touching or slowly approaching; a fast one within the margin gets its impact time
-                    ri = np.flatnonzero((touching | (vn0 >= -gdt)) & ~leaving)
+                    rmask = (touching | (vn0 >= -gdt)) & ~leaving
                 else:
-                    ri = np.flatnonzero(~leaving)
-                r2 = rows.select(ri)
+                    rmask = ~leaving
+                # every contact rests (the usual case): read the arrays as they are, no gathers
+                ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
+                r2 = rows.select(rmask)
                 target = np.minimum(c.depth[ri], 0.0) / t_left   # close a gap, never open one
                 if spec:
                     # a speculative contact: the displacement over T of the constant-force model,
@@ -376,7 +378,9 @@ def _impulse_step(world, dt, m):
                 lam2[ri] = res.impulse
                 dv_rest = v_end - v_start_end
                 dw_rest = w_end - w_start_end
-                warm_out = (c.body_a[ri], c.body_b[ri], local[ri], _warm_record(res.impulse, r2) / t_left)
+                # copies: stored across steps, never views of this step's contacts
+                warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), local[ri].copy(),
+                            _warm_record(res.impulse, r2) / t_left)
             if first:
                 pseudo = _split_impulse(world, c, rows, dt)
             near = touching.copy()
@@ -401,7 +405,7 @@ def _impulse_step(world, dt, m):
             rec = _record(c, rows, lam, vn0)
             if spec:   # speculative contacts that did nothing are not contacts of this step
                 used = touching | (lam[:, 0] > 0)
-                rec, loc_rec = rec.select(used), local[used]
+                rec, loc_rec = (rec, local) if used.all() else (rec.select(used), local[used])
             else:
                 loc_rec = local
             records.append((rec, loc_rec))
