@@ -10,6 +10,12 @@ SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64
 _TRIU = {}          # n -> cached np.triu_indices(n, 1)
 
 
+def _overlap(c, h, i, j, margin):
+    """``(K,) bool``: boxes ``i`` and ``j (K,)`` overlap within ``margin`` on all three axes (the one
+    exact test every method ends with, so they all return the same pairs)."""
+    return np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+
+
 def candidate_pairs(c, h, margin):
     """Pairs ``(i (K,), j (K,))``, ``i < j``, of boxes (centres, half sizes ``(N, 3)``) overlapping
     within ``margin``, by the cheapest method for the layout (measured: ``bench/bench_detect.py``;
@@ -57,7 +63,7 @@ class PairCache:
             self.i, self.j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
             self.rebuilds += 1
         i, j = self.i, self.j
-        keep = np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+        keep = _overlap(c, h, i, j, margin)
         return i[keep], j[keep]
 
 
@@ -68,7 +74,7 @@ def all_pairs(c, h, margin):
     if tri is None:
         tri = _TRIU[n] = np.triu_indices(n, 1)
     i, j = tri
-    keep = np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+    keep = _overlap(c, h, i, j, margin)
     return i[keep], j[keep]
 
 
@@ -105,8 +111,7 @@ def sweep_and_prune(c, h, margin, budget=None):
     offs = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
     j_s = i_s + 1 + offs
     i, j = order[i_s], order[j_s]
-    d = np.abs(c[i] - c[j]) <= h[i] + h[j] + margin
-    keep = d.all(axis=1)
+    keep = _overlap(c, h, i, j, margin)
     i, j = i[keep], j[keep]
     return np.minimum(i, j), np.maximum(i, j)
 
@@ -173,6 +178,6 @@ def grid_pairs(c, h, margin):
     if not out_i:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     i, j = np.concatenate(out_i), np.concatenate(out_j)
-    keep = np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+    keep = _overlap(c, h, i, j, margin)
     i, j = i[keep], j[keep]
     return np.minimum(i, j), np.maximum(i, j)
