@@ -87,7 +87,19 @@ def _inv_inertia(world, m, R):
     (zeros when the models skip rotation)."""
     if not m.rotation:
         return np.zeros((len(world), 3, 3))
-    return R @ world.inv_inertia_body @ np.swapaxes(R, -1, -2)
+    ib = world.inv_inertia_body
+    hit = getattr(world, "_cs_iso_inertia", None)
+    if hit is None or hit[0] is not ib:   # the array is replaced when a body is added
+        # c·I (spheres, cubes, and the zeros of static/kinematic bodies) is the same in every frame
+        iso = np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))
+        world._cs_iso_inertia = hit = (ib, np.flatnonzero(~iso))
+    turn = hit[1]
+    if turn.size == len(ib):
+        return R @ ib @ np.swapaxes(R, -1, -2)
+    out = ib.copy()
+    if turn.size:
+        out[turn] = R[turn] @ ib[turn] @ np.swapaxes(R[turn], -1, -2)
+    return out
 
 
 def _coefficients(world, c, m):
@@ -113,6 +125,8 @@ def _relative_velocity(world, c):
     (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it)."""
     s = world.s
     a, b = c.body_a, c.body_b
+    if not s.omega.any():   # nothing spins: the points move with their bodies' centres
+        return s.vel[a] - s.vel[b]
     return (s.vel[a] + cross(s.omega[a], c.point - s.pos[a])) - (s.vel[b] + cross(s.omega[b], c.point - s.pos[b]))
 
 
@@ -131,11 +145,13 @@ def _speculative_margin(world, dt):
     moving = world.kind != 0
     if not moving.any():
         return base
-    ext = toi_mod._extents(world)
-    v2 = np.einsum("ij,ij->i", s.vel, s.vel)
-    w2 = np.einsum("ij,ij->i", s.omega, s.omega)
-    speed = np.sqrt(v2) + np.sqrt(w2) * np.where(np.isfinite(ext), ext, 0.0)
-    vmax = float(speed[moving].max())
+    vmax = 0.0   # everything at rest: only gravity closes gaps
+    if s.vel.any() or s.omega.any():
+        ext = toi_mod._extents(world)
+        v2 = np.einsum("ij,ij->i", s.vel, s.vel)
+        w2 = np.einsum("ij,ij->i", s.omega, s.omega)
+        speed = np.sqrt(v2) + np.sqrt(w2) * np.where(np.isfinite(ext), ext, 0.0)
+        vmax = float(speed[moving].max())
     reach = 2.0 * vmax * dt + float(np.linalg.norm(world.gravity)) * dt * dt
     return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
 

@@ -221,3 +221,26 @@ def test_batched_3x3_solve_matches_lapack_and_flags_singular_blocks():
     ref = np.linalg.solve(m[ok], r[ok][:, :, None])[:, :, 0]
     cond = np.linalg.cond(m[ok])
     assert np.all(np.abs(x[ok] - ref).max(axis=1) <= 1e-13 * cond * np.abs(ref).max(axis=1))
+
+
+def test_world_inverse_inertia_skips_only_isotropic_bodies_and_follows_new_bodies():
+    from contact_sim import stepper
+    from contact_sim.response import models
+
+    w = cs.World()
+    w.add_body("ground", cs.Plane((0, 0, 1), 0.0), kind="static")
+    w.add_body("ball", cs.Sphere(0.2), mass=1.0, position=(0, 0, 1), orientation=quat.normalize([0.3, 0.1, 0.2, 0.9]))
+    w.add_body("plank", cs.Box((1.0, 0.2, 0.1)), mass=2.0, position=(2, 0, 1),
+               orientation=quat.normalize([0.1, -0.4, 0.2, 0.8]))
+    m = models.choose(w, 0.01)
+
+    def check():
+        R = quat.to_matrix(w.s.quat)
+        ref = dynamics.world_inverse_inertia(w.s.quat, w.inv_inertia_body)
+        np.testing.assert_allclose(stepper._inv_inertia(w, m, R), ref, rtol=0, atol=1e-15 * np.abs(ref).max())
+
+    check()
+    w.add_body("rod", cs.Box((0.05, 0.05, 0.8)), mass=1.0, position=(4, 0, 1),
+               orientation=quat.normalize([0.5, 0.1, -0.2, 0.7]))
+    check()
+    assert stepper._inv_inertia(w, m, quat.to_matrix(w.s.quat)).shape == (4, 3, 3)

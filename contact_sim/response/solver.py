@@ -39,12 +39,12 @@ def tangent_basis(normal, hint=None):
     tangential part of ``hint (K,3)`` where it is non-zero (the sliding direction)."""
     axis = _AXES[np.argmin(np.abs(normal), axis=1)]   # the coordinate axis least aligned with the normal
     t1 = cross(normal, axis)
-    if hint is not None:
+    if hint is not None and hint.any():   # (an all-zero hint, e.g. everything at rest, changes nothing)
         ht = hint - _dot(hint, normal)[:, None] * normal
-        hn = np.linalg.norm(ht, axis=1)
+        hn = np.sqrt(_dot(ht, ht))
         use = hn > 1e-12
         t1 = np.where(use[:, None], ht / np.where(use, hn, 1.0)[:, None], t1)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t1 /= np.sqrt(_dot(t1, t1))[:, None]
     t2 = cross(normal, t1)
     return t1, t2
 
