@@ -178,12 +178,19 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
     d = np.stack([normal, t1, t2], axis=1)                    # (K,3,3)
     ang_a = cross(ra[:, None, :], d)                       # (K,3,3)
     ang_b = cross(rb[:, None, :], d)
-    # stacked 3×3 products as matmul (2–3× faster than the equivalent einsum on (K,3,3))
-    iang_a = ang_a @ inv_inertia[a].transpose(0, 2, 1)       # (K,3,3): I⁻¹ (r×d) per direction d
-    iang_b = ang_b @ inv_inertia[b].transpose(0, 2, 1)
     ima, imb = inv_mass[a], inv_mass[b]
     lin = d @ d.transpose(0, 2, 1)                            # identity in exact arithmetic
-    K = (ima + imb)[:, None, None] * lin + ang_a @ iang_a.transpose(0, 2, 1) + ang_b @ iang_b.transpose(0, 2, 1)
+    K = (ima + imb)[:, None, None] * lin
+    iangs = []
+    for ang, ii in ((ang_a, inv_inertia[a]), (ang_b, inv_inertia[b])):
+        if ii.any():
+            # stacked 3×3 products as matmul (2–3× faster than the equivalent einsum on (K,3,3))
+            iang = ang @ ii.transpose(0, 2, 1)                # (K,3,3): I⁻¹ (r×d) per direction d
+            K = K + ang @ iang.transpose(0, 2, 1)
+        else:   # that side never turns (static, kinematic, particles): no angular terms
+            iang = np.zeros_like(ang)
+        iangs.append(iang)
+    iang_a, iang_b = iangs
     if movable is None:
         movable = inv_mass > 0
     return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable)
