@@ -106,13 +106,34 @@ def _coefficients(world, c, m):
     """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``."""
     rule = world.settings.combine
     a, b = c.body_a, c.body_b
+    k = len(a)
+    kinetic = m.friction and m.response != "kinematic"
+    uniform = _uniform_material(world)
+    if uniform is not None:   # one material everywhere: every rule gives its own values
+        e, mu_s, mu_d = uniform
+        z = np.zeros(k)
+        return (np.full(k, e), np.full(k, mu_s), np.full(k, mu_d)) if kinetic else (np.full(k, e), z, z)
     e = combine(world.restitution[a], world.restitution[b], rule)
-    if not m.friction or m.response == "kinematic":
-        z = np.zeros(len(a))
+    if not kinetic:
+        z = np.zeros(k)
         return e, z, z
     mu_d = combine(world.friction[a], world.friction[b], rule)
     mu_s = np.maximum(combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
     return e, mu_s, mu_d
+
+
+def _uniform_material(world):
+    """``(restitution, static friction, dynamic friction)`` when every body has the same
+    coefficients, else ``None`` (cached; the arrays are replaced when a body is added)."""
+    key = (world.restitution, world.friction, world.static_friction)   # held, so compared by identity
+    hit = getattr(world, "_cs_uniform_material", None)
+    if hit is None or any(x is not y for x, y in zip(hit[0], key)):
+        r, f, sf = world.restitution, world.friction, world.static_friction
+        same = len(r) and (r == r[0]).all() and (f == f[0]).all() and (sf == sf[0]).all()
+        # combine() keeps equal coefficients exactly; static friction is at least the dynamic one
+        val = (float(r[0]), max(float(sf[0]), float(f[0])), float(f[0])) if same else None
+        world._cs_uniform_material = hit = (key, val)
+    return hit[1]
 
 
 def _rows(world, c, inv_inertia, rel_vel):

@@ -237,6 +237,8 @@ class World:
     def poses(self):
         """Body-frame origins ``(N, 3)`` and orientations ``(N, 4)`` x,y,z,w of all bodies (copies)."""
         q = self.s.quat.copy()
+        if not self.com_local.any():   # every origin is its centre of mass (spheres, boxes, ...)
+            return self.s.pos.copy(), q
         return self.s.pos - quat.rotate(q, self.com_local), q
 
     def velocities(self):

@@ -107,14 +107,16 @@ def choose(world, dt=None):
     dt = st.dt if dt is None else dt
     fast = thin_and_fast(world, dt) if st.toi == "auto" else []
     _shape_info(world)   # refreshes the shape key when bodies were added or kinds changed
-    # material and model arrays are replaced (never edited in place) when a body is added
-    key = (dt, st.toi, st.response, st.friction, st.resting, stepper.SPECULATIVE, id(world.friction),
-           id(world.restitution), id(world.particle), world._cs_shape_info[0])
+    # material and model arrays are replaced (never edited in place) when a body is added; the key
+    # holds them, so they are compared by identity (an id() could be reused by a later array)
+    key = (dt, st.toi, st.response, st.friction, st.resting, stepper.SPECULATIVE, world._cs_shape_info[0])
+    arrays = (world.friction, world.restitution, world.particle)
     hit = getattr(world, "_cs_models", None)
-    if hit is not None and not fast and not hit[2] and hit[0] == key:
-        return hit[1]
+    if (hit is not None and not fast and not hit[3] and hit[0] == key
+            and all(x is y for x, y in zip(hit[1], arrays))):
+        return hit[2]
     m = _choose(world, dt, fast)
-    world._cs_models = (key, m, bool(fast))
+    world._cs_models = (key, arrays, m, bool(fast))
     return m
 
 
