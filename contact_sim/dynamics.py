@@ -31,8 +31,13 @@ def principal_frame(inertia):
 
 def world_inverse_inertia(q, inv_inertia_body):
     """``R I⁻¹ Rᵀ``: world-frame inverse inertia ``(N, 3, 3)`` from orientations ``(N, 4)``."""
-    r = quat.to_matrix(q)
-    return r @ inv_inertia_body @ np.swapaxes(r, -1, -2)
+    return rotate_inertia(quat.to_matrix(q), inv_inertia_body)
+
+
+def rotate_inertia(R, inertia_body):
+    """``R I Rᵀ (N, 3, 3)``: body-frame (inverse) inertia tensors ``(N, 3, 3)`` in the world frame of
+    rotation matrices ``R (N, 3, 3)``."""
+    return R @ inertia_body @ np.swapaxes(R, -1, -2)
 
 
 def integrate_free(state, dt, gravity, moving, rotating):

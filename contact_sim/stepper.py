@@ -26,8 +26,9 @@ penetration at the start of the step, contact and impact counts, and the models 
 """
 import numpy as np
 
-from . import quat
+from . import dynamics, quat
 from .contacts import Contacts
+from .memo import derived
 from .settings import combine
 from .vec import cross
 from .response import models as _models
@@ -88,17 +89,14 @@ def _inv_inertia(world, m, R):
     if not m.rotation:
         return np.zeros((len(world), 3, 3))
     ib = world.inv_inertia_body
-    hit = getattr(world, "_cs_iso_inertia", None)
-    if hit is None or hit[0] is not ib:   # the array is replaced when a body is added
-        # c·I (spheres, cubes, and the zeros of static/kinematic bodies) is the same in every frame
-        iso = np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))
-        world._cs_iso_inertia = hit = (ib, np.flatnonzero(~iso))
-    turn = hit[1]
+    # c·I (spheres, cubes, and the zeros of static/kinematic bodies) is the same in every frame
+    turn = derived(world, "anisotropic_inertia", (ib,),
+                   lambda: np.flatnonzero(~np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))))
     if turn.size == len(ib):
-        return R @ ib @ np.swapaxes(R, -1, -2)
+        return dynamics.rotate_inertia(R, ib)
     out = ib.copy()
     if turn.size:
-        out[turn] = R[turn] @ ib[turn] @ np.swapaxes(R[turn], -1, -2)
+        out[turn] = dynamics.rotate_inertia(R[turn], ib[turn])
     return out
 
 
@@ -125,15 +123,14 @@ def _coefficients(world, c, m):
 def _uniform_material(world):
     """``(restitution, static friction, dynamic friction)`` when every body has the same
     coefficients, else ``None`` (cached; the arrays are replaced when a body is added)."""
-    key = (world.restitution, world.friction, world.static_friction)   # held, so compared by identity
-    hit = getattr(world, "_cs_uniform_material", None)
-    if hit is None or any(x is not y for x, y in zip(hit[0], key)):
-        r, f, sf = world.restitution, world.friction, world.static_friction
+    r, f, sf = world.restitution, world.friction, world.static_friction
+
+    def build():
         same = len(r) and (r == r[0]).all() and (f == f[0]).all() and (sf == sf[0]).all()
         # combine() keeps equal coefficients exactly; static friction is at least the dynamic one
-        val = (float(r[0]), max(float(sf[0]), float(f[0])), float(f[0])) if same else None
-        world._cs_uniform_material = hit = (key, val)
-    return hit[1]
+        return (float(r[0]), max(float(sf[0]), float(f[0])), float(f[0])) if same else None
+
+    return derived(world, "uniform_material", (r, f, sf), build)
 
 
 def _rows(world, c, inv_inertia, rel_vel):

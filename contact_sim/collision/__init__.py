@@ -34,6 +34,7 @@ import numpy as np
 from .. import quat as Q
 from ..contacts import Contacts
 from ..errors import ContactSimError
+from ..memo import derived
 from ..shapes import Shape
 from ..validate import unit_quaternion, vector
 from . import bounding, broadphase, narrow
@@ -129,12 +130,7 @@ def _bodies_of(world):
     """The world's shape arrays, built once and kept on the world itself (so they go with it),
     rebuilt when bodies are added (the shape list only grows)."""
     shapes = world.shapes
-    hit = getattr(world, "_cs_bodies", None)
-    if hit is not None and hit[0] == len(shapes) and (not shapes or hit[1] is shapes[-1]):
-        return hit[2]
-    b = _Bodies(shapes)
-    world._cs_bodies = (len(shapes), shapes[-1] if shapes else None, b)
-    return b
+    return derived(world, "bodies", (shapes[-1] if shapes else None,), lambda: _Bodies(shapes), key=len(shapes))
 
 
 def _bv_reject(bodies, bv, ia, ib, pos, R, margin):

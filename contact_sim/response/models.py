@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..memo import derived
 from ..shapes import Sphere
 
 PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the explicit spring is near its stability edge (2)
@@ -56,19 +57,23 @@ def _shape_info(world):
     grows, or kinds change): ``(thinnest (N,), dynamic bodies all spheres, thinnest finite size,
     limit (N,))`` with ``limit`` the thinnest size each body can meet (its own or the thinnest
     finite body's, whichever is smaller)."""
+    return derived(world, "shape_info", _body_deps(world), lambda: _build_shape_info(world),
+                   key=world.kind.tobytes())
+
+
+def _body_deps(world):
+    """What says the bodies changed: the last shape and the kind array (replaced by ``add_body``)."""
+    return (world.shapes[-1] if len(world) else None, world.kind)
+
+
+def _build_shape_info(world):
     n = len(world)
-    key = (n, id(world.shapes[-1]) if n else None, world.kind.tobytes())
-    hit = getattr(world, "_cs_shape_info", None)
-    if hit is not None and hit[0] == key:
-        return hit[1]
     thin = np.array([sh.thinnest() for sh in world.shapes]) if n else np.zeros(0)
     dyn = world.kind == 2
     spheres = all(isinstance(world.shapes[i], Sphere) for i in np.flatnonzero(dyn))
     finite = np.isfinite(thin)
     thinnest = float(thin[finite].min()) if finite.any() else np.inf
-    info = (thin, spheres, thinnest, np.minimum(thin, thinnest))
-    world._cs_shape_info = (key, info)
-    return info
+    return thin, spheres, thinnest, np.minimum(thin, thinnest)
 
 
 def thinnest_finite(world):
@@ -106,18 +111,12 @@ def choose(world, dt=None):
     st = world.settings
     dt = st.dt if dt is None else dt
     fast = thin_and_fast(world, dt) if st.toi == "auto" else []
-    _shape_info(world)   # refreshes the shape key when bodies were added or kinds changed
-    # material and model arrays are replaced (never edited in place) when a body is added; the key
-    # holds them, so they are compared by identity (an id() could be reused by a later array)
-    key = (dt, st.toi, st.response, st.friction, st.resting, stepper.SPECULATIVE, world._cs_shape_info[0])
-    arrays = (world.friction, world.restitution, world.particle)
-    hit = getattr(world, "_cs_models", None)
-    if (hit is not None and not fast and not hit[3] and hit[0] == key
-            and all(x is y for x, y in zip(hit[1], arrays))):
-        return hit[2]
-    m = _choose(world, dt, fast)
-    world._cs_models = (key, arrays, m, bool(fast))
-    return m
+    if fast:   # this step's speeds decide (swept): not kept
+        return _choose(world, dt, fast)
+    return derived(world, "models", _body_deps(world) + (world.friction, world.restitution, world.particle),
+                   lambda: _choose(world, dt, fast),
+                   key=(dt, st.toi, st.response, st.friction, st.resting, stepper.SPECULATIVE,
+                        world.kind.tobytes()))
 
 
 def _choose(world, dt, fast):

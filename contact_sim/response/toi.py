@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .. import dynamics, quat
+from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
 
 XTOL = 1e-15
@@ -176,12 +177,7 @@ def pair_toi(world, motion, i, j, T, swept=False):
 
 def _extents(world):
     """Bounding radius per body ``(N,)`` (inf for planes), cached on the world."""
-    hit = getattr(world, "_cs_toi_ext", None)
-    if hit is not None and len(hit) == len(world):
-        return hit
-    ext = np.array([_extent(sh) for sh in world.shapes])
-    world._cs_toi_ext = ext
-    return ext
+    return derived(world, "extents", (), lambda: np.array([_extent(sh) for sh in world.shapes]), key=len(world))
 
 
 def candidate_pairs(world, motion, T, exclude, swept=False):
@@ -251,13 +247,9 @@ def _closed_form_tois(world, motion, i, j, T):
 
 def _types(world):
     """Shape type code per body ``(N,)``: 0 plane, 1 sphere, 2 other (cached on the world)."""
-    hit = getattr(world, "_cs_toi_types", None)
-    if hit is not None and len(hit) == len(world):
-        return hit
-    t = np.array([0 if isinstance(sh, Plane) else 1 if isinstance(sh, Sphere) else 2 for sh in world.shapes],
-                 np.int64)
-    world._cs_toi_types = t
-    return t
+    return derived(world, "shape_types", (), lambda: np.array(
+        [0 if isinstance(sh, Plane) else 1 if isinstance(sh, Sphere) else 2 for sh in world.shapes], np.int64),
+        key=len(world))
 
 
 def earliest_event(world, motion, T, exclude, swept=False):
