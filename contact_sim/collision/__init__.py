@@ -38,7 +38,7 @@ from ..memo import derived
 from ..shapes import Shape
 from ..validate import unit_quaternion, vector
 from . import bounding, broadphase, narrow
-from .geometry import PolyTable, poly_geom
+from .geometry import PolyTable, pad_row, poly_geom
 
 __all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
 
@@ -185,9 +185,8 @@ def _prepare_hulls(bodies, shapes):
     bodies.hull_d = np.full((bodies.n, p), np.inf)
     for i, b in enumerate(bs):
         if b is not None and len(b.hull_n):
-            m = len(b.hull_n)
-            bodies.hull_n[i, :m], bodies.hull_d[i, :m] = b.hull_n, b.hull_d
-            bodies.hull_n[i, m:], bodies.hull_d[i, m:] = b.hull_n[0], b.hull_d[0]
+            pad_row(bodies.hull_n, i, b.hull_n)
+            pad_row(bodies.hull_d, i, b.hull_d)
 
 
 def _narrow(bodies, pos, R, a, b, margin, counters):

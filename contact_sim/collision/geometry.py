@@ -91,6 +91,13 @@ def poly_geom(shape):
     return g
 
 
+def pad_row(table, s, items):
+    """``table[s]`` = ``items`` followed by copies of its first item (padding that repeats a real
+    vertex, plane or edge never changes a min/max over the row)."""
+    table[s, :len(items)] = items
+    table[s, len(items):] = items[0]
+
+
 class PolyTable:
     """Geometry of ``S`` shapes padded to common sizes: ``verts (S, V, 3)``, ``plane_n (S, P, 3)``,
     ``plane_d (S, P)``, ``loops (S, P, M)``, ``edges (S, E, 2)``, ``edge_planes (S, E, 2)``,
@@ -115,22 +122,14 @@ class PolyTable:
         self.centroid = np.array([g.centroid for g in geoms]).reshape(S, 3)
         self.scale = np.array([g.scale for g in geoms])
         for s, g in enumerate(geoms):
-            nv, npl, ne, nf = len(g.verts), len(g.plane_n), len(g.edges), len(g.tris)
-            self.verts[s, :nv] = g.verts
-            self.verts[s, nv:] = g.verts[0]
-            self.plane_n[s, :npl] = g.plane_n
-            self.plane_n[s, npl:] = g.plane_n[0]
-            self.plane_d[s, :npl] = g.plane_d
-            self.plane_d[s, npl:] = g.plane_d[0]
+            pad_row(self.verts, s, g.verts)
+            pad_row(self.plane_n, s, g.plane_n)
+            pad_row(self.plane_d, s, g.plane_d)
             lp = g.loops
             if lp.shape[1] < M:
                 lp = np.concatenate([lp, np.repeat(lp[:, -1:], M - lp.shape[1], axis=1)], axis=1)
-            self.loops[s, :npl] = lp
-            self.loops[s, npl:] = lp[0]
-            if ne:
-                self.edges[s, :ne] = g.edges
-                self.edges[s, ne:] = g.edges[0]
-                self.edge_planes[s, :ne] = g.edge_planes
-                self.edge_planes[s, ne:] = g.edge_planes[0]
-            self.tris[s, :nf] = g.tris
-            self.tris[s, nf:] = g.tris[0]
+            pad_row(self.loops, s, lp)
+            if len(g.edges):
+                pad_row(self.edges, s, g.edges)
+                pad_row(self.edge_planes, s, g.edge_planes)
+            pad_row(self.tris, s, g.tris)
