@@ -291,6 +291,11 @@ class TriMesh(Polyhedron):
     def watertight(self):
         return bool(self._mesh.is_watertight)
 
+    def thinnest(self):
+        # an open mesh (terrain, a floor tile) is a one-sided surface: everything behind it is inside
+        # (see collision.narrow), so, like a plane, it has no far side for a body to pass out of
+        return super().thinnest() if self.watertight else np.inf
+
     def mass_properties(self, density):
         if not self.watertight:
             raise ContactSimError("mesh is not closed (watertight), so it has no volume or inertia; "

@@ -38,6 +38,7 @@ from .response import toi as toi_mod
 
 DYNAMIC = 2
 FRACTIONAL_TOUCH = 1e-12  # m: a pair this close counts as touching after an exact time of impact
+SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
@@ -58,7 +59,6 @@ def describe_models(world):
 def forget(world):
     """Drop what the stepper carries between steps (warm starts, preflight done): after a reset."""
     world._cs_warm = None
-    world._cs_spec = None
     world._cs_preflight_dt = None
 
 
@@ -248,12 +248,6 @@ def _warm_lookup(world, a, b, local):
     return _carried(world, "_cs_warm", a, b, local, 0.0, (4,))
 
 
-def _spec_lookup(world, c, local):
-    """Approach normal velocity ``(K,)`` that the contacts ``c`` had before an earlier speculative
-    impulse slowed them down to arrive touching (``+inf`` where none matches)."""
-    return _carried(world, "_cs_spec", c.body_a, c.body_b, local, np.inf)
-
-
 def _merge_records(world, records):
     """One row per contact point for the whole step: contacts of the sub-steps (``[(Contacts,
     local (k,3))]``) that are the same point (same pair, same place on A) are merged, keeping the
@@ -314,7 +308,6 @@ def _impulse_step(world, dt, m):
     warm_out = None
     first = True
     spec = SPECULATIVE and not exact_toi
-    spec_out = None
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
         c = _detect(world, det_margin)
@@ -337,33 +330,33 @@ def _impulse_step(world, dt, m):
             fr = m.friction and m.response != "kinematic"
             vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
             touching = c.depth >= -touch_eps
-            # approach speed for restitution: a speculative contact that closed in an earlier step
-            # arrived slowed down to touching; its restitution uses the speed it had before (Box2D's rule)
-            surf = None
-            if spec and getattr(world, "_cs_spec", None) is not None:
-                # identified by the point on A's surface (the contact point is midway across the gap)
-                surf = _local_points(world, c, R, c.point - 0.5 * c.depth[:, None] * c.normal)
-                vn_in = np.minimum(vn0, _spec_lookup(world, c, surf))
-            else:
-                vn_in = vn0
+            if exact_toi:
+                # contacts that close within a millionth of a step of the impact found are hit in the
+                # same instant (a box landing flat, tilted by round-off, hits all four corners at once;
+                # one corner alone would kick it into a spin)
+                touching |= c.depth >= vn0 * (SIMULTANEOUS_FRACTION * dt)
             if m.resting:   # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
-                e = np.where(e * np.maximum(-vn_in, 0.0) < REST_REBOUND_FRACTION * gdt, 0.0, e)
+                e = np.where(e * np.maximum(-vn0, 0.0) < REST_REBOUND_FRACTION * gdt, 0.0, e)
             lam = np.zeros((k, 3))
-            impact = touching & (vn_in < (-v_imp if m.resting else 0.0))
+            impact = touching & (vn0 < (-v_imp if m.resting else 0.0))
             closing = np.zeros(k, bool)
             if spec:
                 # speculative contacts (apart, within the look-ahead): the impulse leaves the normal
                 # velocity at what closes exactly the gap over the step under gravity, v_n ≥ (−gap −
-                # g_n T²/2)/T, so the pair arrives touching instead of overlapping; no restitution yet
+                # g_n T²/2)/T, so the pair arrives touching instead of overlapping; one that bounces
+                # (e > 0) does so in this step from the approach speed it has now (Box2D's
+                # restitution rule: the rebound starts up to one gap early, and e = 1 loses nothing)
                 g_n = np.einsum("ij,ij->i", c.normal, g[c.body_a] - g[c.body_b])
                 spec_target = (c.depth - 0.5 * g_n * t_left * t_left) / t_left
                 closing = ~touching & (vn0 < spec_target)
+                spec_target = np.where(closing & (e > 0), np.maximum(spec_target, -e * vn0), spec_target)
+            bounced = impact | (closing & (e > 0))
             if impact.any() or closing.any():
                 ti = np.flatnonzero(touching | closing)
                 r1 = rows.select(ti)
                 if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
                     r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
-                target = np.where(touching[ti], np.where(vn_in[ti] < 0, -e[ti] * vn_in[ti], 0.0),
+                target = np.where(touching[ti], np.where(vn0[ti] < 0, -e[ti] * vn0[ti], 0.0),
                                   spec_target[ti] if spec else 0.0)
                 res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
                                         mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
@@ -371,14 +364,10 @@ def _impulse_step(world, dt, m):
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
-                if spec and closing.any():
-                    keep = closing & (lam[:, 0] > 0) & (e > 0)
-                    if keep.any():
-                        if surf is None:
-                            surf = _local_points(world, c, R, c.point - 0.5 * c.depth[:, None] * c.normal)
-                        spec_out = (c.body_a[keep], c.body_b[keep], surf[keep], vn_in[keep])
-            vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0] if impact.any() else vn0
-            if m.resting and (touching.any() or not exact_toi) and not (impact.any() and np.all(vn1 > v_imp)):
+                vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
+            else:
+                vn1 = vn0
+            if m.resting and (touching.any() or not exact_toi) and not (bounced.any() and np.all(vn1 > v_imp)):
                 v_end = s.vel + g * t_left
                 w_end = s.omega.copy()
                 v_start_end = v_end.copy()
@@ -386,7 +375,7 @@ def _impulse_step(world, dt, m):
                 # with exact times of impact only touching contacts rest (the others get their impact
                 # time); with next_step every contact within the margin is a speculative one
                 # a contact that just rebounded is leaving: no resting force may hold it back
-                leaving = impact.any() & (vn1 > v_imp)
+                leaving = bounced & (vn1 > v_imp)
                 if exact_toi:   # touching or slowly approaching; a fast one within the margin gets its impact time
                     rmask = (touching | (vn0 >= -gdt)) & ~leaving
                 else:
@@ -399,7 +388,7 @@ def _impulse_step(world, dt, m):
                     # a speculative contact: the displacement over T of the constant-force model,
                     # (v_start + v_end)/2·T, may close the gap exactly, never more (and never asks the
                     # pair to separate)
-                    vs = (solver.row_velocity(rows, s.vel, s.omega)[:, 0] if closing.any() else vn1)[ri]
+                    vs = vn1[ri]
                     target = np.where(touching[ri], target, np.minimum(2.0 * c.depth[ri] / t_left - vs, 0.0))
                 warm = _project_warm(_warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
                                      mu_d[ri])
@@ -450,16 +439,42 @@ def _impulse_step(world, dt, m):
         if frac >= 1.0:
             break
         t_left -= tau
+    correction = 0.0
     if pseudo is not None:
         vp, wp = pseudo
         _move(world, vp * dt, wp * dt)
+        correction = _potential_change(world, vp * dt)
     world._cs_warm = warm_out
-    if spec:
-        world._cs_spec = spec_out
     world.contacts = _merge_records(world, records)
     world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
                         "contacts": len(world.contacts), "impacts": events, "toi": m.toi,
-                        "response": m.response}
+                        "response": m.response, "correction_energy": correction,
+                        "kinematic_work": _kinematic_work(world, world.contacts)}
+
+
+def _potential_change(world, dx):
+    """Gravitational potential energy (J) gained by moving the dynamic bodies' centres by
+    ``dx (N,3)``: what position correction may add to the total energy (it raises bodies out of
+    penetration; it never adds kinetic energy)."""
+    dyn = world.kind == DYNAMIC
+    return float(-np.sum(world.mass[dyn] * (dx[dyn] @ world.gravity)))
+
+
+def _kinematic_work(world, c):
+    """Work (J) done on the dynamic bodies by kinematic ones through the contacts ``c`` of a
+    step: impulse on the dynamic side · velocity of the kinematic body's material point. A
+    kinematic body is driven from outside, so this is energy the world may gain."""
+    if len(c) == 0:
+        return 0.0
+    s = world.s
+    total = 0.0
+    for side, sign in ((c.body_a, -1.0), (c.body_b, 1.0)):   # A gets +impulse, B its negative
+        k = world.kind[side] == 1
+        if k.any():
+            i = side[k]
+            u = s.vel[i] + cross(s.omega[i], c.point[k] - s.pos[i])
+            total += float(np.sum(sign * c.impulse[k] * u))
+    return total
 
 
 def _warm_record(lam, rows):
@@ -557,4 +572,5 @@ def _penalty_step(world, dt, m):
         world.contacts = Contacts.empty()
         world._advance_free(dt)
     world.last_solve = {"iterations": 0, "residual": 0.0, "max_penetration": max_pen, "contacts": k,
-                        "impacts": 0, "toi": m.toi, "response": m.response}
+                        "impacts": 0, "toi": m.toi, "response": m.response, "correction_energy": 0.0,
+                        "kinematic_work": _kinematic_work(world, world.contacts)}

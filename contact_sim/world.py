@@ -343,7 +343,32 @@ class World:
         dt = self._check_dt(dt)
         from . import stepper  # the time-of-impact / response pipeline
 
-        stepper.step(self, dt)
+        saved = (self.s.copy(), self.time, self.contacts, getattr(self, "_cs_warm", None))
+        try:
+            stepper.step(self, dt)
+        except BaseException:
+            self.s, self.time, self.contacts, self._cs_warm = saved
+            raise
+        bad = self._nonfinite_bodies()
+        if bad.size:
+            # the invariant guard: the engine never leaves a non-finite state behind; the step is
+            # undone and the bodies are named, so a caller (the node) can keep its last good world
+            self.s, self.time, self.contacts, self._cs_warm = saved
+            names = ", ".join(repr(self._names[i]) for i in bad[:10]) + (" ..." if bad.size > 10 else "")
+            raise ContactSimError(f"step: the state of {bad.size} bod{'y' if bad.size == 1 else 'ies'} ({names}) "
+                                  f"would have become non-finite; the world is as it was before this step")
+
+    def _nonfinite_bodies(self):
+        """Indices ``(B,)`` of bodies with a non-finite position, velocity or orientation (one sum per
+        array answers the usual all-finite case)."""
+        s = self.s
+        arrays = (s.pos, s.vel, s.quat, s.omega)
+        if all(np.isfinite(a.sum()) for a in arrays):
+            return np.zeros(0, np.int64)
+        bad = np.zeros(len(self), bool)
+        for a in arrays:
+            bad |= ~np.isfinite(a).all(axis=1)
+        return np.flatnonzero(bad)
 
     def detect(self):
         """All contacts of the current state, without stepping (``Contacts``); the statistics of

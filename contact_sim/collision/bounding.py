@@ -85,17 +85,37 @@ def bounds(shape):
         c, r = bounding_sphere(v)
         proj = v @ slab_n.T
         if shape.type == "mesh":
-            import trimesh
-
-            hull = trimesh.convex.convex_hull(v)
-            tri = hull.vertices[hull.faces]
-            hn = np.asarray(hull.face_normals, float)
-            hd = np.einsum("ij,ij->i", hn, tri[:, 0])
+            hn, hd = hull_planes(v)
         else:
             hn, hd = shape.plane_normals, shape.plane_offsets
         b = Bounds(c, r, v.min(axis=0), v.max(axis=0), slab_n, proj.min(axis=0), proj.max(axis=0), hn, hd)
     shape._cs_bounds = b
     return b
+
+
+def hull_planes(points):
+    """Face planes ``(normals (P, 3), offsets (P,))`` of the convex hull of ``points (V, 3)``,
+    ``n·x <= d`` inside (qhull). A flat point set (a terrain tile, a floor mesh) has a hull of zero
+    thickness: its two sides and the edges of its 2-D hull, which qhull in 3-D refuses."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    p = np.asarray(points, float)
+    centre = p.mean(axis=0)
+    _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
+    if sv[-1] > 1e-9 * max(sv[0], 1e-300):
+        try:
+            eq = ConvexHull(p).equations          # n·x + c <= 0 inside
+            return eq[:, :3].copy(), -eq[:, 3]
+        except QhullError:
+            pass
+    normal = vt[2]
+    u, w = vt[0], vt[1]
+    flat = np.column_stack([(p - centre) @ u, (p - centre) @ w])
+    eq2 = ConvexHull(flat).equations            # 2-D edges: a·(u, w) + c <= 0 inside
+    side = eq2[:, :1] * u + eq2[:, 1:2] * w
+    off = -eq2[:, 2] + side @ centre
+    h = float(normal @ centre)
+    return np.vstack([normal, -normal, side]), np.concatenate([[h, -h], off])
 
 
 def inside_obb(points, lo, hi, pos, q):

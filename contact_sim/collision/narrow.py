@@ -23,6 +23,7 @@ F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n 
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
 
 _EMPTY = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64))
+TOUCH_TOLERANCE = 1e-9   # × the smaller body's size: a distance this short is touching, its direction noise
 # elements of (pairs x edgesA x edgesB) handled at once by the edge-axis stage (memory bound)
 EDGE_CHUNK = 300_000
 
@@ -164,11 +165,12 @@ def mesh_sphere(tab, rows, pa, Ra, cb, rb, margin, closed, counters=None):
     j = np.argmin(dd, axis=1)
     rn = np.arange(len(rows))
     qbest, dist = q[rn, j], dd[rn, j]
-    inside = closed & points_in_meshes(cb, T, valid_t)
+    inside = _inside_mesh(cb[:, None, :], T, valid_t, closed, qbest[:, None, :], j[:, None])[:, 0]
     sgn = np.where(inside, -1.0, 1.0)
     sep = sgn * dist - rb
     tn = cross(T[rn, j, 1] - T[rn, j, 0], T[rn, j, 2] - T[rn, j, 0])
-    normal = np.where((dist > 1e-300)[:, None], sgn[:, None] * (qbest - cb) / np.where(dist > 0, dist, 1)[:, None],
+    touch_tol = TOUCH_TOLERANCE * np.minimum(tab.scale[rows], rb)
+    normal = np.where((dist > touch_tol)[:, None], sgn[:, None] * (qbest - cb) / np.where(dist > 0, dist, 1)[:, None],
                       -_unit(tn))
     return _sphere_result(sep, normal, cb, rb, margin)
 
@@ -213,6 +215,25 @@ def points_in_meshes(p, T, valid_t, eps=1e-9):
     return result
 
 
+def _inside_mesh(p, T, valid_t, closed, q, j):
+    """``(n, K) bool``: points ``p (n, K, 3)`` inside mesh ``n``'s triangles ``T (n, F, 3, 3)``.
+    A closed mesh (``closed (n,)``) is a solid: odd ray-crossing parity. An open mesh (a terrain
+    tile, a flat floor) has no inside; it is a one-sided surface whose back is below it: a point
+    is inside when it lies behind the nearest triangle ``j (n, K)`` (nearest point ``q (n, K, 3)``),
+    so a body pressed through a terrain is pushed back out the way it came."""
+    n, K = p.shape[:2]
+    out = np.zeros((n, K), bool)
+    c = np.flatnonzero(closed)
+    if c.size:
+        out[c] = _parity(p[c], T[c], valid_t[c])
+    o = np.flatnonzero(~closed)
+    if o.size:
+        tt = np.take_along_axis(T[o], j[o][..., None, None], axis=1)              # (o, K, 3, 3)
+        tn = cross(tt[..., 1, :] - tt[..., 0, :], tt[..., 2, :] - tt[..., 0, :])
+        out[o] = _dot(p[o] - q[o], tn) < 0
+    return out
+
+
 def poly_plane(tab, rows, pa, Ra, nb, db, margin, counters=None):
     """Polyhedron or mesh A against plane B: every vertex within the margin is a contact; a
     resting face keeps at most 4 of them, spanning the patch."""
@@ -237,7 +258,17 @@ def reduce_manifold(pts, depth, valid, normal):
     n = len(pts)
     rows = np.arange(n)
     keep = np.zeros(valid.shape, bool)
-    i0 = np.argmax(np.where(valid, depth, -np.inf), axis=1)
+    # the deepest point; among points equally deep to round-off (a face resting flat on a face),
+    # the one farthest from the patch's centre, so that a flat patch keeps its corners, not an
+    # interior point picked by the noise of the last bit (which left a lopsided support)
+    dmax = np.max(np.where(valid, depth, -np.inf), axis=1)
+    cnt = np.maximum(valid.sum(axis=1), 1)
+    centre = np.where(valid[..., None], pts, 0.0).sum(axis=1) / cnt[:, None]
+    rel_c = pts - centre[:, None, :]
+    spread = np.where(valid, _dot(rel_c, rel_c), 0.0)
+    tol = TOUCH_TOLERANCE * np.sqrt(spread.max(axis=1)) + 1e-300
+    flat = valid & (depth >= (dmax - tol)[:, None])
+    i0 = np.argmax(np.where(flat, spread, -1.0), axis=1)
     p0 = pts[rows, i0]
     keep[rows, i0] = True
     rel = pts - p0[:, None, :]
@@ -276,7 +307,9 @@ def poly_poly(ta, ra, pa, Ra, tb, rb, pb, Rb, margin, counters=None):
     fb = np.argmax(minB, axis=1)
     sepB = minB[rows, fb]
     face_sep = np.maximum(sepA, sepB)
-    scale = np.maximum(ta.scale[ra], tb.scale[rb])
+    # tolerances follow the smaller body: a 1 mm box against a 1 km one needs mm-relative round-off, not
+    # km-relative (1e-9 of the larger size would be a micrometre, a third of a shallow penetration)
+    scale = np.minimum(ta.scale[ra], tb.scale[rb])
     alive = np.flatnonzero(face_sep <= margin)
     if counters is not None:
         counters.vertex += int(vertex_hit.sum())
@@ -531,7 +564,7 @@ def mesh_poly(tm, rm, pm, Rm, closed, tp, rp, pp, Rp, margin, counters=None):
     j = np.argmin(dd, axis=2)                                        # (n, Vp)
     dist = np.take_along_axis(dd, j[..., None], axis=2)[..., 0]
     qb = np.take_along_axis(q, j[..., None, None], axis=2)[:, :, 0]
-    inside = closed[:, None] & _parity(VP, T, valid_t)
+    inside = _inside_mesh(VP, T, valid_t, closed, qb, j)
     sep = np.where(inside, -dist, dist)
     ka = vp_ok & (sep <= margin)
     pi_a, vi_a = np.nonzero(ka)
@@ -539,7 +572,10 @@ def mesh_poly(tm, rm, pm, Rm, closed, tp, rp, pp, Rp, margin, counters=None):
     dirn = (VP[pi_a, vi_a] - qb[pi_a, vi_a]) / np.where(d_a > 0, d_a, 1)[:, None]
     tt = T[pi_a, j[pi_a, vi_a]]
     tn = _unit(cross(tt[:, 1] - tt[:, 0], tt[:, 2] - tt[:, 0]))
-    na = np.where((d_a > 1e-300)[:, None], np.where(inside[pi_a, vi_a][:, None], dirn, -dirn), -tn)
+    # a vertex (nearly) on the surface has no direction to the surface: the nearest triangle's
+    # normal is the answer there (the direction of a round-off-sized vector is noise)
+    touch_tol = TOUCH_TOLERANCE * np.minimum(tm.scale[rm], tp.scale[rp])[pi_a]
+    na = np.where((d_a > touch_tol)[:, None], np.where(inside[pi_a, vi_a][:, None], dirn, -dirn), -tn)
     dep_a = -sep[pi_a, vi_a]
     pt_a = VP[pi_a, vi_a] + 0.5 * dep_a[:, None] * na
     found = np.zeros(n, bool)

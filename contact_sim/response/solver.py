@@ -321,15 +321,50 @@ def _project_row(old, rv, tn, inv_kn, kk, inv_kt, mus, mud):
     trial = old[:, 1:] - (inv_kt @ vt[:, :, None])[:, :, 0]
     mag = np.sqrt(np.einsum("ki,ki->k", trial, trial))
     stick = mag <= mus * new[:, 0]
-    lim = mud * new[:, 0]
-    # sliding: kinetic friction opposes the sliding velocity this contact would have without its own
-    # friction impulse (maximal dissipation), magnitude mu_d·λn
-    free = vt - (kk[:, 1:, 1:] @ old[:, 1:, None])[:, :, 0]
-    fmag = np.sqrt(np.einsum("ki,ki->k", free, free))
-    use = fmag > 1e-14
-    dirn = np.where(use[:, None], -free / np.maximum(fmag, _TINY)[:, None], trial / np.maximum(mag, _TINY)[:, None])
-    new[:, 1:] = np.where(stick[:, None], trial, dirn * lim[:, None])
+    new[:, 1:] = trial
+    slide = np.flatnonzero(~stick)
+    if slide.size:
+        # sliding: the impulse on the kinetic disc |λt| ≤ mu_d·λn nearest to the sticking one in the
+        # contact's own metric (Kt), which is where friction opposes the resulting sliding velocity
+        # (Coulomb's maximal dissipation), and the contact's energy can only go down
+        kt = kk[slide][:, 1:, 1:]
+        free = vt[slide] - (kt @ old[slide, 1:, None])[:, :, 0]     # sliding velocity without own friction
+        new[slide, 1:] = disc_projection(kt, free, mud[slide] * new[slide, 0])
     return new
+
+
+def disc_projection(kt, vfree, radius, newton=12):
+    """Friction impulses ``(k,2)`` on the discs ``|λ| ≤ radius (k,)`` nearest, in the metric of the
+    tangential blocks ``kt (k,2,2)``, to the sticking impulses ``−kt⁻¹ vfree`` (``vfree (k,2)`` the
+    sliding velocities without this friction), for contacts whose sticking impulse is outside:
+    ``λ = −(kt + νI)⁻¹ vfree`` with ``ν ≥ 0`` such that ``|λ| = radius`` (the secular equation of a
+    trust region, solved by Newton on ``1/|λ(ν)| − 1/radius``, which converges monotonically from
+    ``ν = 0``). Then ``vfree + kt λ = −ν λ``: friction opposes the resulting sliding velocity."""
+    out = np.zeros_like(vfree)
+    ok = (radius > 0) & np.any(vfree != 0, axis=1)
+    if not ok.any():
+        return out
+    a, b, c = kt[ok, 0, 0], kt[ok, 0, 1], kt[ok, 1, 1]
+    f0, f1, r = vfree[ok, 0], vfree[ok, 1], radius[ok]
+    nu = np.zeros(len(a))
+    for _ in range(newton):
+        p, q = a + nu, c + nu
+        det = p * q - b * b
+        x0 = -(q * f0 - b * f1) / det              # x = −(kt + νI)⁻¹ vfree
+        x1 = -(p * f1 - b * f0) / det
+        y0 = (q * x0 - b * x1) / det               # y = (kt + νI)⁻¹ x
+        y1 = (p * x1 - b * x0) / det
+        n2 = x0 * x0 + x1 * x1
+        norm = np.sqrt(n2)
+        step = (1.0 / norm - 1.0 / r) * norm * n2 / (x0 * y0 + x1 * y1)
+        nu = np.maximum(nu - step, 0.0)
+    p, q = a + nu, c + nu
+    det = p * q - b * b
+    x = np.column_stack([-(q * f0 - b * f1) / det, -(p * f1 - b * f0) / det])
+    # the last Newton step leaves |x| = radius to round-off; scale onto the disc exactly
+    x *= (r / np.maximum(np.linalg.norm(x, axis=1), _TINY))[:, None]
+    out[ok] = x
+    return out
 
 
 # ---------------------------------------------------------------------------- Jacobi, mass splitting
@@ -391,6 +426,7 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
 # ---------------------------------------------------------------------------- direct (active set)
 DIRECT_MAX_CONTACTS = 200       # dense Delassus matrix (3K)² up to this many contacts
 DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
+DIRECT_CONSISTENCY = 1e-7       # active rows must hold to this × the largest right-hand side, else the set is inconsistent
 DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
 DIRECT_DENSE_MAX = 16           # above this many contacts the Delassus matrix stays sparse (SuperLU): most
                                 # large sets are many small islands, and a threaded dense BLAS factorisation
@@ -546,6 +582,23 @@ def _peel_singles(rows, vel, omega, target_n, mu_s):
     return si[ok], lam_s[ok], np.flatnonzero(~single)
 
 
+def _safest_start(A, rhs, *candidates):
+    """The candidate impulses ``(K,3)`` (``None`` skipped; zero always a candidate) with the lowest
+    contact objective ``f(λ) = ½ λ·Aλ − λ·rhs`` (``rhs`` = target − current row velocity): the
+    quantity projected Gauss–Seidel descends, so its start decides where it can end. An unfinished
+    active-set answer can be far worse than no impulse at all; warm-starting from it diverges."""
+    k = len(rhs) // 3
+    best, best_f = np.zeros((k, 3)), 0.0
+    for lam in candidates:
+        if lam is None or not np.all(np.isfinite(lam)):
+            continue
+        x = lam.ravel()
+        f = 0.5 * float(x @ (A @ x)) - float(x @ rhs)
+        if f < best_f:
+            best, best_f = lam, f
+    return best
+
+
 def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None, _split=True):
     """Exact contact impulses by an active-set method on the dense Delassus matrix.
 
@@ -588,7 +641,9 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     rhs[:, 0] += target_n
     rhs = rhs.ravel()
     friction = mu_s is not None and np.any(mu_s > 0)
-    act = v0[:, 0] < target_n
+    # initial guess: every contact that is not separating is pushing (a resting stack starts
+    # with all its layers active: guessing only the approaching ones adds one layer per round)
+    act = v0[:, 0] <= target_n
     if warm is not None:
         act |= warm[:, 0] > 0
     diag = np.diag(A) if dense else A.diagonal()
@@ -596,7 +651,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     tol = 1e-12 + 1e-9 * float(np.abs(rhs).max())
     lam = np.zeros((k, 3))
     converged = False
-    for _ in range(DIRECT_MAX_ROUNDS):
+    for _ in range(DIRECT_MAX_ROUNDS + k // 4):
         sel = np.zeros((k, 3), bool)
         sel[:, 0] = act
         if friction:
@@ -609,7 +664,13 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
             else:
                 x[S] = _regularised_solve_sparse(A[S][:, S], rhs[S], eps)
         lam = x.reshape(k, 3)
-        vn = v0[:, 0] + (A @ x)[0::3]
+        ax = A @ x
+        if S.size and np.abs(ax[S] - rhs[S]).max() > DIRECT_CONSISTENCY * (np.abs(rhs).max() + _TINY):
+            # the active rows cannot all hold (e.g. more sticking points than the bodies have
+            # freedoms, pulling different ways): the regularised solve answers with impulses of
+            # size 1/eps. No active set containing them is right; Gauss–Seidel takes over
+            break
+        vn = v0[:, 0] + ax[0::3]
         neg = act & (lam[:, 0] < 0)
         viol = ~act & (vn < target_n - tol)
         if neg.any() or viol.any():
@@ -628,7 +689,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     else:
         lam[:, 1:] = 0.0
     if not converged:
-        return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
+        return SolveResult(_safest_start(A, rhs, lam, warm), DIRECT_MAX_ROUNDS, np.inf), False
     apply(rows, vel, omega, lam)
     resid = (A @ lam.ravel() - rhs).reshape(k, 3)
     resid[:, 0] = np.where(lam[:, 0] > 0, resid[:, 0], np.minimum(resid[:, 0], 0.0))
@@ -642,8 +703,24 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
                method="auto"):
     """Contact impulses by the best method for the size: ``direct`` (active set, exact) up to
     ``DIRECT_MAX_CONTACTS`` contacts, finished by Gauss–Seidel when friction slides; ``jacobi``
-    (mass splitting) or ``gs`` (coloured Gauss–Seidel) above. Same result type as ``solve``."""
+    (mass splitting) or ``gs`` (coloured Gauss–Seidel) above. Same result type as ``solve``.
+
+    Contacts between two bodies that cannot move (a kinematic robot link pressed into a static
+    floor) are reported by detection but carry no impulse: nothing can respond, and their rows
+    have no effective mass (``K = 0``), which no solver may divide by."""
     k = len(rows.a)
+    live = rows.movable[rows.a] | rows.movable[rows.b]
+    if not live.all():
+        lam = np.zeros((k, 3))
+        li = np.flatnonzero(live)
+        if li.size:
+            res = solve_auto(rows.select(li), vel, omega, target_n=target_n[li],
+                             mu_s=None if mu_s is None else mu_s[li], mu_d=None if mu_d is None else mu_d[li],
+                             iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[li],
+                             method=method)
+            lam[li] = res.impulse
+            return SolveResult(lam, res.iterations, res.residual)
+        return SolveResult(lam, 0, 0.0)
     if method == "auto":
         method = "direct" if k <= DIRECT_MAX_CONTACTS else "gs"
     if method == "direct":

@@ -1,0 +1,244 @@
+"""Scenes users make (issue 10): each was reproduced on the engine before its fix.
+
+Every assertion is a physical expectation with its own tolerance: finite state, no energy
+created, resting bodies at rest, exact normals and depths.
+"""
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+import contact_sim as cs
+
+G = 9.81
+
+
+def _finite(world):
+    s = world.s
+    return all(np.isfinite(a).all() for a in (s.pos, s.vel, s.quat, s.omega))
+
+
+def excess_energy(world, dt=None):
+    """Step ``world`` and return how much its energy grew beyond what the step may add: the
+    potential energy of position correction and the work of kinematic bodies (``last_solve``)."""
+    e = world.energy()
+    world.step(dt)
+    ls = world.last_solve
+    return world.energy() - e - ls["correction_energy"] - ls["kinematic_work"]
+
+
+def _ground_world(dt=0.01, **settings):
+    w = cs.World(settings=cs.Settings(dt=dt, **settings))
+    w.add_body("ground", cs.Plane(), kind="static")
+    return w
+
+
+# ---------------------------------------------------------------- infinite-mass pairs
+@pytest.mark.parametrize("floor", ["static plane", "static box", "kinematic box"])
+def test_kinematic_body_pressed_into_static_geometry_stays_finite(floor):
+    """A robot link (kinematic) posed 5 cm into the floor: nothing can respond to that contact, so
+    it carries no impulse; it is still reported, and the rest of the world goes on normally."""
+    w = cs.World()
+    if floor == "static plane":
+        w.add_body("floor", cs.Plane(), kind="static")
+    else:
+        w.add_body("floor", cs.Box([2, 2, 0.2]), kind=floor.split()[0], position=[0, 0, -0.1])
+    w.add_body("link", cs.Box([0.4, 0.4, 0.1]), kind="kinematic", position=[0, 0, 0.5])
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[1, 0, 0.3])
+    w.set_pose("link", [0, 0, 0.0], [0, 0, 0, 1], 0.0)           # 5 cm into the floor
+    for _ in range(100):
+        w.step(0.01)
+        assert _finite(w)
+    names = w.body_names
+    pairs = {tuple(sorted((names[a], names[b]))) for a, b in zip(w.contacts.body_a, w.contacts.body_b)}
+    assert ("floor", "link") in pairs                                # reported ...
+    inert = [i for i, (a, b) in enumerate(zip(w.contacts.body_a, w.contacts.body_b))
+             if {names[a], names[b]} == {"floor", "link"}]
+    assert np.all(w.contacts.impulse[inert] == 0)                    # ... with no impulse
+    assert abs(w.body("ball").position[2] - 0.1) < 1e-6              # the ball rests on the floor
+    assert np.all(w.body("floor").position == ([0, 0, 0] if floor == "static plane" else [0, 0, -0.1]))
+
+
+# ---------------------------------------------------------------- the friction solve
+@pytest.mark.parametrize("n", [13, 20])
+def test_tall_stack_of_cubes_holds(n):
+    """A stack of n identical cubes on a plane (exploded on its 4th step at 13 cubes: the active set
+    grew one layer per round and ran out of rounds; Gauss–Seidel was then warm-started from the
+    unfinished answer)."""
+    w = _ground_world()
+    for i in range(n):
+        w.add_body(f"b{i}", cs.Box([0.2] * 3), mass=1.0, position=[0, 0, 0.1 + 0.2 * i])
+    e0 = w.energy()
+    p0 = w.s.pos.copy()
+    for _ in range(100):
+        w.step()
+        assert w.energy() <= e0 + 1e-9 * abs(e0)
+    assert np.abs(w.s.pos - p0).max() < 1e-9
+    assert np.abs(w.s.vel).max() < 1e-9
+
+
+def test_sphere_wedged_between_ground_wall_and_sphere_keeps_its_energy():
+    w = _ground_world()
+    w.add_body("wall", cs.Plane([1, 0, 0], 0.0), kind="static")
+    w.add_body("small", cs.Sphere(0.093), density=1000, position=[0.093, 0, 0.093])
+    w.add_body("big", cs.Sphere(0.14), density=1000, position=[0.093 * 2 + 0.14, 0, 0.14])
+    e0 = w.energy()
+    for _ in range(200):
+        w.step()
+        assert _finite(w) and w.energy() <= e0 + 1e-9 * abs(e0)
+
+
+def test_convex_hull_dropped_into_a_plane_corner_settles():
+    rng = np.random.default_rng(0)
+    w = _ground_world(toi="next_step")
+    w.add_body("wall", cs.Plane([1, 0, 0], 0.0), kind="static")
+    w.add_body("hull", cs.Convex(rng.normal(size=(20, 3)) * 0.1), density=1000, position=[0.35, 0, 0.4],
+               velocity=[-1.5, 0, 0], angular_velocity=[1, 2, 3])
+    e0 = w.energy()
+    for _ in range(300):
+        w.step()
+        assert _finite(w) and w.energy() <= e0 + 1e-9 * abs(e0)
+    assert np.linalg.norm(w.s.vel[2]) < 1e-3
+
+
+# ---------------------------------------------------------------- meshes
+def _mesh_floor(subdivide=0):
+    m = trimesh.creation.box([2, 2, 0.2])
+    for _ in range(subdivide):
+        m = m.subdivide()
+    return cs.TriMesh(m.vertices, m.faces)
+
+
+@pytest.mark.parametrize("subdivide", [0, 2])
+def test_box_touching_a_mesh_gets_the_face_normal(subdivide):
+    mesh = _mesh_floor(subdivide)
+    for xy in ([0.3, 0.2], [0.0, 0.0], [-0.61, 0.37]):
+        c = cs.collide(mesh, ([0, 0, -0.1], [0, 0, 0, 1]), cs.Box([0.2] * 3), ([*xy, 0.1], [0, 0, 0, 1]),
+                       margin=1e-4)
+        assert len(c) >= 3
+        np.testing.assert_allclose(c.normal, np.tile([0.0, 0.0, -1.0], (len(c), 1)), atol=1e-12)
+        assert np.abs(c.depth).max() < 1e-12
+
+
+@pytest.mark.parametrize("xy", [[0.0, 0.0], [0.3, 0.2], [0.55, -0.3]])
+def test_cube_dropped_onto_a_mesh_comes_to_rest_without_gaining_energy(xy):
+    w = cs.World(settings=cs.Settings(dt=1 / 60))
+    w.add_body("floor", _mesh_floor(2), kind="static", position=[0, 0, -0.1])
+    w.add_body("cube", cs.Box([0.2] * 3), mass=1.0, position=[xy[0], xy[1], 0.11])
+    worst = max(excess_energy(w) for _ in range(120))
+    assert worst <= 1e-9
+    b = w.body("cube")
+    assert abs(b.position[2] - 0.1) < 1e-6 and np.linalg.norm(b.velocity) < 1e-6
+    np.testing.assert_allclose(b.position[:2], xy, atol=1e-6)
+
+
+def _flat_tile(n=4, size=4.0):
+    """An open, flat triangle mesh (terrain tile) of n×n quads, faces up."""
+    g = np.linspace(-size / 2, size / 2, n + 1)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    v = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    f = []
+    for i in range(n):
+        for j in range(n):
+            a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
+            f += [[a, b, c], [a, c, d]]
+    return cs.TriMesh(v, np.array(f))
+
+
+def test_flat_open_mesh_collides_as_a_one_sided_surface():
+    tile = _flat_tile()
+    c = cs.collide(tile, ([0, 0, 0], [0, 0, 0, 1]), cs.Sphere(0.1), ([0.3, 0.1, 0.05], [0, 0, 0, 1]))
+    assert len(c) == 1
+    np.testing.assert_allclose(c.depth, [0.05], rtol=1e-12)
+    np.testing.assert_allclose(c.normal, [[0, 0, -1]], atol=1e-12)   # B (sphere) → A (tile): down
+    c = cs.collide(tile, ([0, 0, 0], [0, 0, 0, 1]), cs.Box([0.2] * 3), ([0.3, 0.1, 0.09], [0, 0, 0, 1]))
+    assert len(c) == 4
+    np.testing.assert_allclose(c.depth, 0.01, rtol=1e-9)
+    np.testing.assert_allclose(c.normal, np.tile([0, 0, -1.0], (4, 1)), atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [cs.Sphere(0.1), cs.Box([0.2] * 3)])
+def test_bodies_rest_on_a_flat_terrain_mesh(shape):
+    w = cs.World(settings=cs.Settings(dt=1 / 60))
+    w.add_body("terrain", _flat_tile(), kind="static")
+    w.add_body("body", shape, mass=1.0, position=[0.3, 0.1, 0.5])
+    for _ in range(120):
+        w.step()
+        assert _finite(w)
+    b = w.body("body")
+    assert abs(b.position[2] - 0.1) < 1e-6 and np.linalg.norm(b.velocity) < 1e-6
+
+
+# ---------------------------------------------------------------- scale ratio
+def _sat_depth(shape_a, pos_a, R_a, shape_b):
+    """Penetration depth by brute force over every separating axis candidate of two convex bodies
+    (face normals of both, every edge of A crossed with B's box axes): B is an axis-aligned box."""
+    va = shape_a.vertices @ R_a.T + pos_a
+    dirs = list(np.eye(3)) + list(shape_a.plane_normals @ R_a.T)
+    ea = (shape_a.vertices[shape_a.edges[:, 1]] - shape_a.vertices[shape_a.edges[:, 0]]) @ R_a.T
+    dirs += [np.cross(e, ax) for e in ea for ax in np.eye(3)]
+    best = np.inf
+    for d in dirs:
+        n = np.linalg.norm(d)
+        if n < 1e-12 * np.abs(ea).max():
+            continue
+        d = d / n
+        a, b = va @ d, shape_b.vertices @ d
+        best = min(best, a.max() - b.min(), b.max() - a.min())
+    return best
+
+
+@pytest.mark.parametrize("kind", ["box", "hull"])
+def test_millimetre_body_against_kilometre_box_gets_the_exact_depth(kind):
+    """Tolerances are relative to the smaller body: 1e-9 of a kilometre would be a micrometre,
+    a third of these penetrations."""
+    rng = np.random.default_rng(7)
+    big = cs.Box([1e3] * 3)
+    checked = 0
+    for _ in range(60):
+        small = cs.Box([1e-3] * 3) if kind == "box" else cs.Convex(rng.normal(size=(10, 3)) * 5e-4)
+        q = Rotation.random(random_state=int(rng.integers(1 << 30))).as_quat()
+        pos = np.array([500 - rng.uniform(-5e-4, 5e-4), rng.uniform(-1, 1), 500 - rng.uniform(-5e-4, 5e-4)])
+        exact = _sat_depth(small, pos, Rotation.from_quat(q).as_matrix(), big)
+        c = cs.collide(small, (pos, q), big, ([0, 0, 0], [0, 0, 0, 1]))
+        if exact <= 1e-9:
+            continue
+        checked += 1
+        assert len(c) and abs(c.depth.max() - exact) <= 1e-7 * exact
+    assert checked > 20
+
+
+def test_no_warnings_on_the_repro_scenes():
+    """The repro scenes above step without runtime warnings (an invalid value in a matmul was the
+    first sign of the NaN world)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        test_kinematic_body_pressed_into_static_geometry_stays_finite("static plane")
+
+
+# ---------------------------------------------------------------- the invariant guard
+def test_a_step_that_would_leave_a_non_finite_state_is_undone_and_names_the_bodies(monkeypatch):
+    from contact_sim import stepper
+
+    w = _ground_world()
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[0, 0, 0.5])
+    w.add_body("crate", cs.Box([0.2] * 3), mass=1.0, position=[1, 0, 0.1])
+    w.step()
+    before = w.s.copy(), w.time, w.contacts
+    real = stepper.step
+
+    def broken(world, dt):
+        real(world, dt)
+        world.s.vel[world.index("crate"), 2] = np.nan      # what a numerical failure would leave
+
+    monkeypatch.setattr(stepper, "step", broken)
+    with pytest.raises(cs.ContactSimError, match=r"1 body \('crate'\).*non-finite.*as it was before"):
+        w.step()
+    for name in before[0].NAMES:
+        np.testing.assert_array_equal(getattr(w.s, name), getattr(before[0], name))
+    assert w.time == before[1] and w.contacts is before[2]
+    monkeypatch.setattr(stepper, "step", real)
+    w.step()                                                  # and the world goes on
+    assert _finite(w)
