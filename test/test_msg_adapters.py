@@ -67,20 +67,31 @@ def test_contacts_pointcloud2_round_trip_is_bit_exact_through_the_wire(k):
     assert wire.header.stamp.sec == 1_700_000_000 and wire.header.stamp.nanosec == 123_456_789
 
 
-def test_pointcloud2_layout_is_documented_and_float64():
-    msg = cv.contacts_to_pointcloud2(random_contacts(5), header())
-    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 5, 136, 5 * 136)
+def test_pointcloud2_layout_is_documented_rviz_xyz_float32_and_the_rest_float64():
+    """x y z float32 (RViz's PointCloud2 display takes nothing else), the exact point in point_x/y/z
+    (was: x y z float64 in a 136-byte point; now a 152-byte point, every field naturally aligned)."""
+    c = random_contacts(5)
+    msg = cv.contacts_to_pointcloud2(c, header())
+    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 5, 152, 5 * 152)
     assert not msg.is_bigendian and msg.is_dense
     fields = {f.name: f for f in msg.fields}
     assert list(fields) == [n for n, _ in cv.CONTACT_FIELDS]
-    for name in ("x", "y", "z", "normal_x", "depth", "impulse_z", "normal_impulse", "friction_impulse_y",
-                 "relative_normal_velocity"):
+    for name in ("x", "y", "z"):
+        assert fields[name].datatype == PointField.FLOAT32 and fields[name].count == 1
+    assert [fields[n].offset for n in ("x", "y", "z")] == [0, 4, 8]
+    for name in ("point_x", "point_y", "point_z", "normal_x", "depth", "impulse_z", "normal_impulse",
+                 "friction_impulse_y", "relative_normal_velocity"):
         assert fields[name].datatype == PointField.FLOAT64 and fields[name].count == 1
+        assert fields[name].offset % 8 == 0
     for name in ("body_a", "body_b", "feature"):
         assert fields[name].datatype == PointField.UINT32
     offsets = [f.offset for f in msg.fields]
     assert offsets == sorted(offsets) and offsets[-1] + 4 <= msg.point_step
-    assert len(msg.data) == 5 * 136
+    assert len(msg.data) == 5 * 152
+    a = cv.pointcloud2_to_array(msg)
+    with np.errstate(over="ignore"):
+        np.testing.assert_array_equal(a["x"], c.point[:, 0].astype(np.float32))
+    assert_bits_equal(a["point_z"], c.point[:, 2])
 
 
 def count_python_work(fn):
