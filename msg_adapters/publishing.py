@@ -6,16 +6,16 @@ of one tick carries one stamp: the world's time after the step, on the node's cl
 structured array, never as a Python object per body or contact.
 """
 import collections
+import time
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import MultiDOFJointState, PointCloud2
-from std_msgs.msg import Header, String
+from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
 import contact_sim
@@ -159,8 +159,9 @@ class Outputs:
 
     def _maybe_diagnostics(self, now_ns):
         """Publish /diagnostics when ``diagnostics_period`` has passed on the node's clock, or when
-        that clock went backwards (sim time restarted, a reset under publish_clock)."""
-        now = now_ns * 1e-9
+        that clock went backwards (sim time restarted). Under publish_clock the period is on the
+        steady clock: the world time stands still while paused, the reports should not."""
+        now = time.monotonic() if self.cfg["publish_clock"] else now_ns * 1e-9
         if self._last_diag is not None and 0.0 <= now - self._last_diag < self.cfg["diagnostics_period"]:
             return
         self._last_diag = now
@@ -176,6 +177,6 @@ class Outputs:
             msg = "; ".join(f"{k.replace('_', ' ')}: {new[k]}" for k in WARN_COUNTERS if new[k])
         else:
             level, msg = DiagnosticStatus.OK, "paused" if self.paused else "running"
-        header = Header(frame_id="", stamp=Time(sec=int(now_ns // 1_000_000_000), nanosec=int(now_ns % 1_000_000_000)))
-        self.pub_diag.publish(diagnostic_array(header, diag_name(self.get_name()), self.get_fully_qualified_name(),
-                                               values, level, msg))
+        # frame_id empty (a status is about no frame); told apart from other nodes by the node's name
+        self.pub_diag.publish(diagnostic_array(make_header("", now_ns), diag_name(self.get_name()),
+                                               self.get_fully_qualified_name(), values, level, msg))
