@@ -353,11 +353,19 @@ def contact_wrenches(contacts, origins, duration):
     about the body's origin ``origins (N, 3)``, world frame."""
     n = len(origins)
     force, torque = np.zeros((n, 3)), np.zeros((n, 3))
-    if len(contacts):
-        j = contacts.impulse / duration
-        for body, sign in ((contacts.body_a, 1.0), (contacts.body_b, -1.0)):
-            np.add.at(force, body, sign * j)
-            np.add.at(torque, body, sign * np.cross(contacts.point - origins[body], j))
+    if not len(contacts):
+        return force, torque
+    j = contacts.impulse / duration
+    a, b = contacts.body_a, contacts.body_b
+    ra, rb = contacts.point - origins[a], contacts.point - origins[b]
+    # torque about each body's origin: r_a × j on A, -(r_b × j) on B
+    ta = np.stack([ra[:, 1] * j[:, 2] - ra[:, 2] * j[:, 1], ra[:, 2] * j[:, 0] - ra[:, 0] * j[:, 2],
+                   ra[:, 0] * j[:, 1] - ra[:, 1] * j[:, 0]], axis=1)
+    tb = np.stack([rb[:, 1] * j[:, 2] - rb[:, 2] * j[:, 1], rb[:, 2] * j[:, 0] - rb[:, 0] * j[:, 2],
+                   rb[:, 0] * j[:, 1] - rb[:, 1] * j[:, 0]], axis=1)
+    for i in range(3):   # sums per body by bincount (np.add.at is ~10x slower)
+        force[:, i] = np.bincount(a, j[:, i], n) - np.bincount(b, j[:, i], n)
+        torque[:, i] = np.bincount(a, ta[:, i], n) - np.bincount(b, tb[:, i], n)
     return force, torque
 
 
