@@ -66,6 +66,8 @@ class BodyControl:
             world.set_states(names, positions=p, orientations=q, velocities=v, angular_velocities=w)
         except (PoseError, ValueError) as exc:   # ContactSimError is a ValueError
             return self._refuse("body_states", str(exc))
+        except Exception as exc:                  # whatever else a message can provoke: refused, never a crash
+            return self._refuse("body_states", f"{type(exc).__name__}: {exc}")
         # tracked bodies set from outside are no longer held at their last pose
         for j, n in enumerate(self.tracked):
             if n in names:
@@ -78,6 +80,8 @@ class BodyControl:
             bodies = yaml.safe_load(msg.data)
         except yaml.YAMLError as exc:
             return self._refuse("spawns", f"not valid YAML: {exc}")
+        except Exception as exc:   # e.g. nesting deep enough to exhaust the recursion limit
+            return self._refuse("spawns", f"cannot read the YAML: {type(exc).__name__}: {exc}")
         if isinstance(bodies, dict):     # one body written as a mapping
             bodies = [bodies]
         base = os.path.dirname(os.path.abspath(self.scene_path))   # mesh files as in the scene
@@ -85,6 +89,8 @@ class BodyControl:
             idx = add_scene_bodies(self.world, bodies, base_dir=base, path="spawn")
         except contact_sim.ContactSimError as exc:
             return self._refuse("spawns", str(exc))
+        except Exception as exc:   # a mesh file trimesh cannot read, ...: the world was restored by the engine
+            return self._refuse("spawns", f"{type(exc).__name__}: {exc}")
         self.counts["spawned_bodies"] += len(idx)
         self._bodies_changed()
         names = [self.world.body_names[i] for i in idx]
