@@ -40,7 +40,7 @@ setup(
     entry_points={
         "console_scripts": [
             "contact-sim = contact_sim.cli:main",
-            "contact_sim_node = msg_adapters.node:main",
+            "contact_sim_node = msg_adapters.launch:main",
         ],
     },
 )

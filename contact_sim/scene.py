@@ -25,33 +25,43 @@ def default_scene_path():
     return os.path.join(scenes_dir(), "default.yaml")
 
 
-def scenes_dir():
-    """Folder of the shipped scenes: ``config/scenes`` beside the package (source tree or
-    ``pip install -e``), or ``share/contact_sim/config/scenes`` of an installed prefix."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    candidates = [os.path.join(here, "..", "config", "scenes")]
+def source_scenes_dir():
+    """``config/scenes`` of the source tree this package runs from (also ``pip install -e``), or
+    None when the package is installed elsewhere."""
+    d = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "config", "scenes"))
+    return d if os.path.isdir(d) else None
+
+
+def scenes_dir(search=None):
+    """Folder of the shipped scenes: the first existing folder of ``search`` (a list of folders,
+    e.g. the ROS package's share folder from the ament index), else ``config/scenes`` beside the
+    package (source tree), else ``share/contact_sim/config/scenes`` of the Python prefix (pip)."""
     import sys
 
-    candidates.append(os.path.join(sys.prefix, "share", "contact_sim", "config", "scenes"))
+    candidates = list(search or []) + [source_scenes_dir(),
+                                       os.path.join(sys.prefix, "share", "contact_sim", "config", "scenes")]
     for c in candidates:
-        if os.path.isdir(c):
+        if c and os.path.isdir(c):
             return os.path.normpath(c)
-    raise ContactSimError("cannot find the shipped scenes (config/scenes); pass a scene path")
+    looked = ", ".join(c for c in candidates if c)
+    raise ContactSimError(f"cannot find the shipped scenes (config/scenes; looked in {looked}); pass a scene path")
 
 
-def resolve_scene(name_or_path):
-    """A scene path from a path, or the name of a shipped scene (``bouncing_ball``)."""
+def resolve_scene(name_or_path, search=None):
+    """A scene path from a path, or the name of a shipped scene (``bouncing_ball``), looked up in
+    ``scenes_dir(search)``."""
     if os.path.isfile(name_or_path):
         return name_or_path
-    shipped = os.path.join(scenes_dir(), name_or_path if name_or_path.endswith(".yaml") else name_or_path + ".yaml")
+    folder = scenes_dir(search)
+    shipped = os.path.join(folder, name_or_path if name_or_path.endswith(".yaml") else name_or_path + ".yaml")
     if os.path.isfile(shipped):
         return shipped
     raise ContactSimError(f"scene {name_or_path!r}: no such file, and no shipped scene of that name "
-                          f"(shipped: {', '.join(list_scenes())})")
+                          f"(shipped: {', '.join(list_scenes(search))})")
 
 
-def list_scenes():
-    return sorted(f[:-5] for f in os.listdir(scenes_dir()) if f.endswith(".yaml"))
+def list_scenes(search=None):
+    return sorted(f[:-5] for f in os.listdir(scenes_dir(search)) if f.endswith(".yaml"))
 
 
 def load_scene(source, base_dir=None):
@@ -98,29 +108,49 @@ def _build(data, base_dir):
     if not isinstance(bodies, list):
         raise SceneError("bodies", f"must be a list, got {type(bodies).__name__}")
     for i, b in enumerate(bodies):
-        path = f"bodies[{i}]"
-        check_keys(b, path, BODY_KEYS)
-        if "name" not in b:
-            raise SceneError(f"{path}.name", "required")
-        if "shape" not in b:
-            raise SceneError(f"{path}.shape", "required")
-        shape = parse_shape(b["shape"], f"{path}.shape", base_dir)
-        collision = b.get("collision") or {}
-        check_keys(collision, f"{path}.collision", {"group", "mask"})
-        kwargs = {k: b[k] for k in ("kind", "model", "mass", "density", "position", "orientation", "velocity",
-                                    "angular_velocity", "material") if k in b}
-        if "group" in collision:
-            kwargs["group"] = collision["group"]
-        if "mask" in collision:
-            kwargs["mask"] = collision["mask"]
+        spec = parse_body(b, f"bodies[{i}]", base_dir)
         try:
-            world.add_body(b["name"], shape, where=path, **kwargs)
+            world.add_body(spec.pop("name"), spec.pop("shape"), **spec)
         except SceneError:
             raise
         except ContactSimError as exc:
             raise _as_scene_error(exc) from None
     world.mark_initial()
     return world
+
+
+def parse_body(b, path, base_dir="."):
+    """One body mapping of a scene → ``add_body`` arguments (a dict with ``name``, ``shape`` and
+    ``where``), errors naming ``path`` (``bodies[3].shape.radius``)."""
+    check_keys(b, path, BODY_KEYS)
+    if "name" not in b:
+        raise SceneError(f"{path}.name", "required")
+    if "shape" not in b:
+        raise SceneError(f"{path}.shape", "required")
+    shape = parse_shape(b["shape"], f"{path}.shape", base_dir)
+    collision = b.get("collision") or {}
+    check_keys(collision, f"{path}.collision", {"group", "mask"})
+    spec = {k: b[k] for k in ("name", "kind", "model", "mass", "density", "position", "orientation", "velocity",
+                              "angular_velocity", "material") if k in b}
+    spec.update({k: collision[k] for k in ("group", "mask") if k in collision}, shape=shape, where=path)
+    return spec
+
+
+def add_scene_bodies(world, bodies, base_dir=None, path="bodies"):
+    """Add a list of bodies written as in a scene file (``bodies:`` entries) to ``world``, all or
+    nothing; returns their indices. Mesh files resolve relative to ``base_dir`` (default the
+    current folder). Errors are ``SceneError`` naming ``<path>[i].<key>``; a refused list leaves
+    the world as it was."""
+    if not isinstance(bodies, list):
+        raise SceneError(path, f"must be a list of bodies, got {type(bodies).__name__}")
+    base_dir = os.getcwd() if base_dir is None else base_dir
+    specs = [parse_body(b, f"{path}[{i}]", base_dir) for i, b in enumerate(bodies)]
+    try:
+        return world.add_bodies(specs)
+    except SceneError:
+        raise
+    except ContactSimError as exc:
+        raise _as_scene_error(exc) from None
 
 
 def _as_scene_error(exc):

@@ -18,6 +18,12 @@ from .validate import unit_quaternion as _unit_quaternion
 from .validate import vector as _vector
 
 KINDS = ("static", "kinematic", "dynamic")
+# Per-body attributes of a World, rows in body order (arrays) or items (lists). remove_bodies and the
+# rollback of add_bodies treat them together: a new per-body attribute belongs here (an engine test
+# fails when an array with a row per body is missing from this list).
+BODY_ARRAYS = ("kind", "particle", "mass", "inv_mass", "inertia_body", "inv_inertia_body", "com_local",
+               "restitution", "friction", "static_friction", "group", "mask")
+BODY_LISTS = ("_names", "shapes", "user_shapes", "material_names")
 MODELS = ("rigid", "particle")
 STATIC, KINEMATIC, DYNAMIC = 0, 1, 2
 DEFAULT_DENSITY = 1000.0  # kg/m³ (water), when neither mass nor density is given
@@ -46,7 +52,8 @@ class Body:
 class _State:
     """Per-body motion arrays; copied whole for reset and for refusing bad input atomically."""
 
-    NAMES = ("pos", "vel", "quat", "omega", "principal_q", "principal_moments", "stamp", "posed")
+    NAMES = ("pos", "vel", "quat", "omega", "principal_q", "principal_moments", "stamp", "posed", "pose_pos",
+             "pose_quat")
 
     def __init__(self):
         self.pos = np.zeros((0, 3))
@@ -57,11 +64,24 @@ class _State:
         self.principal_moments = np.zeros((0, 3))
         self.stamp = np.zeros(0)              # time of the last pose given (kinematic bodies)
         self.posed = np.zeros(0, bool)        # has a pose been given yet
+        self.pose_pos = np.zeros((0, 3))      # centre of mass and orientation at that last pose: the
+        self.pose_quat = np.zeros((0, 4))     # finite differences start there, not where the body drifted to
 
     def copy(self):
+        return self.take(slice(None))
+
+    def take(self, rows):
+        """A new state with the bodies ``rows`` (mask, indices or slice), arrays copied."""
         c = _State()
         for n in self.NAMES:
-            setattr(c, n, getattr(self, n).copy())
+            setattr(c, n, getattr(self, n)[rows].copy())
+        return c
+
+    def concat(self, other):
+        """A new state: these bodies, then those of ``other``."""
+        c = _State()
+        for n in self.NAMES:
+            setattr(c, n, np.concatenate([getattr(self, n), getattr(other, n)]))
         return c
 
 
@@ -207,6 +227,8 @@ class World:
         s.principal_moments = np.vstack([s.principal_moments, moments])
         s.stamp = np.append(s.stamp, np.nan)
         s.posed = np.append(s.posed, False)
+        s.pose_pos = np.vstack([s.pose_pos, com_world])
+        s.pose_quat = np.vstack([s.pose_quat, q])
         self.kind = np.append(self.kind, np.int8(KINDS.index(kind)))
         self.particle = np.append(self.particle, model == "particle")
         self.mass = np.append(self.mass, body_mass)
@@ -219,7 +241,72 @@ class World:
         self.static_friction = np.append(self.static_friction, mat.static_friction)
         self.group = np.append(self.group, np.uint32(group))
         self.mask = np.append(self.mask, np.uint32(mask))
+        if self._initial is not None:   # reset() returns a body added later to the state it was added in
+            self._initial = (self._initial[0].concat(s.take([idx])), self._initial[1])
         return idx
+
+    def add_bodies(self, bodies):
+        """Add several bodies at once and return their indices: ``bodies`` is a list of dicts of
+        ``add_body`` arguments (``name``, ``shape`` and its keywords). All or nothing: when one is
+        refused the world is exactly as before (same arrays, so its caches stay valid) and the error
+        names that body."""
+        saved = self._snapshot()
+        try:
+            out = []
+            for i, b in enumerate(bodies):
+                if not isinstance(b, dict) or "name" not in b or "shape" not in b:
+                    raise ContactSimError(f"add_bodies[{i}]: must be a dict with name, shape and add_body keywords, "
+                                          f"got {b!r}")
+                kw = dict(b)
+                try:
+                    out.append(self.add_body(kw.pop("name"), kw.pop("shape"), **kw))
+                except TypeError as exc:  # an unknown keyword
+                    raise ContactSimError(f"add_bodies[{i}]: {exc}") from None
+            return out
+        except BaseException:
+            self._restore(saved)
+            raise
+
+    def _snapshot(self):
+        """The per-body data as it is now (add_body replaces arrays, never edits them in place)."""
+        return ({n: getattr(self, n) for n in BODY_ARRAYS}, {n: list(getattr(self, n)) for n in BODY_LISTS},
+                dict(self._index), {n: getattr(self.s, n) for n in _State.NAMES}, self._initial)
+
+    def _restore(self, saved):
+        arrays, lists, index, state, initial = saved
+        for n, v in {**arrays, **lists}.items():
+            setattr(self, n, v)
+        for n, v in state.items():
+            setattr(self.s, n, v)
+        self._index, self._initial = index, initial
+
+    def remove_bodies(self, names):
+        """Remove the named bodies (of any kind) at once. The others keep their order and state;
+        their indices close up, and ``body_names``, ``contacts``, the carried warm starts and the
+        state ``reset()`` returns to follow. Refused as a whole (unknown or repeated name)."""
+        names = [names] if isinstance(names, str) else list(names)
+        idx = [self.index(n) for n in names]
+        if len(set(idx)) != len(idx):
+            raise ContactSimError(f"remove_bodies: a body is named twice in {names!r}")
+        keep = np.ones(len(self), bool)
+        keep[idx] = False
+        new_index = np.where(keep, np.cumsum(keep) - 1, -1)
+        # ---- commit (nothing below can fail)
+        for n in BODY_ARRAYS:
+            setattr(self, n, getattr(self, n)[keep])
+        for n in BODY_LISTS:
+            setattr(self, n, [x for x, k in zip(getattr(self, n), keep) if k])
+        self._index = {n: i for i, n in enumerate(self._names)}
+        self.s = self.s.take(keep)
+        if self._initial is not None:
+            self._initial = (self._initial[0].take(keep), self._initial[1])
+        c = self.contacts
+        c = c.select((new_index[c.body_a] >= 0) & (new_index[c.body_b] >= 0)) if len(c) else Contacts.empty()
+        c.body_a, c.body_b = new_index[c.body_a], new_index[c.body_b]
+        self.contacts = c
+        for attr in ("_cs_warm", "_cs_spec"):   # what the stepper carries: (body_a, body_b, per-contact arrays...)
+            setattr(self, attr, _remap_carried(getattr(self, attr, None), new_index))
+        self.__dict__.pop("_cs_memo", None)       # every derived table is rebuilt for the new body set
 
     def body(self, name):
         """Snapshot (copies) of a body by name: position, orientation, velocities, mass, shape."""
@@ -304,16 +391,27 @@ class World:
         com_world = pos + quat.rotate(q, self.com_local[idx])
         j, ij = np.flatnonzero(posed), idx[posed]
         if j.size:
+            # from the previous *pose*: between poses the body moved on at its velocity, and a
+            # difference from there would halve the velocity of a steadily driven body every other pose
             dt = (t - s.stamp[ij])[:, None]
-            q_prev = s.quat[ij]
+            q_prev = s.pose_quat[ij]
             qj = np.where(np.sum(q[j] * q_prev, axis=1, keepdims=True) < 0, -q[j], q[j])  # shorter way round
             q[j] = qj
             s.omega[ij] = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev))) / dt
-            s.vel[ij] = (com_world[j] - s.pos[ij]) / dt
+            s.vel[ij] = (com_world[j] - s.pose_pos[ij]) / dt
         s.pos[idx] = com_world
         s.quat[idx] = q
+        s.pose_pos[idx] = com_world
+        s.pose_quat[idx] = q
         s.stamp[idx] = t
         s.posed[idx] = True
+
+    def restart_pose_history(self, names=None):
+        """The next pose of each named kinematic body (every body when ``names`` is None) is taken
+        as a first pose: it places the body and keeps its velocity, no finite difference across the
+        gap (after a clock jump, or when a body was driven another way meanwhile)."""
+        idx = np.arange(len(self)) if names is None else np.array([self.index(n) for n in names], np.int64)
+        self.s.posed[idx] = False
 
     def set_state(self, name, position=None, orientation=None, velocity=None, angular_velocity=None):
         """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first."""
@@ -335,6 +433,48 @@ class World:
             s.vel[i] = vel
         if om is not None:
             s.omega[i] = om
+        s.posed[i] = False   # a kinematic body set from outside: its pose history starts again
+
+    def set_states(self, names, positions=None, orientations=None, velocities=None, angular_velocities=None):
+        """``set_state`` for several non-static bodies at once, all or nothing: ``names (M,)`` and,
+        each optional (None leaves that part unchanged), ``positions (M, 3)`` body-frame origins,
+        ``orientations (M, 4)`` x,y,z,w, ``velocities (M, 3)`` of the centres of mass and
+        ``angular_velocities (M, 3)``, world frame. A kinematic body given a velocity moves at it
+        until the next pose or state; errors name the body and the reason."""
+        names = list(names)
+        m = len(names)
+        idx = np.array([self.index(n) for n in names], np.int64)
+        if len(set(idx.tolist())) != m:
+            raise ContactSimError(f"set_states: a body is named twice in {names!r}")
+        for i in np.flatnonzero(self.kind[idx] == STATIC):
+            raise ContactSimError(f"set_states({names[i]!r}): {names[i]!r} is static and never moves")
+        tol = self.settings.quaternion_tolerance
+        parts = {}
+        for key, value, n in (("position", positions, 3), ("orientation", orientations, 4),
+                              ("velocity", velocities, 3), ("angular_velocity", angular_velocities, 3)):
+            if value is None:
+                continue
+            if len(value) != m:
+                raise ContactSimError(f"set_states.{key}: {len(value)} rows for {m} bodies")
+            check = (lambda v, w: _unit_quaternion(v, w, tol)) if n == 4 else (lambda v, w: _vector(v, n, w))
+            parts[key] = np.array([check(value[i], f"set_states({names[i]!r}).{key}") for i in range(m)]).reshape(m, n)
+        om = parts.get("angular_velocity")
+        if om is not None:
+            for i in np.flatnonzero(self.particle[idx] & om.any(axis=1)):
+                raise ContactSimError(f"set_states({names[i]!r}).angular_velocity: a particle does not rotate")
+        # ---- commit (nothing below can fail)
+        s = self.s
+        origin = parts.get("position")
+        if origin is None:
+            origin = s.pos[idx] - quat.rotate(s.quat[idx], self.com_local[idx])
+        if "orientation" in parts:
+            s.quat[idx] = parts["orientation"]
+        s.pos[idx] = origin + quat.rotate(s.quat[idx], self.com_local[idx])
+        if "velocity" in parts:
+            s.vel[idx] = parts["velocity"]
+        if om is not None:
+            s.omega[idx] = om
+        s.posed[idx] = False
 
     # ------------------------------------------------------------------ stepping
     def step(self, dt=None):
@@ -454,3 +594,15 @@ class World:
         from . import stepper
 
         stepper.forget(self)
+
+
+def _remap_carried(record, new_index):
+    """A per-contact record the stepper carries between steps, ``(body_a, body_b, arrays...)`` with
+    a row per contact, for the bodies left after a removal (``new_index`` old → new, -1 removed).
+    Anything else is dropped (``None``): carried data only speeds up the next step."""
+    try:
+        a, b = record[0], record[1]
+        keep = (new_index[a] >= 0) & (new_index[b] >= 0)
+        return (new_index[a][keep], new_index[b][keep]) + tuple(x[keep] for x in record[2:])
+    except Exception:
+        return None

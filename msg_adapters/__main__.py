@@ -1,7 +1,7 @@
 """``python -m msg_adapters [--ros-args ...]`` runs the contact_sim node."""
 import sys
 
-from .node import main
+from .launch import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -19,15 +19,17 @@ from visualization_msgs.msg import Marker, MarkerArray
 from contact_sim import FEATURES, Contacts
 
 # ---------------------------------------------------------------------------- contacts
-#: One PointCloud2 point per contact. float64 for every physical quantity (bit-exact round trip),
-#: uint32 for the indices. ``x, y, z`` is the contact point (so RViz can show the cloud),
-#: ``normal_*`` the unit normal from B to A, ``depth`` > 0 when penetrating, ``impulse_*`` the total
-#: impulse on A during the step (N·s; B got its negative) = ``normal_impulse * normal +
-#: friction_impulse_*``, ``relative_normal_velocity`` n·(v_A − v_B) before the response (< 0
+#: One PointCloud2 point per contact. ``x, y, z`` (float32) is the contact point for display: RViz's
+#: PointCloud2 display takes only float32 ``x y z``. ``point_x/y/z`` (float64) is the same point at
+#: full precision, and every other physical quantity is float64 too (bit-exact round trip); uint32
+#: for the indices. ``normal_*`` is the unit normal from B to A, ``depth`` > 0 when penetrating,
+#: ``impulse_*`` the total impulse on A during the step (N·s; B got its negative) = ``normal_impulse *
+#: normal + friction_impulse_*``, ``relative_normal_velocity`` n·(v_A − v_B) before the response (< 0
 #: approaching), ``feature`` indexes ``contact_sim.FEATURES``, ``body_a``/``body_b`` index the body
-#: names published on ``body_names``. 132 bytes of fields padded to a 136-byte point (8-aligned).
+#: names published on ``body_names``. Each field at its natural alignment: a 152-byte point.
 CONTACT_FIELDS = (
-    ("x", np.float64), ("y", np.float64), ("z", np.float64),
+    ("x", np.float32), ("y", np.float32), ("z", np.float32),
+    ("point_x", np.float64), ("point_y", np.float64), ("point_z", np.float64),
     ("normal_x", np.float64), ("normal_y", np.float64), ("normal_z", np.float64),
     ("depth", np.float64),
     ("impulse_x", np.float64), ("impulse_y", np.float64), ("impulse_z", np.float64),
@@ -36,11 +38,24 @@ CONTACT_FIELDS = (
     ("relative_normal_velocity", np.float64),
     ("body_a", np.uint32), ("body_b", np.uint32), ("feature", np.uint32),
 )
-CONTACT_POINT_STEP = 136
+
+
+def _aligned_offsets(fields):
+    """Offsets with every field at a multiple of its own size, and the point size (a multiple of 8)."""
+    offsets, end = [], 0
+    for _, t in fields:
+        size = np.dtype(t).itemsize
+        end = (end + size - 1) // size * size
+        offsets.append(end)
+        end += size
+    return offsets, (end + 7) // 8 * 8
+
+
+_OFFSETS, CONTACT_POINT_STEP = _aligned_offsets(CONTACT_FIELDS)
 CONTACT_DTYPE = np.dtype({
     "names": [n for n, _ in CONTACT_FIELDS],
     "formats": [np.dtype(t).newbyteorder("<") for _, t in CONTACT_FIELDS],
-    "offsets": list(np.cumsum([0] + [np.dtype(t).itemsize for _, t in CONTACT_FIELDS])[:-1]),
+    "offsets": _OFFSETS,
     "itemsize": CONTACT_POINT_STEP,
 })
 
@@ -94,8 +109,11 @@ def contacts_to_array(contacts):
     a = np.zeros(k, CONTACT_DTYPE)
     if k == 0:
         return a
+    with np.errstate(over="ignore"):        # beyond float32's range: inf for display, exact in point_*
+        for ax, col in zip("xyz", contacts.point.T):
+            a[ax] = col
     for i, ax in enumerate("xyz"):
-        a[ax] = contacts.point[:, i]
+        a["point_" + ax] = contacts.point[:, i]
         a["normal_" + ax] = contacts.normal[:, i]
         a["impulse_" + ax] = contacts.impulse[:, i]
         a["friction_impulse_" + ax] = contacts.friction_impulse[:, i]
@@ -109,13 +127,14 @@ def contacts_to_array(contacts):
 
 
 def array_to_contacts(a):
-    """Structured array with the ``CONTACT_DTYPE`` field names → ``contact_sim.Contacts``."""
+    """Structured array with the ``CONTACT_DTYPE`` field names → ``contact_sim.Contacts`` (the
+    point from the float64 ``point_*`` fields; from ``x y z`` in a cloud without them)."""
     def vec(prefix):
         return np.stack([a[prefix + ax] for ax in "xyz"], axis=1).astype(np.float64, copy=False).reshape(-1, 3)
 
     return Contacts(
         body_a=a["body_a"].astype(np.int64), body_b=a["body_b"].astype(np.int64),
-        point=vec(""), normal=vec("normal_"), depth=a["depth"].astype(np.float64),
+        point=vec("point_" if "point_x" in a.dtype.names else ""), normal=vec("normal_"), depth=a["depth"].astype(np.float64),
         impulse=vec("impulse_"), normal_impulse=a["normal_impulse"].astype(np.float64),
         friction_impulse=vec("friction_impulse_"),
         relative_normal_velocity=a["relative_normal_velocity"].astype(np.float64),
@@ -266,6 +285,88 @@ def posearray_cdr(positions, orientations, frame_id, stamp_ns):
     flat[:, :3] = p
     flat[:, 3:] = q
     return b"\x00\x01\x00\x00" + head + flat.tobytes()
+
+
+def names_cdr(names):
+    """CDR of a ``sequence<string>`` (count, then each string with its NUL), to splice into a
+    message at a 4-aligned offset: its inner alignment does not depend on where it goes."""
+    out = bytearray(struct.pack("<I", len(names)))
+    for n in names:
+        b = n.encode("utf-8") + b"\0"
+        out += b"\0" * (_align(len(out), 4) - len(out))
+        out += struct.pack("<I", len(b)) + b
+    return bytes(out)
+
+
+def _header_cdr(frame_id, stamp_ns):
+    fid = frame_id.encode("utf-8") + b"\0"
+    return struct.pack("<iII", int(stamp_ns // 1_000_000_000), int(stamp_ns % 1_000_000_000), len(fid)) + fid
+
+
+def _doubles_seq(out, rows):
+    """Append a ``sequence`` of structs of doubles (``rows (N, k)``) to the CDR body ``out``."""
+    out += b"\0" * (_align(len(out), 4) - len(out))
+    out += struct.pack("<I", len(rows))
+    if len(rows):
+        out += b"\0" * (_align(len(out), 8) - len(out))
+        out += np.ascontiguousarray(rows, "<f8").tobytes()
+
+
+def multidof_cdr(names_blob, positions, orientations, linear, angular, force, torque, frame_id, stamp_ns):
+    """Serialized little-endian CDR of a ``sensor_msgs/MultiDOFJointState``, vectorised: ``names_blob``
+    from ``names_cdr`` (built once per body set), transforms from ``positions (N, 3)`` and
+    ``orientations (N, 4)``, twists from ``linear``/``angular (N, 3)``, wrenches from
+    ``force``/``torque (N, 3)``. Publishable as is with ``Publisher.publish(bytes)``."""
+    out = bytearray(_header_cdr(frame_id, stamp_ns))
+    out += b"\0" * (_align(len(out), 4) - len(out))
+    out += names_blob
+    _doubles_seq(out, np.hstack([positions, orientations]))
+    _doubles_seq(out, np.hstack([linear, angular]))
+    _doubles_seq(out, np.hstack([force, torque]))
+    return b"\x00\x01\x00\x00" + bytes(out)
+
+
+def multidof_to_arrays(msg, what="set_body_states"):
+    """``sensor_msgs/MultiDOFJointState`` → ``(names, positions (N, 3) | None, orientations (N, 4) |
+    None, linear (N, 3) | None, angular (N, 3) | None)``: an empty ``transforms`` or ``twist`` list is
+    None (that part unchanged). ``PoseError`` (``length``) when a non-empty list does not match the names."""
+    names = list(msg.joint_names)
+    n = len(names)
+    for label, items in (("transforms", msg.transforms), ("twist", msg.twist)):
+        if len(items) not in (0, n):
+            raise PoseError("length", f"{what}: {len(items)} {label} for {n} joint_names (give one per name, or none)")
+    p = q = v = w = None
+    if len(msg.transforms):
+        t = np.array([(x.translation.x, x.translation.y, x.translation.z, x.rotation.x, x.rotation.y, x.rotation.z,
+                       x.rotation.w) for x in msg.transforms], np.float64).reshape(n, 7)
+        p, q = t[:, :3], t[:, 3:]
+    if len(msg.twist):
+        t = np.array([(x.linear.x, x.linear.y, x.linear.z, x.angular.x, x.angular.y, x.angular.z)
+                      for x in msg.twist], np.float64).reshape(n, 6)
+        v, w = t[:, :3], t[:, 3:]
+    return names, p, q, v, w
+
+
+def contact_wrenches(contacts, origins, duration):
+    """Net contact force and torque ``(N, 3)`` on every body over ``duration`` seconds: the sum of
+    the impulses on it (``+impulse`` on A, ``-impulse`` on B) divided by ``duration``; the torque is
+    about the body's origin ``origins (N, 3)``, world frame."""
+    n = len(origins)
+    force, torque = np.zeros((n, 3)), np.zeros((n, 3))
+    if not len(contacts):
+        return force, torque
+    j = contacts.impulse / duration
+    a, b = contacts.body_a, contacts.body_b
+    ra, rb = contacts.point - origins[a], contacts.point - origins[b]
+    # torque about each body's origin: r_a × j on A, -(r_b × j) on B
+    ta = np.stack([ra[:, 1] * j[:, 2] - ra[:, 2] * j[:, 1], ra[:, 2] * j[:, 0] - ra[:, 0] * j[:, 2],
+                   ra[:, 0] * j[:, 1] - ra[:, 1] * j[:, 0]], axis=1)
+    tb = np.stack([rb[:, 1] * j[:, 2] - rb[:, 2] * j[:, 1], rb[:, 2] * j[:, 0] - rb[:, 0] * j[:, 2],
+                   rb[:, 0] * j[:, 1] - rb[:, 1] * j[:, 0]], axis=1)
+    for i in range(3):   # sums per body by bincount (np.add.at is ~10x slower)
+        force[:, i] = np.bincount(a, j[:, i], n) - np.bincount(b, j[:, i], n)
+        torque[:, i] = np.bincount(a, ta[:, i], n) - np.bincount(b, tb[:, i], n)
+    return force, torque
 
 
 class PoseError(ValueError):

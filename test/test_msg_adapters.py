@@ -67,20 +67,31 @@ def test_contacts_pointcloud2_round_trip_is_bit_exact_through_the_wire(k):
     assert wire.header.stamp.sec == 1_700_000_000 and wire.header.stamp.nanosec == 123_456_789
 
 
-def test_pointcloud2_layout_is_documented_and_float64():
-    msg = cv.contacts_to_pointcloud2(random_contacts(5), header())
-    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 5, 136, 5 * 136)
+def test_pointcloud2_layout_is_documented_rviz_xyz_float32_and_the_rest_float64():
+    """x y z float32 (RViz's PointCloud2 display takes nothing else), the exact point in point_x/y/z
+    (was: x y z float64 in a 136-byte point; now a 152-byte point, every field naturally aligned)."""
+    c = random_contacts(5)
+    msg = cv.contacts_to_pointcloud2(c, header())
+    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 5, 152, 5 * 152)
     assert not msg.is_bigendian and msg.is_dense
     fields = {f.name: f for f in msg.fields}
     assert list(fields) == [n for n, _ in cv.CONTACT_FIELDS]
-    for name in ("x", "y", "z", "normal_x", "depth", "impulse_z", "normal_impulse", "friction_impulse_y",
-                 "relative_normal_velocity"):
+    for name in ("x", "y", "z"):
+        assert fields[name].datatype == PointField.FLOAT32 and fields[name].count == 1
+    assert [fields[n].offset for n in ("x", "y", "z")] == [0, 4, 8]
+    for name in ("point_x", "point_y", "point_z", "normal_x", "depth", "impulse_z", "normal_impulse",
+                 "friction_impulse_y", "relative_normal_velocity"):
         assert fields[name].datatype == PointField.FLOAT64 and fields[name].count == 1
+        assert fields[name].offset % 8 == 0
     for name in ("body_a", "body_b", "feature"):
         assert fields[name].datatype == PointField.UINT32
     offsets = [f.offset for f in msg.fields]
     assert offsets == sorted(offsets) and offsets[-1] + 4 <= msg.point_step
-    assert len(msg.data) == 5 * 136
+    assert len(msg.data) == 5 * 152
+    a = cv.pointcloud2_to_array(msg)
+    with np.errstate(over="ignore"):
+        np.testing.assert_array_equal(a["x"], c.point[:, 0].astype(np.float32))
+    assert_bits_equal(a["point_z"], c.point[:, 2])
 
 
 def count_python_work(fn):
@@ -241,3 +252,49 @@ def test_diagnostics_round_trip():
     d = cv.diagnostics_to_dict(msg, "contact_sim: world")
     assert d == {"contacts": "3", "energy_J": "1.25", "paused": "false", "scene": "x.yaml"}
     assert cv.diagnostics_to_dict(msg, "other") is None
+
+
+@pytest.mark.parametrize("frame, names", [("", []), ("w", ["a"]), ("world", ["ground", "paddle", "ball"]),
+                                          ("abc", ["xxxxx", "yy", "z"])])
+def test_multidof_cdr_round_trip_through_rclpy(frame, names):
+    """The MultiDOFJointState written as bytes (alignment after every string) reads back exactly."""
+    from sensor_msgs.msg import MultiDOFJointState
+
+    rng = np.random.default_rng(len(names))
+    n = len(names)
+    p, q, v, w, f, t = (rng.standard_normal((n, k)) for k in (3, 4, 3, 3, 3, 3))
+    data = cv.multidof_cdr(cv.names_cdr(names), p, q, v, w, f, t, frame, 1_700_000_000_123_456_789)
+    msg = deserialize_message(data, MultiDOFJointState)
+    assert msg.header.frame_id == frame and cv.stamp_to_ns(msg.header.stamp) == 1_700_000_000_123_456_789
+    assert len(serialize_message(msg)) == len(data)
+    got_names, p2, q2, v2, w2 = cv.multidof_to_arrays(msg)
+    assert got_names == names
+    if n:
+        for a, b in ((p, p2), (q, q2), (v, v2), (w, w2)):
+            assert_bits_equal(a, b)
+        wrench = np.array([(x.force.x, x.force.y, x.force.z, x.torque.x, x.torque.y, x.torque.z) for x in msg.wrench])
+        assert_bits_equal(wrench, np.hstack([f, t]))
+    else:
+        assert p2 is None and v2 is None
+    msg.twist = msg.twist[:1] if n > 1 else msg.twist
+    if n > 1:
+        with pytest.raises(cv.PoseError, match="1 twist for"):
+            cv.multidof_to_arrays(msg)
+
+
+def test_contact_wrenches_sum_impulses_per_body():
+    c = random_contacts(300, seed=5)
+    c.body_a, c.body_b = c.body_a % 7, c.body_b % 7
+    c.point, c.impulse = np.random.default_rng(1).standard_normal((2, 300, 3))
+    origins = np.random.default_rng(2).standard_normal((9, 3))
+    force, torque = cv.contact_wrenches(c, origins, 0.01)
+    f_ref, t_ref = np.zeros((9, 3)), np.zeros((9, 3))
+    j = c.impulse / 0.01
+    np.add.at(f_ref, c.body_a, j)
+    np.add.at(f_ref, c.body_b, -j)
+    np.add.at(t_ref, c.body_a, np.cross(c.point - origins[c.body_a], j))
+    np.add.at(t_ref, c.body_b, -np.cross(c.point - origins[c.body_b], j))
+    np.testing.assert_allclose(force, f_ref, atol=1e-9)
+    np.testing.assert_allclose(torque, t_ref, atol=1e-9)
+    np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-9)      # action and reaction
+    assert not force[7:].any() and not torque[7:].any()
