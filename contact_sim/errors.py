@@ -5,6 +5,11 @@ class ContactSimError(ValueError):
     """Bad input to the engine: names what was wrong and why. World state is unchanged."""
 
 
+class BoundsError(ContactSimError):
+    """A finite value beyond a world bound (``settings.max_position``, ``max_speed``, ...): refused
+    like any bad input, but a caller may count it apart (the node's ``out_of_bounds`` poses)."""
+
+
 class SceneError(ContactSimError):
     """A scene failed validation; ``path`` is the dotted location in the scene (``bodies[3].mass``)."""
 

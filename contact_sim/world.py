@@ -4,18 +4,18 @@ Internally a body's position is its centre of mass and its collision geometry is
 relative to it; ``World.body()`` and ``World.set_pose()`` speak of the body frame the user
 gave (for primitives the two coincide).
 """
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import dynamics, quat
 from .contacts import Contacts
-from .errors import ContactSimError
+from .errors import BoundsError, ContactSimError
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .shapes import Plane, Shape
-from .validate import positive as _positive
-from .validate import unit_quaternion as _unit_quaternion
-from .validate import vector as _vector
+from .validate import (ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, POSITIONS, STAMP,
+                       VELOCITY, Choice, Nested, Vector, show)
 
 KINDS = ("static", "kinematic", "dynamic")
 MODELS = ("rigid", "particle")
@@ -65,14 +65,45 @@ class _State:
         return c
 
 
+def _length(value):
+    """``len(value)`` of a list, tuple or array with at least one dimension, else None."""
+    if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim > 0):
+        return len(value)
+    return None
+
+
+def _rows(check, value, m, path, row_path, settings, row_rule):
+    """``check`` an ``(m, n)`` batch; when it is refused and the batch has ``m`` rows, name the
+    first bad row by checking the rows one by one with ``row_rule``."""
+    try:
+        return check(value, path, settings, count=m, row_path=row_path)
+    except ContactSimError:
+        if _length(value) == m:
+            for i in range(m):
+                row_rule.check(value[i], row_path(i), settings)
+        raise
+
+
 class World:
-    """A rigid-body world. See the package docstring for the public contract."""
+    """A rigid-body world. See the package docstring for the public contract.
+
+    Every public method checks its arguments before it changes anything (``contact_sim.validate``;
+    world bounds from ``settings``): a refused call raises ``ContactSimError`` naming the argument
+    and leaves the world bit-identical. ``settings`` and ``gravity`` are checked when assigned too.
+    """
 
     def __init__(self, gravity=(0.0, 0.0, -9.81), settings=None, materials=None):
-        self.gravity = _vector(gravity, 3, "gravity")
-        self.settings = settings if settings is not None else Settings()
+        """``gravity (3,)`` m/s²; ``settings``: a ``Settings`` or a mapping of its fields;
+        ``materials``: a mapping of name → ``Material`` (or a mapping of its fields)."""
+        self.settings = Settings() if settings is None else settings
+        self.gravity = gravity
+        if materials is not None and not isinstance(materials, Mapping):
+            raise ContactSimError(f"materials: must be a mapping of name → Material, got {type(materials).__name__}")
         self.materials = {DEFAULT_MATERIAL: Material()}
-        self.materials.update(materials or {})
+        for key, mat in (materials or {}).items():
+            if not isinstance(key, str) or not key:
+                raise ContactSimError(f"materials: names must be non-empty strings, got {show(key)}")
+            self.materials[key] = Nested(Material).check(mat, f"materials[{key!r}]")
         self.time = 0.0
         self.contacts = Contacts.empty()
         self._names = []
@@ -95,6 +126,24 @@ class World:
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
         self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
+
+    @property
+    def settings(self):
+        """The world's ``Settings`` (model choices and world bounds); each field is checked when set."""
+        return self._settings
+
+    @settings.setter
+    def settings(self, value):
+        self._settings = Nested(Settings).check(value, "settings")
+
+    @property
+    def gravity(self):
+        """Gravity ``(3,)`` m/s², at most ``settings.max_speed / settings.max_step`` long."""
+        return self._gravity
+
+    @gravity.setter
+    def gravity(self, value):
+        self._gravity = GRAVITY.check(value, "gravity", self._settings)
 
     # ------------------------------------------------------------------ bodies
     @property
@@ -125,29 +174,27 @@ class World:
         group intersects the other's mask. ``where`` prefixes error messages (the scene path).
         """
         w = where or f"body {name!r}"
+        st = self.settings
         if not isinstance(name, str) or not name:
-            raise ContactSimError(f"{w}.name: must be a non-empty string, got {name!r}")
+            raise ContactSimError(f"{w}.name: must be a non-empty string, got {show(name)}")
         if name in self._index:
             raise ContactSimError(f"{w}.name: duplicate body name {name!r}")
         if not isinstance(shape, Shape):
             raise ContactSimError(f"{w}.shape: must be a contact_sim shape, got {type(shape).__name__}")
-        if kind not in KINDS:
-            raise ContactSimError(f"{w}.kind: must be one of {', '.join(KINDS)}; got {kind!r}")
-        if model not in MODELS:
-            raise ContactSimError(f"{w}.model: must be one of {', '.join(MODELS)}; got {model!r}")
-        if material not in self.materials:
-            raise ContactSimError(f"{w}.material: unknown material {material!r} "
+        Choice(KINDS).check(kind, f"{w}.kind")
+        Choice(MODELS).check(model, f"{w}.model")
+        if not isinstance(material, str) or material not in self.materials:
+            raise ContactSimError(f"{w}.material: unknown material {show(material)} "
                                   f"(materials: {', '.join(self.materials)})")
-        tol = self.settings.quaternion_tolerance
-        pos = _vector(position, 3, f"{w}.position")
-        q = _unit_quaternion(orientation, f"{w}.orientation", tol)
-        vel = _vector(velocity, 3, f"{w}.velocity")
-        omega = _vector(angular_velocity, 3, f"{w}.angular_velocity")
-        for label, value in (("group", group), ("mask", mask)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= ALL_GROUPS:
-                raise ContactSimError(f"{w}.{label}: must be an integer bit mask in [0, 2^32), got {value!r}")
+        pos = POSITION.check(position, f"{w}.position", st)
+        q = ORIENTATION.check(orientation, f"{w}.orientation", st)
+        vel = VELOCITY.check(velocity, f"{w}.velocity", st)
+        omega = ANGULAR_VELOCITY.check(angular_velocity, f"{w}.angular_velocity", st)
+        group = GROUP.check(group, f"{w}.group")
+        mask = GROUP.check(mask, f"{w}.mask")
         if mass is not None and density is not None:
             raise ContactSimError(f"{w}: give mass or density, not both")
+        shape.check_fits(st, f"{w}.shape")
 
         com = np.zeros(3)
         inertia = np.zeros((3, 3))
@@ -156,20 +203,22 @@ class World:
             if isinstance(shape, Plane):
                 raise ContactSimError(f"{w}.shape: a plane is a half-space with no mass; make the body static or kinematic")
             if mass is not None:
-                body_mass = _positive(mass, f"{w}.mass")
+                body_mass = MASS.check(mass, f"{w}.mass", st)
                 try:
                     m1, com, i1 = shape.mass_properties(1.0)
                 except ContactSimError as exc:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
                 inertia = i1 * (body_mass / m1)  # uniform density
             else:
-                rho = DEFAULT_DENSITY if density is None else _positive(density, f"{w}.density")
+                rho = DEFAULT_DENSITY if density is None else DENSITY.check(density, f"{w}.density")
                 try:
                     body_mass, com, inertia = shape.mass_properties(rho)
                 except ContactSimError as exc:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
+                MASS.check(body_mass, f"{w}.{'density' if density is not None else 'shape'} "
+                                      f"(a mass of {body_mass:.3g} kg at {rho:g} kg/m³)", st)
         elif mass is not None or density is not None:
-            _positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
+            DENSITY.check(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
         # centre the geometry on the centre of mass (round-off-sized offsets are not worth a copy)
         scale = max(float(np.ptp(getattr(shape, "vertices", np.zeros((1, 3))), axis=0).max()), 1e-12)
         centered = shape.translated(-com) if np.abs(com).max() > 1e-12 * scale else shape
@@ -178,9 +227,15 @@ class World:
 
         rotates = kind == "dynamic" and model == "rigid"
         if rotates:
+            if not np.all(np.isfinite(inertia)):
+                raise ContactSimError(f"{w}.shape: its inertia is not finite ({inertia.tolist()})")
             moments, pq = dynamics.principal_frame(inertia[None])
             moments, pq = moments[0], pq[0]
-            inv_inertia = np.linalg.inv(inertia)
+            with np.errstate(all="ignore"):
+                inv_inertia = np.linalg.inv(inertia) if np.all(moments > 0) else np.full((3, 3), np.nan)
+            if not np.all(np.isfinite(inv_inertia)):
+                raise ContactSimError(f"{w}.shape: its inertia (principal moments {moments.tolist()} kg·m²) cannot "
+                                      f"be inverted: the body is too thin or too light to rotate (model: particle?)")
         else:
             moments, pq = np.full(3, np.inf), np.array([0.0, 0.0, 0.0, 1.0])
             inv_inertia = np.zeros((3, 3))
@@ -250,13 +305,23 @@ class World:
         """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time
         ``stamp`` (s; default the world time). From the second pose on its linear and angular
         velocity are the finite differences of successive poses over their stamps, so responses
-        see how fast it really moves. Stamps must increase. Bad input changes nothing."""
-        self.set_poses([name], [position], [orientation], stamp)
+        see how fast it really moves. Stamps must increase. Bad input changes nothing; a position
+        beyond ``settings.max_position`` or a pose implying a speed beyond ``max_speed`` /
+        ``max_angular_speed`` raises ``BoundsError``."""
+        self._set_poses([name], [position], [orientation], stamp, single=True)
 
     def set_poses(self, names, positions, orientations, stamp=None):
         """``set_pose`` for several kinematic bodies at one ``stamp``, vectorised: ``names (M,)``,
         ``positions (M, 3)``, ``orientations (M, 4)``. The whole batch is checked before anything
-        changes, so a bad row leaves every body as it was; errors name the body and the reason."""
+        changes, so a bad row leaves every body as it was; errors name the body and the reason.
+        An empty batch changes nothing."""
+        self._set_poses(names, positions, orientations, stamp, single=False)
+
+    def _set_poses(self, names, positions, orientations, stamp, single):
+        st = self.settings
+        call = "set_pose" if single else "set_poses"
+        if isinstance(names, (str, bytes)) or not hasattr(names, "__iter__"):
+            raise ContactSimError(f"set_poses.names: must be a list of body names, got {show(names)}")
         names = list(names)
         m = len(names)
         idx = np.array([self.index(n) for n in names], dtype=np.int64)
@@ -271,63 +336,62 @@ class World:
             i = bad[0]
             raise ContactSimError(f"{where(i)}: only kinematic bodies are posed from outside; {names[i]!r} is "
                                   f"{KINDS[self.kind[idx[i]]]} (use set_state for dynamic bodies)")
-        try:
-            pos = np.asarray(positions, dtype=float)
-            q = np.asarray(orientations, dtype=float)
-            ok = pos.shape == (m, 3) and q.shape == (m, 4) and bool(np.isfinite(pos).all() and np.isfinite(q).all())
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:  # the slow path only finds and names the first bad row
-            if len(positions) != m or len(orientations) != m:
-                raise ContactSimError(f"set_poses: {m} names but {len(positions)} positions and "
-                                      f"{len(orientations)} orientations")
-            for i in range(m):
-                _vector(positions[i], 3, f"{where(i)}.position")
-                _vector(orientations[i], 4, f"{where(i)}.orientation")
-        norm = np.linalg.norm(q, axis=1)
-        bad = np.flatnonzero(np.abs(norm - 1.0) > self.settings.quaternion_tolerance)
-        if bad.size:
-            _unit_quaternion(q[bad[0]], f"{where(bad[0])}.orientation", self.settings.quaternion_tolerance)
-        q = q / norm[:, None]
-        t = self.time if stamp is None else stamp
-        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
-            raise ContactSimError(f"{where(0) if m == 1 else 'set_poses'}.stamp: must be a finite number of "
-                                  f"seconds, got {stamp!r}")
-        t = float(t)
+        lengths = [_length(positions), _length(orientations)]
+        if None not in lengths and lengths != [m, m]:
+            raise ContactSimError(f"set_poses: {m} names but {lengths[0]} positions and {lengths[1]} orientations")
+        pos = _rows(POSITIONS.check, positions, m, f"{call}.positions", lambda i: f"{where(i)}.position", st,
+                    POSITION)
+        q = _rows(ORIENTATION.check_rows, orientations, m, f"{call}.orientations",
+                  lambda i: f"{where(i)}.orientation", st, ORIENTATION)
+        t = self.time if stamp is None else STAMP.check(stamp, f"{where(0) if single else 'set_poses'}.stamp")
         s = self.s
         posed = s.posed[idx]
         bad = np.flatnonzero(posed & (t - s.stamp[idx] <= 0))
         if bad.size:
             i = bad[0]
             raise ContactSimError(f"{where(i)}.stamp: must be after the previous pose ({s.stamp[idx[i]]!r}), got {t!r}")
-        # ---- commit (nothing below can fail)
         com_world = pos + quat.rotate(q, self.com_local[idx])
         j, ij = np.flatnonzero(posed), idx[posed]
-        if j.size:
+        if j.size:   # velocities: finite differences over the stamps, within the world's speed bounds
             dt = (t - s.stamp[ij])[:, None]
             q_prev = s.quat[ij]
             qj = np.where(np.sum(q[j] * q_prev, axis=1, keepdims=True) < 0, -q[j], q[j])  # shorter way round
             q[j] = qj
-            s.omega[ij] = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev))) / dt
-            s.vel[ij] = (com_world[j] - s.pos[ij]) / dt
+            with np.errstate(over="ignore"):   # stamps a hair apart: an infinite speed, refused below
+                omega = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev))) / dt
+                vel = (com_world[j] - s.pos[ij]) / dt
+            for v, bound, unit in ((vel, "max_speed", "m/s"), (omega, "max_angular_speed", "rad/s")):
+                with np.errstate(over="ignore", invalid="ignore"):
+                    speed = np.linalg.norm(v, axis=1)
+                over = np.flatnonzero(~(speed <= getattr(st, bound)))   # NaN (inf - inf) counts as over
+                if over.size:
+                    k = int(over[0])
+                    raise BoundsError(f"{where(j[k])}: moving since the previous pose {float(dt[k, 0]):.6g} s ago "
+                                      f"implies {speed[k]:.6g} {unit}, above {bound} ({getattr(st, bound):g} {unit})")
+        # ---- commit (nothing below can fail)
+        if j.size:
+            s.omega[ij] = omega
+            s.vel[ij] = vel
         s.pos[idx] = com_world
         s.quat[idx] = q
         s.stamp[idx] = t
         s.posed[idx] = True
 
     def set_state(self, name, position=None, orientation=None, velocity=None, angular_velocity=None):
-        """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first."""
+        """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first,
+        world bounds included; ``None`` keeps that part."""
         i = self.index(name)
         if self.kind[i] == STATIC:
             raise ContactSimError(f"set_state({name!r}): {name!r} is static and never moves")
         s = self.s
-        q = s.quat[i] if orientation is None else _unit_quaternion(
-            orientation, f"set_state({name!r}).orientation", self.settings.quaternion_tolerance)
-        pos = None if position is None else _vector(position, 3, f"set_state({name!r}).position")
-        vel = None if velocity is None else _vector(velocity, 3, f"set_state({name!r}).velocity")
-        om = None if angular_velocity is None else _vector(angular_velocity, 3, f"set_state({name!r}).angular_velocity")
+        st = self.settings
+        w = f"set_state({name!r})"
+        q = s.quat[i] if orientation is None else ORIENTATION.check(orientation, f"{w}.orientation", st)
+        pos = None if position is None else POSITION.check(position, f"{w}.position", st)
+        vel = None if velocity is None else VELOCITY.check(velocity, f"{w}.velocity", st)
+        om = None if angular_velocity is None else ANGULAR_VELOCITY.check(angular_velocity, f"{w}.angular_velocity", st)
         if om is not None and self.particle[i] and np.any(om != 0):
-            raise ContactSimError(f"set_state({name!r}).angular_velocity: a particle does not rotate")
+            raise ContactSimError(f"{w}.angular_velocity: a particle does not rotate")
         origin = s.pos[i] - quat.rotate(s.quat[i], self.com_local[i]) if pos is None else pos
         s.quat[i] = q
         s.pos[i] = origin + quat.rotate(q, self.com_local[i])
@@ -354,11 +418,10 @@ class World:
         return contacts
 
     def _check_dt(self, dt):
+        """``dt`` by the rule of ``settings.dt`` (> 0, at most ``settings.max_step``)."""
         if dt is None:
             return self.settings.dt
-        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)) or not np.isfinite(dt) or dt <= 0:
-            raise ContactSimError(f"step: dt must be a finite number of seconds > 0, got {dt!r}")
-        return float(dt)
+        return float(Settings.rule("dt").check(dt, "step.dt", self.settings))
 
     def _advance_free(self, dt):
         """Move every body as if nothing touched for ``dt``: dynamic bodies ballistically with
