@@ -32,12 +32,12 @@ import contact_sim
 from contact_sim.settings import parse_settings
 
 from .conversions import (CdrError, PoseError, contact_markers, contacts_to_pointcloud2, diagnostic_array,
-                          make_header, parse_posearray_cdr, posearray_cdr, validate_poses)
+                          engine_reject_reason, make_header, parse_posearray_cdr, posearray_cdr, validate_poses)
 
 NODE_NAME = "contact_sim"
 DIAG_NAME = "contact_sim: world"
 POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "non_unit_quaternion", "stamp",
-                       "frame_id", "engine")
+                       "frame_id", "out_of_bounds", "engine")
 MODEL_STRING = {  # parameter -> engine setting; "" keeps the scene's value
     "model.toi": "toi", "model.response": "response", "model.friction": "friction", "model.resting": "resting",
 }
@@ -323,8 +323,8 @@ class ContactSimNode(Node):
         t = (stamp_ns - self._t0_ns) * 1e-9
         try:  # checked as a whole by the engine: a refused batch changes nothing
             self.world.set_poses(self.tracked, p, q, t)
-        except contact_sim.ContactSimError as exc:
-            return self._reject_pose("engine", str(exc))
+        except contact_sim.ContactSimError as exc:   # out_of_bounds: beyond a world bound (settings.max_*)
+            return self._reject_pose(engine_reject_reason(exc), str(exc))
         self._last_pose_stamp_ns = stamp_ns
         self._last_rx[:] = now_ns * 1e-9
         self._held_pos, self._held_quat = p, q
