@@ -19,6 +19,7 @@ class Shape:
 
     type = "shape"
     finite = True
+    size_field = "size"   # the argument that sets the shape's size, named when it is out of bounds
 
     def mass_properties(self, density):
         """``(mass, center_of_mass (3,), inertia (3, 3) about the center of mass)`` for a density."""
@@ -37,8 +38,8 @@ class Shape:
         """Refuse (``BoundsError`` naming ``path``) a shape outside the world's size bounds:
         thinner than ``settings.min_size`` or reaching farther than ``settings.max_size``."""
         thin, reach = self.sizes()
-        THINNEST.check(thin, f"{path} (its thinnest extent)", settings)
-        REACH.check(reach, f"{path} (its reach from its origin)", settings)
+        THINNEST.check(thin, f"{path}.{self.size_field} (thickness)", settings)
+        REACH.check(reach, f"{path}.{self.size_field} (reach from the origin)", settings)
 
 
 class Plane(Shape):
@@ -73,6 +74,7 @@ class Plane(Shape):
 
 class Sphere(Shape):
     type = "sphere"
+    size_field = "radius"
 
     def __init__(self, radius, *, name="sphere"):
         self.radius = LENGTH.check(radius, f"{name}.radius")
@@ -231,6 +233,7 @@ class Convex(Polyhedron):
     """Convex polyhedron: the convex hull (trimesh/qhull) of ``points (N, 3)``, N ≥ 4, not coplanar."""
 
     type = "convex"
+    size_field = "points"
 
     def __init__(self, points, *, name="convex"):
         import trimesh
@@ -283,6 +286,7 @@ class TriMesh(Polyhedron):
 
     type = "mesh"
     convex = False
+    size_field = "vertices"
 
     def __init__(self, vertices, faces, *, name="mesh"):
         import trimesh
@@ -303,6 +307,8 @@ class TriMesh(Polyhedron):
         area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         scale = max(float(np.ptp(v, axis=0).max()), _TINY)
         keep = area2 > 1e-12 * scale * scale
+        if not np.ptp(v, axis=0).any():
+            raise ContactSimError(f"{name}.vertices: all {len(v)} vertices are the same point {v[0].tolist()}")
         if not keep.any():
             raise ContactSimError(f"{name}.faces: every triangle has zero area")
         f = f[keep]  # degenerate slivers carry no surface; dropping them keeps normals finite

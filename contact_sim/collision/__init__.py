@@ -37,7 +37,7 @@ from ..errors import ContactSimError
 from ..memo import derived
 from ..settings import Settings
 from ..shapes import Shape
-from ..validate import ANY_ORIENTATION, POSITION, POSITIONS, Flag, Nested, Rows
+from ..validate import ANY_ORIENTATION, POSITION, POSITIONS, Flag, Nested, Rows, show
 from . import bounding, broadphase, narrow
 from .geometry import PolyTable, pad_row, poly_geom
 
@@ -406,6 +406,10 @@ def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_v
     for i, s in enumerate(shapes):
         _check_shape(s, f"collide_pairs: shapes[{i}]", st)
     n = len(shapes)
+    lengths = [len(v) if isinstance(v, (list, tuple)) or (isinstance(v, np.ndarray) and v.ndim) else None
+               for v in (positions, orientations)]
+    if None not in lengths and lengths != [n, n]:
+        raise ContactSimError(f"collide_pairs: {n} shapes but {lengths[0]} positions and {lengths[1]} orientations")
     pos = POSITIONS.check(positions, "collide_pairs: positions", st, count=n, what="positions")
     q = ANY_ORIENTATION.check_rows(orientations, "collide_pairs: orientations", st, count=n)
     pairs = _check_pairs(pairs, n)
@@ -425,9 +429,9 @@ def _check_pairs(pairs, n):
     bad = np.flatnonzero(np.any((p < 0) | (p >= n), axis=1))
     if bad.size:
         i = int(bad[0])
-        raise ContactSimError(f"{what}[{i}]: indices must be in [0, {n - 1}], got {p[i].astype(np.int64).tolist()}")
+        raise ContactSimError(f"{what}[{i}]: indices must be in [0, {n - 1}], got {show(p[i])}")
     same = np.flatnonzero(p[:, 0] == p[:, 1])
     if same.size:
         i = int(same[0])
-        raise ContactSimError(f"{what}[{i}]: a shape cannot be paired with itself, got {p[i].astype(np.int64).tolist()}")
+        raise ContactSimError(f"{what}[{i}]: a shape cannot be paired with itself, got {show(p[i])}")
     return p.astype(np.int64)
