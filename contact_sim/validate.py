@@ -51,20 +51,30 @@ def _num(x, unit=""):
     return f"{text} {unit}".rstrip() if unit else text
 
 
-def _resolve(bound, ctx, unit):
-    """``(value, label, is_world_bound)`` of a bound, or None when it names a setting and there
-    are no settings to read it from (a constructor still filling its fields)."""
-    if bound is None:
+def _resolve(bound, ctx):
+    """The value of a bound (a number, a setting's name, or ``callable(settings) -> (value,
+    label)``), or None when there is none or no settings to read it from (a constructor still
+    filling its fields)."""
+    if bound is None or isinstance(bound, (int, float)):
+        return bound
+    if ctx is None:
         return None
-    if callable(bound):
-        return None if ctx is None else (*bound(ctx), True)
+    return getattr(ctx, bound) if isinstance(bound, str) else bound(ctx)[0]
+
+
+def _label(bound, ctx, unit):
+    """``(text, is_world_bound)`` of a bound, for an error message."""
     if isinstance(bound, str):
-        if ctx is None:
-            return None
-        v = getattr(ctx, bound)
-        world = isinstance(ctx, Declared) and bound in ctx.world_bounds()
-        return v, f"{bound} ({_num(v, unit)})", world
-    return bound, _num(bound, unit if bound else ""), False
+        return f"{bound} ({_num(getattr(ctx, bound), unit)})", isinstance(ctx, Declared) and bound in ctx.world_bounds()
+    if callable(bound):
+        return bound(ctx)[1], True
+    return _num(bound, unit if bound else ""), False
+
+
+def _refuse(path, relation, bound, ctx, unit, got):
+    label, world = _label(bound, ctx, unit)
+    sep = "" if relation.endswith("±") else " "
+    raise (BoundsError if world else ContactSimError)(f"{path}: {relation}{sep}{label}{got}")
 
 
 class Rule:
@@ -98,12 +108,11 @@ class Number(Rule):
     def range_text(self, ctx=None):
         parts = []
         for op in ("gt", "ge", "lt", "le"):
-            r = _resolve(getattr(self, op), ctx, self.unit)
-            if r is not None:
-                parts.append(f"{_SYMBOL[op]} {r[1]}")
-        r = _resolve(self.bound, ctx, self.unit)
-        if r is not None:
-            parts.append(f"within ±{r[1]}")
+            b = getattr(self, op)
+            if _resolve(b, ctx) is not None:
+                parts.append(f"{_SYMBOL[op]} {_label(b, ctx, self.unit)[0]}")
+        if _resolve(self.bound, ctx) is not None:
+            parts.append(f"within ±{_label(self.bound, ctx, self.unit)[0]}")
         return " and ".join(parts)
 
     def check(self, value, path, ctx=None):
@@ -124,17 +133,14 @@ class Number(Rule):
                 raise ContactSimError(f"{path}: must be a whole number, got {show(value)}")
             x = int(value) if isinstance(value, numbers.Integral) else int(x)
         for op in ("gt", "ge", "lt", "le"):
-            r = _resolve(getattr(self, op), ctx, self.unit)
-            if r is None:
+            b = _resolve(getattr(self, op), ctx)
+            if b is None:
                 continue
-            b, label, world = r
-            ok = x > b if op == "gt" else x >= b if op == "ge" else x < b if op == "lt" else x <= b
-            if not ok:
-                raise (BoundsError if world else ContactSimError)(
-                    f"{path}: must be {_SYMBOL[op]} {label}, got {show(value)}")
-        r = _resolve(self.bound, ctx, self.unit)
-        if r is not None and abs(x) > r[0]:
-            raise (BoundsError if r[2] else ContactSimError)(f"{path}: must be within ±{r[1]}, got {show(value)}")
+            if not (x > b if op == "gt" else x >= b if op == "ge" else x < b if op == "lt" else x <= b):
+                _refuse(path, f"must be {_SYMBOL[op]}", getattr(self, op), ctx, self.unit, f", got {show(value)}")
+        b = _resolve(self.bound, ctx)
+        if b is not None and abs(x) > b:
+            _refuse(path, "must be within ±", self.bound, ctx, self.unit, f", got {show(value)}")
         return x
 
 
@@ -199,10 +205,17 @@ class Nested(Rule):
 
 # ---------------------------------------------------------------------------- arrays
 def _has_bool(value):
-    if isinstance(value, (bool, np.bool_)):
-        return True
-    if isinstance(value, (list, tuple)):
-        return any(_has_bool(v) for v in value)
+    """A boolean anywhere in nested lists/tuples (numpy would read it as 0 or 1)."""
+    if not isinstance(value, (list, tuple)):
+        return isinstance(value, (bool, np.bool_))
+    stack = [value]
+    while stack:
+        for x in stack.pop():
+            t = type(x)
+            if t is bool or t is np.bool_:
+                return True
+            if t is list or t is tuple:
+                stack.append(x)
     return False
 
 
@@ -218,28 +231,30 @@ def numbers_array(value, path, expect):
     return a.astype(float)
 
 
-def _bounds_of(rule, ctx):
-    return _resolve(rule.bound, ctx, rule.unit), _resolve(rule.norm_bound, ctx, rule.unit)
+def _norms(a):
+    """Row lengths of ``a (M, n)``, without overflow in the squares of entries beyond 1e150."""
+    if not a.size or np.abs(a).max() < 1e150:
+        return np.linalg.norm(a, axis=1)
+    big = np.abs(a).max(axis=1)
+    scale = np.where(big > 0, big, 1.0)[:, None]
+    return big * np.linalg.norm(a / scale, axis=1)
 
 
 def _check_row_bounds(rule, a, row_path, ctx):
     """World bounds of the rows of ``a (M, n)``; errors name ``row_path(i)``."""
-    box, ball = _bounds_of(rule, ctx)
+    box = _resolve(rule.bound, ctx)
     if box is not None:
-        bad = np.flatnonzero(np.abs(a).max(axis=1, initial=0.0) > box[0])
-        if bad.size:
-            i = int(bad[0])
-            raise (BoundsError if box[2] else ContactSimError)(
-                f"{row_path(i)}: every coordinate must be within ±{box[1]}, got {a[i].tolist()}")
+        over = np.abs(a) > box
+        if over.any():
+            i = int(np.argmax(over.any(axis=1)))
+            _refuse(row_path(i), "every coordinate must be within ±", rule.bound, ctx, rule.unit, f", got {a[i].tolist()}")
+    ball = _resolve(rule.norm_bound, ctx)
     if ball is not None:
-        big = np.abs(a).max(axis=1, initial=0.0)
-        scale = np.where(big > 0, big, 1.0)[:, None]
-        norm = big * np.linalg.norm(a / scale, axis=1)   # no overflow in the squares of huge entries
-        bad = np.flatnonzero(norm > ball[0])
-        if bad.size:
-            i = int(bad[0])
-            raise (BoundsError if ball[2] else ContactSimError)(
-                f"{row_path(i)}: magnitude {_num(norm[i], rule.unit)} is above {ball[1]}")
+        norm = _norms(a)
+        over = norm > ball
+        if over.any():
+            i = int(np.argmax(over))
+            _refuse(row_path(i), f"magnitude {_num(norm[i], rule.unit)} is above", rule.norm_bound, ctx, rule.unit, "")
 
 
 @dataclass(frozen=True)
@@ -288,9 +303,9 @@ class Rows(Rule):
             raise ContactSimError(f"{path}: must be an {shape} array, got {len(a)} {what}")
         if len(a) < min_rows:
             raise ContactSimError(f"{path}: needs at least {min_rows} {what}, got {len(a)}")
-        bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
-        if bad.size:
-            i = int(bad[0])
+        finite = np.isfinite(a)
+        if not finite.all():
+            i = int(np.argmin(finite.all(axis=1)))
             raise ContactSimError(f"{row_path(i)}: must be finite, got {a[i].tolist()}")
         _check_row_bounds(self, a, row_path, ctx)
         return a
@@ -304,38 +319,39 @@ class Quaternion(Rule):
     tolerance: object = "quaternion_tolerance"
 
     def _unit(self, q, norm, path, ctx):
-        r = _resolve(self.tolerance, ctx, "")
-        tol = math.inf if r is None else r[0]
+        tol = _resolve(self.tolerance, ctx)
+        tol = math.inf if tol is None else tol
         if norm < 1e-12:
             raise ContactSimError(f"{path}: zero quaternion is not a rotation")
         if abs(norm - 1.0) > tol:
             raise ContactSimError(f"{path}: quaternion must be unit length (x, y, z, w), got norm {norm:.6g}")
 
     def check(self, value, path, ctx=None):
-        q = Vector(4).check(value, path)
+        q = _VECTOR4.check(value, path)
         return self.check_rows(q[None], path, ctx, row_path=lambda i: path)[0]
 
     def check_rows(self, value, path, ctx=None, count=None, row_path=None):
         """``(M, 4)`` quaternions, returned normalised; errors name ``row_path(i)``."""
         row_path = row_path or (lambda i: f"{path}[{i}]")
-        q = Rows(4).check(value, path, count=count, row_path=row_path, what="orientations")
-        with np.errstate(over="ignore"):
-            norm = np.linalg.norm(q, axis=1)
-        huge = ~np.isfinite(norm)
-        r = _resolve(self.tolerance, ctx, "")
-        tol = math.inf if r is None else r[0]
-        huge = ~np.isfinite(norm)
-        if huge.any():   # entries beyond 1e154: far from unit length, or (any tolerance) scaled first
-            i = int(np.flatnonzero(huge)[0])
+        q = _ROWS4.check(value, path, count=count, row_path=row_path, what="orientations")
+        tol = _resolve(self.tolerance, ctx)
+        tol = math.inf if tol is None else tol
+        huge = np.abs(q).max(axis=1, initial=0.0) >= 1e150
+        if huge.any():   # far from unit length; or, with any length accepted, scaled first
             if math.isfinite(tol):
-                self._unit(q[i], math.inf, row_path(i), ctx)
+                i = int(np.argmax(huge))
+                self._unit(q[i], _norms(q[i:i + 1])[0], row_path(i), ctx)
             q[huge] /= np.abs(q[huge]).max(axis=1)[:, None]
-            norm[huge] = np.linalg.norm(q[huge], axis=1)
-        bad = np.flatnonzero((norm < 1e-12) | (np.abs(norm - 1.0) > tol))
-        if bad.size:
-            i = int(bad[0])
+        norm = np.linalg.norm(q, axis=1)
+        bad = (norm < 1e-12) | (np.abs(norm - 1.0) > tol)
+        if bad.any():
+            i = int(np.argmax(bad))
             self._unit(q[i], norm[i], row_path(i), ctx)
         return q / norm[:, None]
+
+
+_VECTOR4 = Vector(4)
+_ROWS4 = Rows(4)
 
 
 # ---------------------------------------------------------------------------- declared fields

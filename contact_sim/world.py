@@ -357,17 +357,18 @@ class World:
             q_prev = s.quat[ij]
             qj = np.where(np.sum(q[j] * q_prev, axis=1, keepdims=True) < 0, -q[j], q[j])  # shorter way round
             q[j] = qj
-            with np.errstate(over="ignore"):   # stamps a hair apart: an infinite speed, refused below
-                omega = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev))) / dt
-                vel = (com_world[j] - s.pos[ij]) / dt
-            for v, bound, unit in ((vel, "max_speed", "m/s"), (omega, "max_angular_speed", "rad/s")):
-                with np.errstate(over="ignore", invalid="ignore"):
-                    speed = np.linalg.norm(v, axis=1)
-                over = np.flatnonzero(~(speed <= getattr(st, bound)))   # NaN (inf - inf) counts as over
-                if over.size:
-                    k = int(over[0])
+            turn = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev)))
+            move = com_world[j] - s.pos[ij]
+            for d, bound, unit in ((move, "max_speed", "m/s"), (turn, "max_angular_speed", "rad/s")):
+                # compared before dividing: stamps a hair apart would overflow the quotient
+                over = np.linalg.norm(d, axis=1) > getattr(st, bound) * dt[:, 0]
+                if over.any():
+                    k = int(np.argmax(over))
+                    speed = float(np.linalg.norm(d[k])) / float(dt[k, 0])
                     raise BoundsError(f"{where(j[k])}: moving since the previous pose {float(dt[k, 0]):.6g} s ago "
-                                      f"implies {speed[k]:.6g} {unit}, above {bound} ({getattr(st, bound):g} {unit})")
+                                      f"implies {speed:.6g} {unit}, above {bound} ({getattr(st, bound):g} {unit})")
+            omega = turn / dt
+            vel = move / dt
         # ---- commit (nothing below can fail)
         if j.size:
             s.omega[ij] = omega
