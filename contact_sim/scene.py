@@ -1,8 +1,6 @@
 """Scene files (YAML) → ``World``. Every error names its path in the scene and the reason."""
 import os
 
-import numpy as np
-
 from .errors import ContactSimError, SceneError
 from .settings import check_keys, parse_material, parse_settings
 from .shapes import Box, Convex, Plane, Sphere, TriMesh

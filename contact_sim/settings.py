@@ -80,7 +80,9 @@ class Settings(Declared):
 
 @dataclass(eq=True)
 class Material(Declared):
-    """Contact coefficients of a material; ``static_friction`` defaults to ``friction``."""
+    """Contact coefficients of a material; ``static_friction`` defaults to ``friction``. Checked
+    like ``Settings``; a later assignment that would put ``friction`` above ``static_friction`` is
+    refused (set ``static_friction`` first)."""
 
     LABEL = "material"
 

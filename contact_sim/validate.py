@@ -291,6 +291,8 @@ class Rows(Rule):
     norm_bound: object = None
     unit: str = ""
 
+    refs = Vector.refs
+
     def check(self, value, path, ctx=None, count=None, min_rows=0, row_path=None, what="rows"):
         row_path = row_path or (lambda i: f"{path}[{i}]")
         shape = f"({'M' if count is None else count}, {self.n})"
@@ -365,9 +367,8 @@ def declare(default, rule, doc="", world_bound=False):
     return field(default=default, metadata=meta)
 
 
-_RULES = {}
-
-_WORLD_BOUNDS = {}
+_RULES = {}          # Declared class -> {field: rule}
+_WORLD_BOUNDS = {}   # Declared class -> names of its world-bound fields
 
 
 class Declared:

@@ -15,10 +15,11 @@ from .errors import BoundsError, ContactSimError
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .shapes import Plane, Shape
 from .validate import (ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, POSITIONS, STAMP,
-                       VELOCITY, Choice, Nested, Vector, show)
+                       VELOCITY, Choice, Nested, show)
 
 KINDS = ("static", "kinematic", "dynamic")
 MODELS = ("rigid", "particle")
+_KIND, _MODEL = Choice(KINDS), Choice(MODELS)
 STATIC, KINEMATIC, DYNAMIC = 0, 1, 2
 DEFAULT_DENSITY = 1000.0  # kg/m³ (water), when neither mass nor density is given
 ALL_GROUPS = 0xFFFFFFFF
@@ -181,11 +182,14 @@ class World:
             raise ContactSimError(f"{w}.name: duplicate body name {name!r}")
         if not isinstance(shape, Shape):
             raise ContactSimError(f"{w}.shape: must be a contact_sim shape, got {type(shape).__name__}")
-        Choice(KINDS).check(kind, f"{w}.kind")
-        Choice(MODELS).check(model, f"{w}.model")
+        _KIND.check(kind, f"{w}.kind")
+        _MODEL.check(model, f"{w}.model")
         if not isinstance(material, str) or material not in self.materials:
             raise ContactSimError(f"{w}.material: unknown material {show(material)} "
                                   f"(materials: {', '.join(self.materials)})")
+        if not isinstance(self.materials[material], Material):   # world.materials is a plain dict
+            raise ContactSimError(f"{w}.material: world.materials[{material!r}] is not a Material, got "
+                                  f"{type(self.materials[material]).__name__}")
         pos = POSITION.check(position, f"{w}.position", st)
         q = ORIENTATION.check(orientation, f"{w}.orientation", st)
         vel = VELOCITY.check(velocity, f"{w}.velocity", st)
