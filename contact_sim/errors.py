@@ -17,3 +17,8 @@ class SceneError(ContactSimError):
         self.path = path
         self.reason = reason
         super().__init__(f"{path}: {reason}" if path else reason)
+
+
+class EngineError(RuntimeError):
+    """A step that failed on valid input (an exception inside the engine, or a non-finite
+    result): an engine bug to report, not bad input. The world is as it was before the step."""

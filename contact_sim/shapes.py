@@ -154,6 +154,8 @@ class Polyhedron(Shape):
         """Set the bounding-slab directions ``(K, 3)`` (each a plane-pair normal) used when the
         bounding volume is ``slabs``; returns ``self``."""
         n = Rows(3).check(normals, f"{name}.slab_normals", min_rows=1, what="normals")
+        big = np.abs(n).max(axis=1)
+        n[big >= 1e150] /= big[big >= 1e150, None]   # directions: scaled first, so their squares stay finite
         length = np.linalg.norm(n, axis=1)
         if np.any(length < _TINY):
             raise ContactSimError(f"{name}.slab_normals: normal {int(np.argmin(length))} is zero")

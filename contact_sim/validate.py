@@ -222,6 +222,8 @@ def _has_bool(value):
 def numbers_array(value, path, expect):
     """``value`` as a new float array; refuses what is not plainly numbers (booleans, strings,
     None, ragged nesting, complex) with ``expect`` saying what was wanted."""
+    if type(value) is np.ndarray and value.dtype.kind == "f":   # the common case, at once
+        return value.astype(float)
     try:
         a = value if isinstance(value, np.ndarray) else np.asarray(value)
     except (TypeError, ValueError):   # ragged nesting
@@ -275,9 +277,14 @@ class Vector(Rule):
         a = numbers_array(value, path, f"{self.n} numbers")
         if a.shape != (self.n,):
             raise ContactSimError(f"{path}: must be {self.n} numbers, got {show(value)}")
-        if not np.isfinite(a).all():
-            raise ContactSimError(f"{path}: must be finite, got {a.tolist()}")
-        _check_row_bounds(self, a[None], lambda i: path, ctx)
+        box = _resolve(self.bound, ctx)
+        top = float(np.abs(a).max())
+        if not (top < math.inf and (box is None or top <= box)):   # one reduction on the common path; NaN fails
+            if not np.isfinite(a).all():
+                raise ContactSimError(f"{path}: must be finite, got {a.tolist()}")
+            _check_row_bounds(self, a[None], lambda i: path, ctx)
+        if self.norm_bound is not None:
+            _check_row_bounds(self, a[None], lambda i: path, ctx)
         return a
 
 
@@ -330,7 +337,12 @@ class Quaternion(Rule):
 
     def check(self, value, path, ctx=None):
         q = _VECTOR4.check(value, path)
-        return self.check_rows(q[None], path, ctx, row_path=lambda i: path)[0]
+        big = float(np.abs(q).max())
+        if big >= 1e150:   # as in check_rows: scaled first (or far from unit length)
+            return self.check_rows(q[None], path, ctx, row_path=lambda i: path)[0]
+        norm = float(np.linalg.norm(q))
+        self._unit(q, norm, path, ctx)
+        return q / norm
 
     def check_rows(self, value, path, ctx=None, count=None, row_path=None):
         """``(M, 4)`` quaternions, returned normalised; errors name ``row_path(i)``."""
@@ -489,6 +501,8 @@ LENGTH = Number(gt=0, le=LENGTH_LIMIT, unit="m")
 OFFSET = Number(bound=LENGTH_LIMIT, unit="m")
 SCALE = Number(gt=0, le=LENGTH_LIMIT)
 POINTS = Rows(3, bound=LENGTH_LIMIT, unit="m")
+COORDINATES = Vector(3, bound=LENGTH_LIMIT, unit="m")   # a point when no world bounds apply
+DISTANCE = Number(ge=0, le=LENGTH_LIMIT, unit="m")
 THINNEST = Number(ge="min_size", unit="m")
 REACH = Number(le="max_size", unit="m")
 PLANE_OFFSET = Number(bound="max_position", unit="m")

@@ -11,7 +11,7 @@ import numpy as np
 
 from . import dynamics, quat
 from .contacts import Contacts
-from .errors import BoundsError, ContactSimError
+from .errors import BoundsError, ContactSimError, EngineError
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .shapes import Plane, Shape
 from .validate import (ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, POSITIONS, STAMP,
@@ -408,11 +408,37 @@ class World:
     # ------------------------------------------------------------------ stepping
     def step(self, dt=None):
         """Advance the world by ``dt`` seconds (default ``settings.dt``); ``contacts`` then holds
-        the contacts of this step with the impulses applied."""
+        the contacts of this step with the impulses applied.
+
+        A step is all or nothing: if the engine raises inside it, or leaves a body's state
+        non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
+        is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
         from . import stepper  # the time-of-impact / response pipeline
 
-        stepper.step(self, dt)
+        # the stepper edits the state arrays in place and replaces the other per-step attributes:
+        # a copy of the one and a shallow copy of the other undo any step
+        saved = self.s.copy(), dict(self.__dict__)
+        try:
+            stepper.step(self, dt)
+        except BaseException:
+            self._undo(saved)
+            raise
+        s = self.s
+        if not (np.isfinite(s.pos).all() and np.isfinite(s.vel).all() and np.isfinite(s.quat).all()
+                and np.isfinite(s.omega).all()):
+            bad = ~(np.isfinite(s.pos).all(axis=1) & np.isfinite(s.vel).all(axis=1) & np.isfinite(s.quat).all(axis=1)
+                    & np.isfinite(s.omega).all(axis=1))
+            names = ", ".join(repr(self._names[i]) for i in np.flatnonzero(bad)[:5])
+            self._undo(saved)
+            raise EngineError(f"step: the engine left {names} non-finite (a failure on valid input, please report "
+                              f"it); the world is as it was before the step")
+
+    def _undo(self, saved):
+        state, attributes = saved
+        self.__dict__.clear()
+        self.__dict__.update(attributes)
+        self.s = state
 
     def detect(self):
         """All contacts of the current state, without stepping (``Contacts``); the statistics of

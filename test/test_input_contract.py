@@ -4,6 +4,7 @@ shape and empty thrown at every argument of every public call. Each value is eit
 (listed per argument) accepted, leaving a finite world. No call may hang (pytest-timeout)."""
 import copy
 import math
+import warnings
 from dataclasses import dataclass, field, is_dataclass
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 
 import contact_sim as cs
 from contact_sim.collision import collide_pairs
+from contact_sim.response.models import ContactModelWarning
 from contact_sim.settings import Penalty
 from contact_sim.shapes import Shape
 from contact_sim.validate import Declared, Tristate
@@ -22,16 +24,17 @@ I = (0.0, 0.0, 0.0, 1.0)
 TET = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
 
 
-def _make_world():
+def _make_world(ground=True):
     w = cs.World(materials={"rubber": cs.Material(restitution=0.8, friction=0.3)})
-    w.add_body("ground", cs.Plane(), kind="static")
+    if ground:
+        w.add_body("ground", cs.Plane(), kind="static")
     w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[0, 0, 0.1], velocity=[0.5, 0, 0], material="rubber")
     w.add_body("paddle", cs.Box([0.4, 0.4, 0.05]), kind="kinematic", position=[1, 0, 0.5])
     w.add_body("rock", cs.Convex(TET), density=500.0, position=[-1, 0, 0], angular_velocity=[0, 0, 1])
     w.mark_initial()
     w.set_pose("paddle", [1, 0, 0.5], I, stamp=0.0)
     w.step()
-    assert len(w.contacts)   # contacts, warm-start data and caches exist: all must survive a refusal
+    assert len(w.contacts) or not ground   # contacts, warm-start data, caches: all must survive a refusal
     return w
 
 
@@ -332,3 +335,100 @@ def test_scene_values_follow_the_same_rules(path, value, ok):
 def test_collide_pairs_with_no_pairs_is_empty():
     c, st = collide_pairs([cs.Sphere(1.0)], [[0, 0, 0]], [I], [])
     assert len(c) == 0 and st.candidate_pairs == 0
+
+
+# ---------------------------------------------------------------------------- random sequences of calls
+# This checks the contract, not the physics. Two engine failures found by it, both on main before
+# this work and reported apart from this issue, are kept out of the way: valid draws stay moderate
+# (up to 50 m, m/s, kg; steps up to 30 ms) and the world uses next-step time of impact, since the
+# fractional time-of-impact search can take minutes for some fast or spinning bodies; and the world
+# has no static ground, since a kinematic body touching a static one turns the split-impulse solve
+# NaN (World.step now refuses that step with EngineError and keeps the world as it was).
+def _number(rng):
+    """Mostly sane, sometimes junk: what a fuzzer (or a bad upstream) sends."""
+    if rng.random() < 0.1:
+        return [NAN, INF, -INF, 1e300, -1e300, 0.0, "x", None, True, [1.0]][rng.integers(10)]
+    return float(rng.choice([-1, 1]) * 10.0 ** rng.uniform(-3, 1.7))
+
+
+def _step(rng):
+    dt = _number(rng)
+    return dt * 1e-3 if isinstance(dt, float) else dt
+
+
+def _size(rng):
+    return _number(rng) if rng.random() < 0.2 else float(rng.uniform(0.05, 2.0))
+
+
+def _vec(rng, n=3, draw=None):
+    if rng.random() < 0.05:
+        return [[], "x", None, [1.0] * (n - 1)][rng.integers(4)]
+    return [(draw or _number)(rng) if rng.random() < 0.3 else float(rng.uniform(-2, 2)) for _ in range(n)]
+
+
+def _free_world():
+    """The table's world without its ground and with next-step time of impact (see above)."""
+    w = _make_world(ground=False)
+    w.settings.toi = "next_step"
+    return w
+
+
+_FREE = _free_world()
+
+
+def random_calls(seed, n=60, trace=None, world=None):
+    """Valid and invalid calls interleaved on one world; checks the contract after each and
+    returns the counts ``(accepted, refused)``. ``trace`` (a list) gets each call; ``world`` (a
+    list) the world (to replay a failure)."""
+    rng = np.random.default_rng(seed)
+    w = copy.deepcopy(_FREE)
+    if world is not None:
+        world.append(w)
+    fields = list(cs.Settings.rules())
+    stamp = [0.0]
+
+    def add():
+        make, size = (cs.Sphere, _size(rng)) if rng.random() < 0.5 else (cs.Box, [_size(rng) for _ in range(3)])
+        kw = {"mass": _number(rng) if rng.random() < 0.5 else None, "position": _vec(rng), "velocity": _vec(rng),
+              "angular_velocity": _vec(rng)}
+        return "add_body", (f"b{rng.integers(1 << 30)}", make, size), kw
+
+    def pose():
+        stamp[0] += float(rng.choice([0.01, 1e-9, -1.0, 0.5]))
+        return "set_pose", ("paddle", _vec(rng), I if rng.random() < 0.8 else _vec(rng, 4), stamp[0]), {}
+
+    ops = [add, pose,
+           lambda: ("set_state", ("ball",), {"position": _vec(rng) if rng.random() < 0.5 else None,
+                                             "velocity": _vec(rng)}),
+           lambda: ("set_state", ("rock",), {"angular_velocity": _vec(rng), "orientation": _vec(rng, 4)}),
+           lambda: ("step", (None if rng.random() < 0.5 else _step(rng),), {}),
+           lambda: ("settings", (fields[rng.integers(len(fields))], _number(rng)), {}),
+           lambda: ("settings", ("dt", float(10.0 ** rng.uniform(-4, -1.5))), {})]
+    accepted = refused = 0
+    for _ in range(n):
+        name, args, kw = ops[rng.integers(len(ops))]()
+        call = ((lambda *a: setattr(w.settings, *a)) if name == "settings" else
+                (lambda n, make, size, **k: w.add_body(n, make(size), **k)) if name == "add_body" else
+                getattr(w, name))
+        before = snapshot(vars(w))
+        if trace is not None:
+            trace.append((name, args, kw))
+        try:
+            with warnings.catch_warnings():   # preflight advice (mass ratio, tunnelling) is not refusal
+                warnings.simplefilter("ignore", ContactModelWarning)
+                call(*args, **kw)
+        except cs.ContactSimError:
+            refused += 1
+            assert snapshot(vars(w)) == before
+        else:
+            accepted += 1
+            assert finite_state(w)
+    return accepted, refused
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_sequences_of_calls_keep_the_contract(seed):
+    """An accepted call leaves the world finite, a refused one leaves it bit-identical, and
+    nothing raises anything but ContactSimError, whatever came before."""
+    accepted, refused = random_calls(seed)
+    assert accepted > 5 and refused > 5

@@ -69,7 +69,7 @@ def test_settings_dt_zero_is_refused():
     (lambda: cs.collide(cs.Sphere(1), ((0, 0, 0), I), cs.Sphere(1), ((0, 0, 1), I), bounding_volume="bogus"),
      r"^collide: bounding_volume: must be one of auto, sphere, aabb, obb, slabs, hull; got 'bogus'$"),
     (lambda: collide_pairs([cs.Sphere(1)] * 2, [[0, 0, 0], [0, 0, 1]], [I, I], [[0, 1]], margin=NAN),
-     r"^collide_pairs: margin: must be a finite number >= 0 and <= max_size \(10000 m\), got nan$"),
+     r"^collide_pairs: margin: must be a finite number >= 0 and <= 1e\+12 m, got nan$"),
     (lambda: cs.Box([True, 1, 1]), r"^box\.size: must be 3 numbers, got \[True, 1, 1\]$"),
     (lambda: cs.TriMesh(TET, [[0.5, 1, 2]]), r"^mesh\.faces: face 0 has an index that is not a whole number"),
 ])
@@ -210,8 +210,11 @@ def test_a_sphere_below_the_length_tolerance_is_refused_where_it_would_be_simula
                                              r"\(1e-06 m\), got 2e-100$"):
         w.add_body("x", tiny)
     with pytest.raises(cs.BoundsError, match=r"^collide: shape_a\.radius \(thickness\): must be >= min_size"):
-        cs.collide(tiny, ((0, 0, 0), I), cs.Plane(), ((0, 0, 0), I))
+        cs.collide(tiny, ((0, 0, 0), I), cs.Plane(), ((0, 0, 0), I), settings=cs.Settings())
     assert same(state(w), before) and len(w) == 3
+    # geometry alone has no length tolerance: without a world's settings the query is exact
+    c = cs.collide(tiny, ((0, 0, 0), I), cs.Plane(), ((0, 0, 0), I))
+    assert len(c) == 1 and c.depth[0] == 1e-100
 
 
 def test_a_body_too_light_for_the_world_is_refused_naming_its_density():
@@ -293,3 +296,36 @@ def test_settings_copy_and_compare_like_values():
     assert s.toi == "auto" and c != s
     with pytest.raises(cs.ContactSimError, match="settings.dt"):
         c.dt = 0
+
+
+# ---------------------------------------------------------------------------- a step is all or nothing
+def test_a_step_that_fails_inside_the_engine_leaves_the_world_as_it_was(monkeypatch):
+    from test_input_contract import snapshot
+
+    from contact_sim import stepper
+    w = world()
+    w.step()
+    before = snapshot(vars(w))
+    real = stepper.step
+
+    def half_a_step_then_raise(world, dt):
+        real(world, dt)                  # moves bodies, replaces contacts and caches, advances time
+        world.s.pos[1, 2] += 1.0         # and edits the state arrays in place
+        raise RuntimeError("engine bug")
+
+    monkeypatch.setattr(stepper, "step", half_a_step_then_raise)
+    with pytest.raises(RuntimeError, match="engine bug"):
+        w.step()
+    assert snapshot(vars(w)) == before
+
+    def nan_result(world, dt):
+        real(world, dt)
+        world.s.vel[2] = np.nan          # a solver failure that raises nothing
+
+    monkeypatch.setattr(stepper, "step", nan_result)
+    with pytest.raises(cs.EngineError, match=r"^step: the engine left 'paddle' non-finite .* as it was before"):
+        w.step()
+    assert snapshot(vars(w)) == before
+    monkeypatch.setattr(stepper, "step", real)
+    w.step()
+    assert w.time == pytest.approx(2 / 60, abs=1e-15) and np.all(np.isfinite(w.s.pos))

@@ -37,7 +37,8 @@ from ..errors import ContactSimError
 from ..memo import derived
 from ..settings import Settings
 from ..shapes import Shape
-from ..validate import ANY_ORIENTATION, POSITION, POSITIONS, Flag, Nested, Rows, show
+from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
+                        show)
 from . import bounding, broadphase, narrow
 from .geometry import PolyTable, pad_row, poly_geom
 
@@ -328,10 +329,13 @@ def detect_world(world, margin=None):
 
 
 def _check_query(call, settings, margin, bounding_volume):
-    """The settings of a stateless query (their world bounds apply; default ``Settings()``), its
-    margin and bounding volume by the rules of ``settings.contact_margin`` / ``bounding_volume``."""
-    st = Settings() if settings is None else Nested(Settings).check(settings, f"{call}: settings")
-    margin = Settings.rule("contact_margin").check(margin, f"{call}: margin", st)
+    """Settings, margin and bounding volume of a stateless query. With ``settings`` (a
+    ``Settings`` or a mapping) its world bounds apply to positions, shape sizes and the margin, by
+    the rules of a world; without, only what any world would refuse (non-finite values, lengths
+    beyond ``LENGTH_LIMIT``), so internal callers (time-of-impact searches) pay no more."""
+    st = None if settings is None else Nested(Settings).check(settings, f"{call}: settings")
+    rule = Settings.rule("contact_margin") if st is not None else DISTANCE
+    margin = rule.check(margin, f"{call}: margin", st)
     bounding_volume = Settings.rule("bounding_volume").check(bounding_volume, f"{call}: bounding_volume")
     return st, float(margin), bounding_volume
 
@@ -339,7 +343,8 @@ def _check_query(call, settings, margin, bounding_volume):
 def _check_shape(shape, what, settings):
     if not isinstance(shape, Shape) or shape.type not in RANK:
         raise ContactSimError(f"{what}: must be a contact_sim shape, got {type(shape).__name__}")
-    shape.check_fits(settings, what)
+    if settings is not None:
+        shape.check_fits(settings, what)
 
 
 def _check_pose(pose, what, settings):
@@ -348,7 +353,8 @@ def _check_pose(pose, what, settings):
         p, q = pose
     except (TypeError, ValueError):
         raise ContactSimError(f"{what}: must be (position (3,), orientation (4,) x,y,z,w), got {pose!r}") from None
-    return POSITION.check(p, f"{what}.position", settings), ANY_ORIENTATION.check(q, f"{what}.orientation", settings)
+    rule = POSITION if settings is not None else COORDINATES
+    return rule.check(p, f"{what}.position", settings), ANY_ORIENTATION.check(q, f"{what}.orientation", settings)
 
 
 def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto", stats=False, settings=None):
@@ -357,8 +363,9 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     ``pose_* = (position (3,), orientation (4,) x,y,z,w)`` of the shape frame. ``normal (K, 3)``
     points from B to A; ``depth (K,)`` > 0 penetrating, ``-separation`` within ``margin``.
     Stateless; runs the same bounding-volume and kernel stages as ``detect_world``. With
-    ``stats=True`` returns ``(Contacts, DetectionStats)``. Arguments are checked like a world's:
-    the world bounds (positions, shape sizes, margin) of ``settings`` (default ``Settings()``).
+    ``stats=True`` returns ``(Contacts, DetectionStats)``. Arguments are checked (finite, lengths
+    within ``validate.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
+    its world bounds (positions, shape sizes, margin), as a world would check them.
     """
     t0 = time.perf_counter()
     st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
@@ -397,7 +404,7 @@ def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_v
     ``shapes`` list of N shapes (repeat the same object for identical bodies: its geometry is
     prepared once), ``positions (N, 3)``, ``orientations (N, 4)`` x,y,z,w (any non-zero length),
     ``pairs (K, 2)`` int. ``body_a``/``body_b`` of the result index ``shapes``. Same stages and
-    kernels as ``collide``, and the same checks (world bounds of ``settings``, default ``Settings()``).
+    kernels as ``collide``, and the same checks (world bounds only with ``settings``).
     """
     t0 = time.perf_counter()
     st, margin, bounding_volume = _check_query("collide_pairs", settings, margin, bounding_volume)
@@ -410,7 +417,8 @@ def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_v
                for v in (positions, orientations)]
     if None not in lengths and lengths != [n, n]:
         raise ContactSimError(f"collide_pairs: {n} shapes but {lengths[0]} positions and {lengths[1]} orientations")
-    pos = POSITIONS.check(positions, "collide_pairs: positions", st, count=n, what="positions")
+    pos = (POSITIONS if st is not None else POINTS).check(positions, "collide_pairs: positions", st, count=n,
+                                                          what="positions")
     q = ANY_ORIENTATION.check_rows(orientations, "collide_pairs: orientations", st, count=n)
     pairs = _check_pairs(pairs, n)
     bodies = _Bodies(list(shapes))
