@@ -12,7 +12,7 @@ The engine depends on numpy, scipy, trimesh and PyYAML only; it never imports RO
 """
 from .collision import DetectionStats, collide
 from .contacts import FEATURES, Contacts
-from .errors import ContactSimError, SceneError
+from .errors import BoundsError, ContactSimError, EngineError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
 from .settings import Material, Settings
 from .shapes import Box, Convex, Plane, Sphere, TriMesh
@@ -21,7 +21,8 @@ from .world import Body, World
 __version__ = "0.1.0"
 
 __all__ = [
-    "Body", "Box", "ContactSimError", "Contacts", "Convex", "DetectionStats", "FEATURES", "Material", "Plane",
+    "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "DetectionStats", "EngineError", "FEATURES",
+    "Material", "Plane",
     "SceneError", "collide",
     "Settings", "Sphere", "TriMesh", "World", "default_scene_path", "list_scenes", "load_scene",
     "resolve_scene",

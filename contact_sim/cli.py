@@ -9,6 +9,7 @@ import numpy as np
 
 from .errors import ContactSimError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
+from .settings import Settings
 
 
 class Recorder:
@@ -81,9 +82,8 @@ class Recorder:
 def cmd_run(args):
     path = resolve_scene(args.scene) if args.scene else default_scene_path()
     world = load_scene(path)
-    dt = world.settings.dt if args.dt is None else args.dt
-    if not (dt > 0 and np.isfinite(dt)):
-        raise ContactSimError(f"--dt: must be > 0, got {args.dt}")
+    # the rule of settings.dt, so --dt is bounded by the scene's max_step like step(dt)
+    dt = world.settings.dt if args.dt is None else Settings.rule("dt").check(args.dt, "--dt", world.settings)
     if not (args.duration > 0 and np.isfinite(args.duration)):
         raise ContactSimError(f"--duration: must be > 0, got {args.duration}")
     steps = int(round(args.duration / dt))

@@ -1,11 +1,10 @@
 """Scene files (YAML) → ``World``. Every error names its path in the scene and the reason."""
 import os
 
-import numpy as np
-
 from .errors import ContactSimError, SceneError
 from .settings import check_keys, parse_material, parse_settings
 from .shapes import Box, Convex, Plane, Sphere, TriMesh
+from .validate import POINTS, SCALE
 from .world import World
 
 TOP_KEYS = {"name", "description", "gravity", "settings", "materials", "bodies"}
@@ -90,12 +89,16 @@ def load_scene(source, base_dir=None):
     if data is None:
         data = {}
     base_dir = os.getcwd() if base_dir is None else base_dir
-    return _build(data, base_dir)
+    try:   # the rules of contact_sim.validate, the same as for code; errors become scene paths
+        return _build(data, base_dir)
+    except SceneError:
+        raise
+    except ContactSimError as exc:
+        raise _as_scene_error(exc) from None
 
 
 def _build(data, base_dir):
     check_keys(data, "", TOP_KEYS)
-    gravity = _vec(data.get("gravity", [0.0, 0.0, -9.81]), 3, "gravity")
     settings = parse_settings(data.get("settings"))
     materials = {}
     mats = data.get("materials") or {}
@@ -103,7 +106,7 @@ def _build(data, base_dir):
         raise SceneError("materials", f"must be a mapping of name → material, got {type(mats).__name__}")
     for name, m in mats.items():
         materials[str(name)] = parse_material(m if m is not None else {}, f"materials.{name}")
-    world = World(gravity=gravity, settings=settings, materials=materials)
+    world = World(gravity=data.get("gravity", [0.0, 0.0, -9.81]), settings=settings, materials=materials)
     bodies = data.get("bodies") or []
     if not isinstance(bodies, list):
         raise SceneError("bodies", f"must be a list, got {type(bodies).__name__}")
@@ -159,16 +162,6 @@ def _as_scene_error(exc):
     return SceneError(path, reason) if reason else SceneError("", text)
 
 
-def _vec(value, n, path):
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SceneError(path, f"must be {n} numbers, got {value!r}") from None
-    if a.shape != (n,) or not np.all(np.isfinite(a)):
-        raise SceneError(path, f"must be {n} finite numbers, got {value!r}")
-    return a
-
-
 def parse_shape(d, path, base_dir="."):
     """A shape from its scene mapping (``{type: box, size: [...]}``), errors naming ``path``.
     ``slab_normals: [[x, y, z], ...]`` sets the bounding-slab directions of a polyhedron."""
@@ -199,9 +192,7 @@ def _parse_shape(d, path, base_dir):
             if "size" not in d:
                 raise SceneError(f"{path}.size", "required")
             return Box(d["size"], name=path)
-        scale = d.get("scale", 1.0)
-        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not np.isfinite(scale) or scale <= 0:
-            raise SceneError(f"{path}.scale", f"must be a number > 0, got {scale!r}")
+        scale = SCALE.check(d.get("scale", 1.0), f"{path}.scale")
         if "file" in d:
             other = {"points"} if t == "convex" else {"vertices", "faces"}
             if other & set(d):
@@ -215,20 +206,12 @@ def _parse_shape(d, path, base_dir):
         if t == "convex":
             if "points" not in d:
                 raise SceneError(f"{path}.points", "required (or file)")
-            return Convex(np.asarray(d["points"], float) * scale if _numeric(d["points"]) else d["points"], name=path)
+            # checked before scaling, so the product stays finite; the shape checks the result
+            return Convex(POINTS.check(d["points"], f"{path}.points", what="points") * scale, name=path)
         if "vertices" not in d or "faces" not in d:
             raise SceneError(path, "mesh needs vertices and faces (or file)")
-        verts = np.asarray(d["vertices"], float) * scale if _numeric(d["vertices"]) else d["vertices"]
-        return TriMesh(verts, d["faces"], name=path)
+        return TriMesh(POINTS.check(d["vertices"], f"{path}.vertices", what="points") * scale, d["faces"], name=path)
     except SceneError:
         raise
     except ContactSimError as exc:
         raise _as_scene_error(exc) from None
-
-
-def _numeric(x):
-    try:
-        np.asarray(x, float)
-        return True
-    except (TypeError, ValueError):
-        return False

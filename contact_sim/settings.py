@@ -1,153 +1,112 @@
-"""World settings and materials, validated once when a world or scene is built."""
-from dataclasses import asdict, dataclass, field
+"""World settings and materials: each field declared once, with its rule.
+
+A field is one ``declare(default, rule, doc)`` line in ``Settings`` (or ``Material``,
+``Penalty``); that rule checks it in the constructor, on every later assignment
+(``world.settings.dt = x``), and in scene files (``parse_settings`` / ``parse_material`` build
+from the same table), so code and scenes obey the same rules. Adding a setting is one line.
+Bounds may name another setting (``le="max_step"``): the world bounds below are read that way.
+"""
+from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SceneError
+from .validate import (LENGTH_LIMIT, Choice, Declared, Nested, Number, Tristate, build, check_keys,  # noqa: F401
+                       declare)
 
 TOI_MODES = ("auto", "next_step", "fractional", "swept")
 RESPONSES = ("auto", "kinematic", "penalty", "impulse")
 BOUNDING_VOLUMES = ("auto", "sphere", "aabb", "obb", "slabs", "hull")
 COMBINE_RULES = ("average", "min", "max", "multiply", "geometric")
+#: upper bound of the numerical knobs whose exact size does not matter beyond a point: it only
+#: keeps their products finite (a stiffness times a step, a ratio of masses)
+_HUGE = 1e15
 
 
-@dataclass
-class Penalty:
-    stiffness: float = 1.0e5   # N/m
-    damping: float = 1.0e2     # N·s/m
+@dataclass(eq=True)
+class Penalty(Declared):
+    """Spring and damper of the penalty response."""
+
+    LABEL = "settings.penalty"
+
+    stiffness: float = declare(1.0e5, Number(gt=0, le=_HUGE, unit="N/m"), "N/m")
+    damping: float = declare(1.0e2, Number(ge=0, le=_HUGE, unit="N·s/m"), "N·s/m")
 
 
-@dataclass
-class Settings:
-    """Model choices of a world. ``auto`` lets the engine pick the cheapest adequate model."""
+@dataclass(eq=True)
+class Settings(Declared):
+    """Model choices and world bounds of a world. ``auto`` lets the engine pick the cheapest
+    adequate model. Every field is checked when set (``ContactSimError`` naming it)."""
 
-    dt: float = 1.0 / 60.0
-    toi: str = "auto"                 # next_step | fractional | swept | auto
-    response: str = "auto"            # kinematic | penalty | impulse | auto
-    friction: object = "auto"         # true | false | auto
-    resting: object = "auto"          # resting-contact solver: true | false | auto
-    solver_iterations: int = 20
-    solver_tolerance: float = 1e-9
-    max_impacts_per_step: int = 8
-    contact_margin: float = 1e-4      # m: closer than this counts as touching
-    bounding_volume: str = "auto"     # sphere | aabb | obb | slabs | hull | auto
-    combine: str = "average"          # how two materials' coefficients combine
-    quaternion_tolerance: float = 1e-3  # |‖q‖ − 1| accepted (and normalised) in given poses
-    split_beta: float = 0.5           # fraction of a penetration removed per step (split impulse)
-    mass_ratio_limit: float = 100.0   # preflight warning above this mass ratio between touching bodies
-    penalty: Penalty = field(default_factory=Penalty)
+    LABEL = "settings"
 
-    def as_dict(self):
-        return asdict(self)
+    dt: float = declare(1.0 / 60.0, Number(gt=0, le="max_step", unit="s"), "s: default step size")
+    toi: str = declare("auto", Choice(TOI_MODES), "time of impact: next_step | fractional | swept | auto")
+    response: str = declare("auto", Choice(RESPONSES), "kinematic | penalty | impulse | auto")
+    friction: object = declare("auto", Tristate(), "true | false | auto")
+    resting: object = declare("auto", Tristate(), "resting-contact solver: true | false | auto")
+    solver_iterations: int = declare(20, Number(ge=1, le=100_000, integer=True))
+    solver_tolerance: float = declare(1e-9, Number(ge=0, le="max_speed", unit="m/s"),
+                                      "m/s: residual at which the solver stops")
+    max_impacts_per_step: int = declare(8, Number(ge=1, le=10_000, integer=True),
+                                        "fractional time of impact: impacts handled per step")
+    contact_margin: float = declare(1e-4, Number(ge=0, le="max_size", unit="m"),
+                                    "m: closer than this counts as touching")
+    bounding_volume: str = declare("auto", Choice(BOUNDING_VOLUMES), "sphere | aabb | obb | slabs | hull | auto")
+    combine: str = declare("average", Choice(COMBINE_RULES), "how two materials' coefficients combine")
+    quaternion_tolerance: float = declare(1e-3, Number(gt=0, le=1),
+                                          "|‖q‖ − 1| accepted (and normalised) in given poses")
+    split_beta: float = declare(0.5, Number(ge=0, le=1), "fraction of a penetration removed per step")
+    mass_ratio_limit: float = declare(100.0, Number(ge=1, le=_HUGE),
+                                      "preflight warning above this mass ratio between touching bodies")
+    penalty: Penalty = declare(Penalty, Nested(Penalty), "spring and damper of the penalty response")
+    # world bounds: finite inputs beyond them are refused by name (BoundsError)
+    max_position: float = declare(1e4, Number(gt=0, le=LENGTH_LIMIT, unit="m"),
+                                  "m: every coordinate of a body origin or pose within ±this", world_bound=True)
+    max_speed: float = declare(1e4, Number(gt=0, le=LENGTH_LIMIT, unit="m/s"),
+                               "m/s: linear speed given to a body or implied by successive poses", world_bound=True)
+    max_angular_speed: float = declare(1e4, Number(gt=0, le=LENGTH_LIMIT, unit="rad/s"),
+                                       "rad/s: the same for angular speed", world_bound=True)
+    max_step: float = declare(1.0, Number(gt=0, le=1e6, unit="s"),
+                              "s: largest step size (settings.dt, step(dt))", world_bound=True)
+    min_size: float = declare(1e-6, Number(ge=1e-12, le="max_size", unit="m"),
+                              "m: length tolerance: the thinnest a shape may be", world_bound=True)
+    max_size: float = declare(1e4, Number(gt=0, le=LENGTH_LIMIT, unit="m"),
+                              "m: farthest a shape may reach from its origin; largest contact margin",
+                              world_bound=True)
+    min_mass: float = declare(1e-9, Number(ge=1e-30, le="max_mass", unit="kg"),
+                              "kg: lightest dynamic body", world_bound=True)
+    max_mass: float = declare(1e9, Number(gt=0, le=1e30, unit="kg"), "kg: heaviest dynamic body", world_bound=True)
 
 
-@dataclass
-class Material:
-    restitution: float = 0.5
-    friction: float = 0.5
-    static_friction: float = None  # defaults to ``friction``
+@dataclass(eq=True)
+class Material(Declared):
+    """Contact coefficients of a material; ``static_friction`` defaults to ``friction``. Checked
+    like ``Settings``; a later assignment that would put ``friction`` above ``static_friction`` is
+    refused (set ``static_friction`` first)."""
 
-    def __post_init__(self):
-        if self.static_friction is None:
-            self.static_friction = self.friction
+    LABEL = "material"
+
+    restitution: float = declare(0.5, Number(ge=0, le=1), "0 (no bounce) to 1 (elastic)")
+    friction: float = declare(0.5, Number(ge=0, le=100), "Coulomb coefficient while sliding")
+    static_friction: float = declare(None, Number(ge="friction", le=100, optional=True),
+                                     "coefficient at rest, >= friction (default: friction)")
+
+    def _complete(self):
+        if self.__dict__.get("static_friction") is None:
+            object.__setattr__(self, "static_friction", self.friction)
 
 
 DEFAULT_MATERIAL = "default"
 
 
-def _number(value, path, lo=None, hi=None, lo_open=False, integer=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SceneError(path, f"must be a number, got {value!r}")
-    if integer and int(value) != value:
-        raise SceneError(path, f"must be a whole number, got {value!r}")
-    x = int(value) if integer else float(value)
-    if not np.isfinite(x):
-        raise SceneError(path, f"must be finite, got {value!r}")
-    if lo is not None and (x <= lo if lo_open else x < lo):
-        raise SceneError(path, f"must be {'>' if lo_open else '>='} {lo}, got {value!r}")
-    if hi is not None and x > hi:
-        raise SceneError(path, f"must be <= {hi}, got {value!r}")
-    return x
-
-
-def _choice(value, path, options):
-    if value not in options:
-        raise SceneError(path, f"must be one of {', '.join(map(str, options))}; got {value!r}")
-    return value
-
-
-def _tristate(value, path):
-    if value in (True, False, "auto"):
-        return value
-    raise SceneError(path, f"must be true, false or auto; got {value!r}")
-
-
-def check_keys(d, path, allowed):
-    if not isinstance(d, dict):
-        raise SceneError(path, f"must be a mapping, got {type(d).__name__}")
-    unknown = sorted(set(d) - set(allowed))
-    if unknown:
-        where = f"{path}.{unknown[0]}" if path else str(unknown[0])
-        raise SceneError(where, f"unknown key (allowed: {', '.join(sorted(allowed))})")
-
-
 def parse_settings(d, path="settings"):
     """Validated ``Settings`` from a mapping (scene ``settings:``); unknown keys are refused."""
-    d = {} if d is None else d
-    s = Settings()
-    check_keys(d, path, set(s.as_dict()))
-    if "dt" in d:
-        s.dt = _number(d["dt"], f"{path}.dt", lo=0, lo_open=True)
-    if "toi" in d:
-        s.toi = _choice(d["toi"], f"{path}.toi", TOI_MODES)
-    if "response" in d:
-        s.response = _choice(d["response"], f"{path}.response", RESPONSES)
-    if "friction" in d:
-        s.friction = _tristate(d["friction"], f"{path}.friction")
-    if "resting" in d:
-        s.resting = _tristate(d["resting"], f"{path}.resting")
-    if "solver_iterations" in d:
-        s.solver_iterations = _number(d["solver_iterations"], f"{path}.solver_iterations", lo=1, integer=True)
-    if "solver_tolerance" in d:
-        s.solver_tolerance = _number(d["solver_tolerance"], f"{path}.solver_tolerance", lo=0)
-    if "max_impacts_per_step" in d:
-        s.max_impacts_per_step = _number(d["max_impacts_per_step"], f"{path}.max_impacts_per_step", lo=1, integer=True)
-    if "contact_margin" in d:
-        s.contact_margin = _number(d["contact_margin"], f"{path}.contact_margin", lo=0)
-    if "bounding_volume" in d:
-        s.bounding_volume = _choice(d["bounding_volume"], f"{path}.bounding_volume", BOUNDING_VOLUMES)
-    if "combine" in d:
-        s.combine = _choice(d["combine"], f"{path}.combine", COMBINE_RULES)
-    if "quaternion_tolerance" in d:
-        s.quaternion_tolerance = _number(d["quaternion_tolerance"], f"{path}.quaternion_tolerance", lo=0, lo_open=True)
-    if "split_beta" in d:
-        s.split_beta = _number(d["split_beta"], f"{path}.split_beta", lo=0, hi=1)
-    if "mass_ratio_limit" in d:
-        s.mass_ratio_limit = _number(d["mass_ratio_limit"], f"{path}.mass_ratio_limit", lo=1)
-    if "penalty" in d:
-        p = d["penalty"]
-        check_keys(p, f"{path}.penalty", {"stiffness", "damping"})
-        if "stiffness" in p:
-            s.penalty.stiffness = _number(p["stiffness"], f"{path}.penalty.stiffness", lo=0, lo_open=True)
-        if "damping" in p:
-            s.penalty.damping = _number(p["damping"], f"{path}.penalty.damping", lo=0)
-    return s
+    return build(Settings, d, path)
 
 
 def parse_material(d, path):
-    check_keys(d, path, {"restitution", "friction", "static_friction"})
-    m = Material()
-    if "restitution" in d:
-        m.restitution = _number(d["restitution"], f"{path}.restitution", lo=0, hi=1)
-    if "friction" in d:
-        m.friction = _number(d["friction"], f"{path}.friction", lo=0)
-    m.static_friction = m.friction
-    if "static_friction" in d:
-        m.static_friction = _number(d["static_friction"], f"{path}.static_friction", lo=0)
-        if m.static_friction < m.friction:
-            raise SceneError(f"{path}.static_friction",
-                             f"must be >= friction ({m.friction}), got {m.static_friction}")
-    return m
+    """Validated ``Material`` from a mapping (scene ``materials.<name>:``)."""
+    return build(Material, d, path)
 
 
 def combine(a, b, rule):

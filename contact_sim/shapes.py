@@ -8,8 +8,8 @@ int, and (convex shapes) the merged face planes ``normals (P, 3)``, ``offsets (P
 import numpy as np
 
 from .errors import ContactSimError
-from .validate import positive as _positive
-from .validate import vector as _vec
+from .validate import (LENGTH, OFFSET, PLANE_OFFSET, POINTS, REACH, SCALE, THINNEST, Rows, Vector,
+                       numbers_array, show)
 
 _TINY = 1e-12
 
@@ -19,6 +19,7 @@ class Shape:
 
     type = "shape"
     finite = True
+    size_field = "size"   # the argument that sets the shape's size, named when it is out of bounds
 
     def mass_properties(self, density):
         """``(mass, center_of_mass (3,), inertia (3, 3) about the center of mass)`` for a density."""
@@ -28,6 +29,18 @@ class Shape:
         """Smallest extent of the shape (m): how far it may move in a step before it can tunnel."""
         raise NotImplementedError
 
+    def sizes(self):
+        """``(thinnest, reach)`` in m: the smallest thickness the world must resolve, and the
+        farthest point of the shape from its origin."""
+        raise NotImplementedError
+
+    def check_fits(self, settings, path):
+        """Refuse (``BoundsError`` naming ``path``) a shape outside the world's size bounds:
+        thinner than ``settings.min_size`` or reaching farther than ``settings.max_size``."""
+        thin, reach = self.sizes()
+        THINNEST.check(thin, f"{path}.{self.size_field} (thickness)", settings)
+        REACH.check(reach, f"{path}.{self.size_field} (reach from the origin)", settings)
+
 
 class Plane(Shape):
     """Half-space ``{x : normal·x <= offset}`` in the body frame; ``normal·P - offset`` is the signed distance."""
@@ -36,16 +49,12 @@ class Plane(Shape):
     finite = False
 
     def __init__(self, normal=(0.0, 0.0, 1.0), offset=0.0, *, name="plane"):
-        n = _vec(normal, 3, f"{name}.normal")
-        length = np.linalg.norm(n)
+        n = Vector(3).check(normal, f"{name}.normal")
+        big = float(np.abs(n).max())
+        length = big * float(np.linalg.norm(n / big)) if big > 0 else 0.0   # no overflow for huge entries
         if length < _TINY:
             raise ContactSimError(f"{name}.normal: must be non-zero, got {n.tolist()}")
-        try:
-            off = float(offset)
-        except (TypeError, ValueError):
-            raise ContactSimError(f"{name}.offset: must be a number, got {offset!r}") from None
-        if not np.isfinite(off):
-            raise ContactSimError(f"{name}.offset: must be finite, got {offset!r}")
+        off = OFFSET.check(offset, f"{name}.offset")
         self.normal = n / length
         self.offset = off / length
 
@@ -55,15 +64,20 @@ class Plane(Shape):
     def thinnest(self):
         return np.inf
 
+    def check_fits(self, settings, path):
+        """A plane has no size; its offset places it, within ``settings.max_position``."""
+        PLANE_OFFSET.check(self.offset, f"{path}.offset", settings)
+
     def __repr__(self):
         return f"Plane(normal={self.normal.tolist()}, offset={self.offset})"
 
 
 class Sphere(Shape):
     type = "sphere"
+    size_field = "radius"
 
     def __init__(self, radius, *, name="sphere"):
-        self.radius = _positive(radius, f"{name}.radius")
+        self.radius = LENGTH.check(radius, f"{name}.radius")
 
     def mass_properties(self, density):
         r = self.radius
@@ -72,6 +86,9 @@ class Sphere(Shape):
 
     def thinnest(self):
         return 2.0 * self.radius
+
+    def sizes(self):
+        return 2.0 * self.radius, self.radius
 
     def aabb_local(self):
         return -np.full(3, self.radius), np.full(3, self.radius)
@@ -136,7 +153,9 @@ class Polyhedron(Shape):
     def with_slabs(self, normals, name="shape"):
         """Set the bounding-slab directions ``(K, 3)`` (each a plane-pair normal) used when the
         bounding volume is ``slabs``; returns ``self``."""
-        n = _check_points(normals, f"{name}.slab_normals", 1)
+        n = Rows(3).check(normals, f"{name}.slab_normals", min_rows=1, what="normals")
+        big = np.abs(n).max(axis=1)
+        n[big >= 1e150] /= big[big >= 1e150, None]   # directions: scaled first, so their squares stay finite
         length = np.linalg.norm(n, axis=1)
         if np.any(length < _TINY):
             raise ContactSimError(f"{name}.slab_normals: normal {int(np.argmin(length))} is zero")
@@ -153,6 +172,11 @@ class Polyhedron(Shape):
         lo, hi = self.aabb_local()
         return float((hi - lo).min())
 
+    def sizes(self):
+        # an open mesh may be flat (a static floor): its largest extent is what must be resolved
+        thin = self.thinnest() if self.convex or self.watertight else float(np.ptp(self.vertices, axis=0).max())
+        return thin, float(np.linalg.norm(self.vertices, axis=1).max())
+
 
 class Box(Polyhedron):
     """Box of full edge lengths ``size (3,)`` centred on the body origin (as URDF/SDF)."""
@@ -160,9 +184,11 @@ class Box(Polyhedron):
     type = "box"
 
     def __init__(self, size, *, name="box"):
-        s = _vec(size, 3, f"{name}.size")
+        s = Vector(3).check(size, f"{name}.size")
         if np.any(s <= 0):
             raise ContactSimError(f"{name}.size: every edge length must be > 0, got {s.tolist()}")
+        for x in s:
+            LENGTH.check(x, f"{name}.size")
         self.size = s
         self.half = 0.5 * s
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
@@ -187,18 +213,8 @@ class Box(Polyhedron):
 
 
 def _check_points(points, what, min_count):
-    try:
-        p = np.array(points, dtype=float)
-    except (TypeError, ValueError):
-        raise ContactSimError(f"{what}: must be a list of [x, y, z] points") from None
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise ContactSimError(f"{what}: must be an (N, 3) array of points, got shape {p.shape}")
-    if len(p) < min_count:
-        raise ContactSimError(f"{what}: needs at least {min_count} points, got {len(p)}")
-    if not np.all(np.isfinite(p)):
-        bad = np.argwhere(~np.isfinite(p))[0][0]
-        raise ContactSimError(f"{what}: point {bad} is not finite: {p[bad].tolist()}")
-    return p
+    """``(N, 3)`` finite points, N >= ``min_count``, within the engine's length range."""
+    return POINTS.check(points, what, min_rows=min_count, what="points")
 
 
 def _load_mesh(path, what):
@@ -219,6 +235,7 @@ class Convex(Polyhedron):
     """Convex polyhedron: the convex hull (trimesh/qhull) of ``points (N, 3)``, N ≥ 4, not coplanar."""
 
     type = "convex"
+    size_field = "points"
 
     def __init__(self, points, *, name="convex"):
         import trimesh
@@ -231,14 +248,26 @@ class Convex(Polyhedron):
                 f"{name}.points: all {len(p)} points are coplanar or collinear; a convex solid needs "
                 "4 points not in one plane"
             )
-        hull = trimesh.convex.convex_hull(p)
+        try:
+            with np.errstate(all="ignore"):   # a collapsing hull divides by its zero volume; refused below
+                hull = trimesh.convex.convex_hull(p)
+                volume = float(hull.volume) if len(hull.faces) >= 4 else 0.0
+        except Exception as exc:  # qhull refuses some near-degenerate sets; trimesh raises many types
+            raise ContactSimError(f"{name}.points: no convex hull: {exc}") from None
+        if len(hull.vertices) < 4 or len(hull.faces) < 4 or not volume > 0:
+            # trimesh merges vertices closer than its tolerance (1e-8 m): tiny point sets collapse
+            span = float(np.ptp(p, axis=0).max())
+            raise ContactSimError(
+                f"{name}.points: their convex hull is degenerate ({len(hull.vertices)} vertices, volume {volume:.3g}); "
+                f"the points span only {span:.3g} m (vertices closer than 1e-8 m merge)")
         self._hull = hull
         self._set_geometry(hull.vertices, hull.faces)
 
     @classmethod
     def from_file(cls, path, scale=1.0, *, name="convex"):
+        scale = SCALE.check(scale, f"{name}.scale")
         verts, _ = _load_mesh(path, f"{name}.file")
-        return cls(verts * float(scale), name=name)
+        return cls(_check_points(verts, f"{name}.file", 4) * scale, name=name)
 
     def mass_properties(self, density):
         mp = self._hull.mass_properties  # volume, center_mass, inertia (about the centre of mass)
@@ -259,23 +288,29 @@ class TriMesh(Polyhedron):
 
     type = "mesh"
     convex = False
+    size_field = "vertices"
 
     def __init__(self, vertices, faces, *, name="mesh"):
         import trimesh
 
         v = _check_points(vertices, f"{name}.vertices", 3)
-        try:
-            f = np.array(faces, dtype=np.int64)
-        except (TypeError, ValueError):
-            raise ContactSimError(f"{name}.faces: must be a list of [i, j, k] vertex indices") from None
+        f = numbers_array(faces, f"{name}.faces", "a list of [i, j, k] vertex indices")
         if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
             raise ContactSimError(f"{name}.faces: must be a non-empty (F, 3) array of indices, got shape {f.shape}")
+        if not (np.isfinite(f).all() and np.all(f == np.floor(f))):
+            bad = int(np.flatnonzero(~(np.isfinite(f) & (f == np.floor(f))).all(axis=1))[0])
+            raise ContactSimError(f"{name}.faces: face {bad} has an index that is not a whole number: "
+                                  f"{show(f[bad])}")
         if f.min() < 0 or f.max() >= len(v):
-            raise ContactSimError(f"{name}.faces: indices must be in [0, {len(v) - 1}], got {f.min()}..{f.max()}")
+            raise ContactSimError(f"{name}.faces: indices must be in [0, {len(v) - 1}], "
+                                  f"got {f.min():.0f}..{f.max():.0f}")
+        f = f.astype(np.int64)
         tri = v[f]
         area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         scale = max(float(np.ptp(v, axis=0).max()), _TINY)
         keep = area2 > 1e-12 * scale * scale
+        if not np.ptp(v, axis=0).any():
+            raise ContactSimError(f"{name}.vertices: all {len(v)} vertices are the same point {v[0].tolist()}")
         if not keep.any():
             raise ContactSimError(f"{name}.faces: every triangle has zero area")
         f = f[keep]  # degenerate slivers carry no surface; dropping them keeps normals finite
@@ -284,8 +319,9 @@ class TriMesh(Polyhedron):
 
     @classmethod
     def from_file(cls, path, scale=1.0, *, name="mesh"):
+        scale = SCALE.check(scale, f"{name}.scale")
         verts, faces = _load_mesh(path, f"{name}.file")
-        return cls(verts * float(scale), faces, name=name)
+        return cls(_check_points(verts, f"{name}.file", 3) * scale, faces, name=name)
 
     @property
     def watertight(self):

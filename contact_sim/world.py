@@ -4,18 +4,18 @@ Internally a body's position is its centre of mass and its collision geometry is
 relative to it; ``World.body()`` and ``World.set_pose()`` speak of the body frame the user
 gave (for primitives the two coincide).
 """
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import dynamics, quat
 from .contacts import Contacts
-from .errors import ContactSimError
+from .errors import BoundsError, ContactSimError, EngineError
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .shapes import Plane, Shape
-from .validate import positive as _positive
-from .validate import unit_quaternion as _unit_quaternion
-from .validate import vector as _vector
+from .validate import (ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, POSITIONS, STAMP,
+                       VELOCITY, Choice, Nested, show)
 
 KINDS = ("static", "kinematic", "dynamic")
 # Per-body attributes of a World, rows in body order (arrays) or items (lists). remove_bodies and the
@@ -25,6 +25,7 @@ BODY_ARRAYS = ("kind", "particle", "mass", "inv_mass", "inertia_body", "inv_iner
                "restitution", "friction", "static_friction", "group", "mask")
 BODY_LISTS = ("_names", "shapes", "user_shapes", "material_names")
 MODELS = ("rigid", "particle")
+_KIND, _MODEL = Choice(KINDS), Choice(MODELS)
 STATIC, KINEMATIC, DYNAMIC = 0, 1, 2
 DEFAULT_DENSITY = 1000.0  # kg/m³ (water), when neither mass nor density is given
 ALL_GROUPS = 0xFFFFFFFF
@@ -85,14 +86,45 @@ class _State:
         return c
 
 
+def _length(value):
+    """``len(value)`` of a list, tuple or array with at least one dimension, else None."""
+    if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim > 0):
+        return len(value)
+    return None
+
+
+def _rows(check, value, m, path, row_path, settings, row_rule):
+    """``check`` an ``(m, n)`` batch; when it is refused and the batch has ``m`` rows, name the
+    first bad row by checking the rows one by one with ``row_rule``."""
+    try:
+        return check(value, path, settings, count=m, row_path=row_path)
+    except ContactSimError:
+        if _length(value) == m:
+            for i in range(m):
+                row_rule.check(value[i], row_path(i), settings)
+        raise
+
+
 class World:
-    """A rigid-body world. See the package docstring for the public contract."""
+    """A rigid-body world. See the package docstring for the public contract.
+
+    Every public method checks its arguments before it changes anything (``contact_sim.validate``;
+    world bounds from ``settings``): a refused call raises ``ContactSimError`` naming the argument
+    and leaves the world bit-identical. ``settings`` and ``gravity`` are checked when assigned too.
+    """
 
     def __init__(self, gravity=(0.0, 0.0, -9.81), settings=None, materials=None):
-        self.gravity = _vector(gravity, 3, "gravity")
-        self.settings = settings if settings is not None else Settings()
+        """``gravity (3,)`` m/s²; ``settings``: a ``Settings`` or a mapping of its fields;
+        ``materials``: a mapping of name → ``Material`` (or a mapping of its fields)."""
+        self.settings = Settings() if settings is None else settings
+        self.gravity = gravity
+        if materials is not None and not isinstance(materials, Mapping):
+            raise ContactSimError(f"materials: must be a mapping of name → Material, got {type(materials).__name__}")
         self.materials = {DEFAULT_MATERIAL: Material()}
-        self.materials.update(materials or {})
+        for key, mat in (materials or {}).items():
+            if not isinstance(key, str) or not key:
+                raise ContactSimError(f"materials: names must be non-empty strings, got {show(key)}")
+            self.materials[key] = Nested(Material).check(mat, f"materials[{key!r}]")
         self.time = 0.0
         self.contacts = Contacts.empty()
         self._names = []
@@ -115,6 +147,24 @@ class World:
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
         self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
+
+    @property
+    def settings(self):
+        """The world's ``Settings`` (model choices and world bounds); each field is checked when set."""
+        return self._settings
+
+    @settings.setter
+    def settings(self, value):
+        self._settings = Nested(Settings).check(value, "settings")
+
+    @property
+    def gravity(self):
+        """Gravity ``(3,)`` m/s², at most ``settings.max_speed / settings.max_step`` long."""
+        return self._gravity
+
+    @gravity.setter
+    def gravity(self, value):
+        self._gravity = GRAVITY.check(value, "gravity", self._settings)
 
     # ------------------------------------------------------------------ bodies
     @property
@@ -145,29 +195,30 @@ class World:
         group intersects the other's mask. ``where`` prefixes error messages (the scene path).
         """
         w = where or f"body {name!r}"
+        st = self.settings
         if not isinstance(name, str) or not name:
-            raise ContactSimError(f"{w}.name: must be a non-empty string, got {name!r}")
+            raise ContactSimError(f"{w}.name: must be a non-empty string, got {show(name)}")
         if name in self._index:
             raise ContactSimError(f"{w}.name: duplicate body name {name!r}")
         if not isinstance(shape, Shape):
             raise ContactSimError(f"{w}.shape: must be a contact_sim shape, got {type(shape).__name__}")
-        if kind not in KINDS:
-            raise ContactSimError(f"{w}.kind: must be one of {', '.join(KINDS)}; got {kind!r}")
-        if model not in MODELS:
-            raise ContactSimError(f"{w}.model: must be one of {', '.join(MODELS)}; got {model!r}")
-        if material not in self.materials:
-            raise ContactSimError(f"{w}.material: unknown material {material!r} "
+        _KIND.check(kind, f"{w}.kind")
+        _MODEL.check(model, f"{w}.model")
+        if not isinstance(material, str) or material not in self.materials:
+            raise ContactSimError(f"{w}.material: unknown material {show(material)} "
                                   f"(materials: {', '.join(self.materials)})")
-        tol = self.settings.quaternion_tolerance
-        pos = _vector(position, 3, f"{w}.position")
-        q = _unit_quaternion(orientation, f"{w}.orientation", tol)
-        vel = _vector(velocity, 3, f"{w}.velocity")
-        omega = _vector(angular_velocity, 3, f"{w}.angular_velocity")
-        for label, value in (("group", group), ("mask", mask)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= ALL_GROUPS:
-                raise ContactSimError(f"{w}.{label}: must be an integer bit mask in [0, 2^32), got {value!r}")
+        if not isinstance(self.materials[material], Material):   # world.materials is a plain dict
+            raise ContactSimError(f"{w}.material: world.materials[{material!r}] is not a Material, got "
+                                  f"{type(self.materials[material]).__name__}")
+        pos = POSITION.check(position, f"{w}.position", st)
+        q = ORIENTATION.check(orientation, f"{w}.orientation", st)
+        vel = VELOCITY.check(velocity, f"{w}.velocity", st)
+        omega = ANGULAR_VELOCITY.check(angular_velocity, f"{w}.angular_velocity", st)
+        group = GROUP.check(group, f"{w}.group")
+        mask = GROUP.check(mask, f"{w}.mask")
         if mass is not None and density is not None:
             raise ContactSimError(f"{w}: give mass or density, not both")
+        shape.check_fits(st, f"{w}.shape")
 
         com = np.zeros(3)
         inertia = np.zeros((3, 3))
@@ -176,20 +227,22 @@ class World:
             if isinstance(shape, Plane):
                 raise ContactSimError(f"{w}.shape: a plane is a half-space with no mass; make the body static or kinematic")
             if mass is not None:
-                body_mass = _positive(mass, f"{w}.mass")
+                body_mass = MASS.check(mass, f"{w}.mass", st)
                 try:
                     m1, com, i1 = shape.mass_properties(1.0)
                 except ContactSimError as exc:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
                 inertia = i1 * (body_mass / m1)  # uniform density
             else:
-                rho = DEFAULT_DENSITY if density is None else _positive(density, f"{w}.density")
+                rho = DEFAULT_DENSITY if density is None else DENSITY.check(density, f"{w}.density")
                 try:
                     body_mass, com, inertia = shape.mass_properties(rho)
                 except ContactSimError as exc:
                     raise ContactSimError(f"{w}.shape: {exc}") from None
+                MASS.check(body_mass, f"{w}.{'density' if density is not None else 'shape'} "
+                                      f"(a mass of {body_mass:.3g} kg at {rho:g} kg/m³)", st)
         elif mass is not None or density is not None:
-            _positive(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
+            DENSITY.check(mass if mass is not None else density, f"{w}.{'mass' if mass is not None else 'density'}")
         # centre the geometry on the centre of mass (round-off-sized offsets are not worth a copy)
         scale = max(float(np.ptp(getattr(shape, "vertices", np.zeros((1, 3))), axis=0).max()), 1e-12)
         centered = shape.translated(-com) if np.abs(com).max() > 1e-12 * scale else shape
@@ -198,9 +251,15 @@ class World:
 
         rotates = kind == "dynamic" and model == "rigid"
         if rotates:
+            if not np.all(np.isfinite(inertia)):
+                raise ContactSimError(f"{w}.shape: its inertia is not finite ({inertia.tolist()})")
             moments, pq = dynamics.principal_frame(inertia[None])
             moments, pq = moments[0], pq[0]
-            inv_inertia = np.linalg.inv(inertia)
+            with np.errstate(all="ignore"):
+                inv_inertia = np.linalg.inv(inertia) if np.all(moments > 0) else np.full((3, 3), np.nan)
+            if not np.all(np.isfinite(inv_inertia)):
+                raise ContactSimError(f"{w}.shape: its inertia (principal moments {moments.tolist()} kg·m²) cannot "
+                                      f"be inverted: the body is too thin or too light to rotate (model: particle?)")
         else:
             moments, pq = np.full(3, np.inf), np.array([0.0, 0.0, 0.0, 1.0])
             inv_inertia = np.zeros((3, 3))
@@ -337,13 +396,23 @@ class World:
         """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time
         ``stamp`` (s; default the world time). From the second pose on its linear and angular
         velocity are the finite differences of successive poses over their stamps, so responses
-        see how fast it really moves. Stamps must increase. Bad input changes nothing."""
-        self.set_poses([name], [position], [orientation], stamp)
+        see how fast it really moves. Stamps must increase. Bad input changes nothing; a position
+        beyond ``settings.max_position`` or a pose implying a speed beyond ``max_speed`` /
+        ``max_angular_speed`` raises ``BoundsError``."""
+        self._set_poses([name], [position], [orientation], stamp, single=True)
 
     def set_poses(self, names, positions, orientations, stamp=None):
         """``set_pose`` for several kinematic bodies at one ``stamp``, vectorised: ``names (M,)``,
         ``positions (M, 3)``, ``orientations (M, 4)``. The whole batch is checked before anything
-        changes, so a bad row leaves every body as it was; errors name the body and the reason."""
+        changes, so a bad row leaves every body as it was; errors name the body and the reason.
+        An empty batch changes nothing."""
+        self._set_poses(names, positions, orientations, stamp, single=False)
+
+    def _set_poses(self, names, positions, orientations, stamp, single):
+        st = self.settings
+        call = "set_pose" if single else "set_poses"
+        if isinstance(names, (str, bytes)) or not hasattr(names, "__iter__"):
+            raise ContactSimError(f"set_poses.names: must be a list of body names, got {show(names)}")
         names = list(names)
         m = len(names)
         idx = np.array([self.index(n) for n in names], dtype=np.int64)
@@ -358,47 +427,46 @@ class World:
             i = bad[0]
             raise ContactSimError(f"{where(i)}: only kinematic bodies are posed from outside; {names[i]!r} is "
                                   f"{KINDS[self.kind[idx[i]]]} (use set_state for dynamic bodies)")
-        try:
-            pos = np.asarray(positions, dtype=float)
-            q = np.asarray(orientations, dtype=float)
-            ok = pos.shape == (m, 3) and q.shape == (m, 4) and bool(np.isfinite(pos).all() and np.isfinite(q).all())
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:  # the slow path only finds and names the first bad row
-            if len(positions) != m or len(orientations) != m:
-                raise ContactSimError(f"set_poses: {m} names but {len(positions)} positions and "
-                                      f"{len(orientations)} orientations")
-            for i in range(m):
-                _vector(positions[i], 3, f"{where(i)}.position")
-                _vector(orientations[i], 4, f"{where(i)}.orientation")
-        norm = np.linalg.norm(q, axis=1)
-        bad = np.flatnonzero(np.abs(norm - 1.0) > self.settings.quaternion_tolerance)
-        if bad.size:
-            _unit_quaternion(q[bad[0]], f"{where(bad[0])}.orientation", self.settings.quaternion_tolerance)
-        q = q / norm[:, None]
-        t = self.time if stamp is None else stamp
-        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
-            raise ContactSimError(f"{where(0) if m == 1 else 'set_poses'}.stamp: must be a finite number of "
-                                  f"seconds, got {stamp!r}")
-        t = float(t)
+        lengths = [_length(positions), _length(orientations)]
+        if None not in lengths and lengths != [m, m]:
+            raise ContactSimError(f"set_poses: {m} names but {lengths[0]} positions and {lengths[1]} orientations")
+        pos = _rows(POSITIONS.check, positions, m, f"{call}.positions", lambda i: f"{where(i)}.position", st,
+                    POSITION)
+        q = _rows(ORIENTATION.check_rows, orientations, m, f"{call}.orientations",
+                  lambda i: f"{where(i)}.orientation", st, ORIENTATION)
+        t = self.time if stamp is None else STAMP.check(stamp, f"{where(0) if single else 'set_poses'}.stamp")
         s = self.s
         posed = s.posed[idx]
         bad = np.flatnonzero(posed & (t - s.stamp[idx] <= 0))
         if bad.size:
             i = bad[0]
             raise ContactSimError(f"{where(i)}.stamp: must be after the previous pose ({s.stamp[idx[i]]!r}), got {t!r}")
-        # ---- commit (nothing below can fail)
         com_world = pos + quat.rotate(q, self.com_local[idx])
         j, ij = np.flatnonzero(posed), idx[posed]
         if j.size:
-            # from the previous *pose*: between poses the body moved on at its velocity, and a
-            # difference from there would halve the velocity of a steadily driven body every other pose
+            # velocities: finite differences from the previous *pose* (between poses the body moved on
+            # at its velocity; a difference from there would halve the velocity of a steadily driven
+            # body every other pose), over the stamps, within the world's speed bounds
             dt = (t - s.stamp[ij])[:, None]
             q_prev = s.pose_quat[ij]
             qj = np.where(np.sum(q[j] * q_prev, axis=1, keepdims=True) < 0, -q[j], q[j])  # shorter way round
             q[j] = qj
-            s.omega[ij] = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev))) / dt
-            s.vel[ij] = (com_world[j] - s.pose_pos[ij]) / dt
+            turn = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev)))
+            move = com_world[j] - s.pose_pos[ij]
+            for d, bound, unit in ((move, "max_speed", "m/s"), (turn, "max_angular_speed", "rad/s")):
+                # compared before dividing: stamps a hair apart would overflow the quotient
+                over = np.linalg.norm(d, axis=1) > getattr(st, bound) * dt[:, 0]
+                if over.any():
+                    k = int(np.argmax(over))
+                    speed = float(np.linalg.norm(d[k])) / float(dt[k, 0])
+                    raise BoundsError(f"{where(j[k])}: moving since the previous pose {float(dt[k, 0]):.6g} s ago "
+                                      f"implies {speed:.6g} {unit}, above {bound} ({getattr(st, bound):g} {unit})")
+            omega = turn / dt
+            vel = move / dt
+        # ---- commit (nothing below can fail)
+        if j.size:
+            s.omega[ij] = omega
+            s.vel[ij] = vel
         s.pos[idx] = com_world
         s.quat[idx] = q
         s.pose_pos[idx] = com_world
@@ -414,26 +482,10 @@ class World:
         self.s.posed[idx] = False
 
     def set_state(self, name, position=None, orientation=None, velocity=None, angular_velocity=None):
-        """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first."""
-        i = self.index(name)
-        if self.kind[i] == STATIC:
-            raise ContactSimError(f"set_state({name!r}): {name!r} is static and never moves")
-        s = self.s
-        q = s.quat[i] if orientation is None else _unit_quaternion(
-            orientation, f"set_state({name!r}).orientation", self.settings.quaternion_tolerance)
-        pos = None if position is None else _vector(position, 3, f"set_state({name!r}).position")
-        vel = None if velocity is None else _vector(velocity, 3, f"set_state({name!r}).velocity")
-        om = None if angular_velocity is None else _vector(angular_velocity, 3, f"set_state({name!r}).angular_velocity")
-        if om is not None and self.particle[i] and np.any(om != 0):
-            raise ContactSimError(f"set_state({name!r}).angular_velocity: a particle does not rotate")
-        origin = s.pos[i] - quat.rotate(s.quat[i], self.com_local[i]) if pos is None else pos
-        s.quat[i] = q
-        s.pos[i] = origin + quat.rotate(q, self.com_local[i])
-        if vel is not None:
-            s.vel[i] = vel
-        if om is not None:
-            s.omega[i] = om
-        s.posed[i] = False   # a kinematic body set from outside: its pose history starts again
+        """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first,
+        world bounds included; ``None`` keeps that part."""
+        as_rows = [None if v is None else [v] for v in (position, orientation, velocity, angular_velocity)]
+        self._set_states([name], *as_rows, label="set_state")
 
     def set_states(self, names, positions=None, orientations=None, velocities=None, angular_velocities=None):
         """``set_state`` for several non-static bodies at once, all or nothing: ``names (M,)`` and,
@@ -441,27 +493,35 @@ class World:
         ``orientations (M, 4)`` x,y,z,w, ``velocities (M, 3)`` of the centres of mass and
         ``angular_velocities (M, 3)``, world frame. A kinematic body given a velocity moves at it
         until the next pose or state; errors name the body and the reason."""
-        names = list(names)
+        self._set_states(names, positions, orientations, velocities, angular_velocities, label="set_states")
+
+    def _set_states(self, names, positions, orientations, velocities, angular_velocities, label):
+        names = [names] if isinstance(names, str) else list(names)
         m = len(names)
         idx = np.array([self.index(n) for n in names], np.int64)
         if len(set(idx.tolist())) != m:
-            raise ContactSimError(f"set_states: a body is named twice in {names!r}")
+            raise ContactSimError(f"{label}: a body is named twice in {names!r}")
         for i in np.flatnonzero(self.kind[idx] == STATIC):
-            raise ContactSimError(f"set_states({names[i]!r}): {names[i]!r} is static and never moves")
-        tol = self.settings.quaternion_tolerance
+            raise ContactSimError(f"{label}({names[i]!r}): {names[i]!r} is static and never moves")
+        st = self.settings
         parts = {}
-        for key, value, n in (("position", positions, 3), ("orientation", orientations, 4),
-                              ("velocity", velocities, 3), ("angular_velocity", angular_velocities, 3)):
+        for key, value, rule in (("position", positions, POSITION), ("orientation", orientations, ORIENTATION),
+                                 ("velocity", velocities, VELOCITY),
+                                 ("angular_velocity", angular_velocities, ANGULAR_VELOCITY)):
             if value is None:
                 continue
-            if len(value) != m:
-                raise ContactSimError(f"set_states.{key}: {len(value)} rows for {m} bodies")
-            check = (lambda v, w: _unit_quaternion(v, w, tol)) if n == 4 else (lambda v, w: _vector(v, n, w))
-            parts[key] = np.array([check(value[i], f"set_states({names[i]!r}).{key}") for i in range(m)]).reshape(m, n)
+            try:
+                rows = list(value)
+            except TypeError:
+                raise ContactSimError(f"{label}.{key}: must be one row per body, got {value!r}") from None
+            if len(rows) != m:
+                raise ContactSimError(f"{label}.{key}: {len(rows)} rows for {m} bodies")
+            parts[key] = np.array([rule.check(rows[i], f"{label}({names[i]!r}).{key}", st)
+                                   for i in range(m)]).reshape(m, -1)
         om = parts.get("angular_velocity")
         if om is not None:
             for i in np.flatnonzero(self.particle[idx] & om.any(axis=1)):
-                raise ContactSimError(f"set_states({names[i]!r}).angular_velocity: a particle does not rotate")
+                raise ContactSimError(f"{label}({names[i]!r}).angular_velocity: a particle does not rotate")
         # ---- commit (nothing below can fail)
         s = self.s
         origin = parts.get("position")
@@ -474,29 +534,42 @@ class World:
             s.vel[idx] = parts["velocity"]
         if om is not None:
             s.omega[idx] = om
-        s.posed[idx] = False
+        s.posed[idx] = False   # a kinematic body set from outside: its pose history starts again
 
     # ------------------------------------------------------------------ stepping
     def step(self, dt=None):
         """Advance the world by ``dt`` seconds (default ``settings.dt``); ``contacts`` then holds
-        the contacts of this step with the impulses applied."""
+        the contacts of this step with the impulses applied.
+
+        A step is all or nothing: if the engine raises inside it, or leaves a body's state
+        non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
+        is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
         from . import stepper  # the time-of-impact / response pipeline
 
-        saved = (self.s.copy(), self.time, self.contacts, getattr(self, "_cs_warm", None))
+        # the stepper edits the state arrays in place and replaces the other per-step attributes:
+        # a copy of the one and a shallow copy of the other undo any step
+        saved = self.s.copy(), dict(self.__dict__)
         try:
             stepper.step(self, dt)
         except BaseException:
-            self.s, self.time, self.contacts, self._cs_warm = saved
+            self._undo(saved)
             raise
         bad = self._nonfinite_bodies()
         if bad.size:
             # the invariant guard: the engine never leaves a non-finite state behind; the step is
             # undone and the bodies are named, so a caller (the node) can keep its last good world
-            self.s, self.time, self.contacts, self._cs_warm = saved
+            self._undo(saved)
             names = ", ".join(repr(self._names[i]) for i in bad[:10]) + (" ..." if bad.size > 10 else "")
-            raise ContactSimError(f"step: the state of {bad.size} bod{'y' if bad.size == 1 else 'ies'} ({names}) "
-                                  f"would have become non-finite; the world is as it was before this step")
+            raise EngineError(f"step: the state of {bad.size} bod{'y' if bad.size == 1 else 'ies'} ({names}) "
+                              f"would have become non-finite (a failure on valid input, please report it); "
+                              f"the world is as it was before this step")
+
+    def _undo(self, saved):
+        state, attributes = saved
+        self.__dict__.clear()
+        self.__dict__.update(attributes)
+        self.s = state
 
     def _nonfinite_bodies(self):
         """Indices ``(B,)`` of bodies with a non-finite position, velocity or orientation (one sum per
@@ -519,11 +592,10 @@ class World:
         return contacts
 
     def _check_dt(self, dt):
+        """``dt`` by the rule of ``settings.dt`` (> 0, at most ``settings.max_step``)."""
         if dt is None:
             return self.settings.dt
-        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)) or not np.isfinite(dt) or dt <= 0:
-            raise ContactSimError(f"step: dt must be a finite number of seconds > 0, got {dt!r}")
-        return float(dt)
+        return float(Settings.rule("dt").check(dt, "step.dt", self.settings))
 
     def _advance_free(self, dt):
         """Move every body as if nothing touched for ``dt``: dynamic bodies ballistically with

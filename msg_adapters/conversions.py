@@ -16,7 +16,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from contact_sim import FEATURES, Contacts
+from contact_sim import FEATURES, BoundsError, Contacts
 
 # ---------------------------------------------------------------------------- contacts
 #: One PointCloud2 point per contact. ``x, y, z`` (float32) is the contact point for display: RViz's
@@ -404,6 +404,13 @@ def validate_poses(positions, orientations, expected=None, tolerance=1e-3, what=
         raise PoseError("non_unit_quaternion",
                         f"{what}: pose {i} quaternion has norm {norm[i]:.6g} (must be 1 ± {tolerance:g})")
     return p.copy(), q / norm[:, None]
+
+
+def engine_reject_reason(exc):
+    """The rejection counter of poses the engine refused (``World.set_poses``): ``out_of_bounds``
+    for a pose beyond a world bound (``settings.max_position``, or a speed implied by successive
+    poses beyond ``max_speed`` / ``max_angular_speed``), ``engine`` for any other refusal."""
+    return "out_of_bounds" if isinstance(exc, BoundsError) else "engine"
 
 
 # ---------------------------------------------------------------------------- RViz markers

@@ -29,7 +29,7 @@ import contact_sim
 from .body_control import BodyControl
 from .config import (PARAMETERS, ConfigError, apply_model, build_world, resolve_tracked,  # noqa: F401
                      validate_config)
-from .conversions import CdrError, PoseError, parse_posearray_cdr, validate_poses
+from .conversions import CdrError, PoseError, engine_reject_reason, parse_posearray_cdr, validate_poses
 from .launch import main  # noqa: F401 (the console script's entry point, kept importable from here)
 from .publishing import POSE_REJECT_REASONS, Outputs, diag_name  # noqa: F401 (POSE_REJECT_REASONS: for users)
 
@@ -247,8 +247,8 @@ class ContactSimNode(Outputs, BodyControl, Node):
         t = (stamp_ns - self._t0_ns) * 1e-9
         try:  # checked as a whole by the engine: a refused batch changes nothing
             self.world.set_poses(self.tracked, p, q, t)
-        except contact_sim.ContactSimError as exc:
-            return self._reject_pose("engine", str(exc))
+        except contact_sim.ContactSimError as exc:   # out_of_bounds: beyond a world bound (settings.max_*)
+            return self._reject_pose(engine_reject_reason(exc), str(exc))
         self._last_pose_stamp_ns = stamp_ns
         self._last_rx[:] = now_ns * 1e-9
         self._held_pos, self._held_quat = p, q

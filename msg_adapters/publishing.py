@@ -24,7 +24,7 @@ from .conversions import (contact_markers, contact_wrenches, contacts_to_pointcl
                           multidof_cdr, names_cdr, ns_to_stamp, posearray_cdr)
 
 POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "non_unit_quaternion", "stamp",
-                       "frame_id", "engine")
+                       "frame_id", "out_of_bounds", "engine")
 #: counters whose growth since the last /diagnostics message makes it a WARN
 WARN_COUNTERS = ("rejected_poses", "rejected_parameters", "overruns", "poses_dropped", "rejected_body_states",
                  "rejected_spawns", "rejected_deletes", "clock_jumps_back")

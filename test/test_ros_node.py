@@ -185,6 +185,31 @@ def test_bad_poses_are_rejected_counted_and_change_nothing(running):
     spin.until(lambda: node.counts["poses_accepted"] == 2 and node.counts["ticks"] > ticks, 5, "recovery")
 
 
+def test_poses_beyond_the_world_bounds_are_rejected_as_out_of_bounds(running):
+    """A finite pose beyond settings.max_position (1e4 m), or one whose finite difference from the
+    last accepted pose is faster than max_speed (1e4 m/s), is refused by the engine and counted
+    under its own reason; the paddle keeps its last good pose and velocity."""
+    node, client, spin = running
+    stamp = node.get_clock().now().nanoseconds
+    good = np.array([[-0.4, 0.0, 0.16]])
+    client.send(good, IDENTITY, stamp)
+    spin.until(lambda: node.counts["poses_accepted"] == 1, 5, "the good pose")
+    before = node.world.body("paddle")
+    client.send([[1e300, 0.0, 0.16]], IDENTITY, stamp + 1_000_000)
+    client.send([[2e4, 0.0, 0.16]], IDENTITY, stamp + 2_000_000)
+    client.send(good + [[1.0, 0.0, 0.0]], IDENTITY, stamp + 3_000)   # 1 m in 3 µs: 3.3e5 m/s
+    spin.until(lambda: client.diag("rejected_pose_out_of_bounds") == "3", 10, "three out-of-bounds poses counted")
+    d = client.last["diag"]
+    assert d["rejected_poses"] == "3" and d["rejected_pose_engine"] == "0"
+    assert node.counts["poses_accepted"] == 1
+    after = node.world.body("paddle")
+    np.testing.assert_array_equal(after.position, before.position)     # it had no velocity: it stayed
+    np.testing.assert_array_equal(after.velocity, [0.0, 0.0, 0.0])
+    # a pose within the bounds is still accepted
+    client.send(good + [[0.001, 0.0, 0.0]], IDENTITY, stamp + 100_000_000)
+    spin.until(lambda: node.counts["poses_accepted"] == 2, 5, "a good pose after the bad ones")
+
+
 def test_bad_parameters_at_run_time_are_rejected_and_counted(running):
     node, client, spin = running
     world = node.world

@@ -57,7 +57,7 @@ def test_valid_scene_builds_world():
 @pytest.mark.parametrize("edits, message", [
     ({"bodies__3__mass": -1}, r"bodies\[3\]\.mass: must be > 0, got -1"),
     ({"bodies__1__mass": 0}, r"bodies\[1\]\.mass: must be > 0, got 0"),
-    ({"bodies__2__density": float("nan")}, r"bodies\[2\]\.density: must be > 0"),
+    ({"bodies__2__density": float("nan")}, r"bodies\[2\]\.density: must be a finite number > 0, got nan"),
     ({"bodies__2__name": "ball"}, r"bodies\[2\]\.name: duplicate body name 'ball'"),
     ({"bodies__1__colour": "red"}, r"bodies\[1\]\.colour: unknown key"),
     ({"gravty": [0, 0, 1]}, r"^gravty: unknown key"),
@@ -82,7 +82,7 @@ def test_valid_scene_builds_world():
     ({"bodies__3__shape": {"type": "convex", "points": [[0, 0, 0], [1, 0, 0], [0, 1, 0]]}},
      r"bodies\[3\]\.shape\.points: needs at least 4 points"),
     ({"bodies__3__shape": {"type": "convex", "points": [[0, 0, 0], [1, 0, float("nan")], [0, 1, 0], [0, 0, 1]]}},
-     r"bodies\[3\]\.shape\.points: point 1 is not finite"),
+     r"bodies\[3\]\.shape\.points\[1\]: must be finite"),
     ({"bodies__2__shape": {"type": "mesh", "file": "x.stl"}}, r"bodies\[2\]\.shape\.file: no such file 'x\.stl'"),
     ({"bodies__2__shape": {"type": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": []}},
      r"bodies\[2\]\.shape\.faces: must be a non-empty"),

@@ -35,8 +35,10 @@ from .. import quat as Q
 from ..contacts import Contacts
 from ..errors import ContactSimError
 from ..memo import derived
+from ..settings import Settings
 from ..shapes import Shape
-from ..validate import unit_quaternion, vector
+from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
+                        show)
 from . import bounding, broadphase, narrow
 from .geometry import PolyTable, pad_row, poly_geom
 
@@ -326,35 +328,52 @@ def detect_world(world, margin=None):
     return _detect(bodies, world.shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)
 
 
-def _check_pose(pose, what):
+def _check_query(call, settings, margin, bounding_volume):
+    """Settings, margin and bounding volume of a stateless query. With ``settings`` (a
+    ``Settings`` or a mapping) its world bounds apply to positions, shape sizes and the margin, by
+    the rules of a world; without, only what any world would refuse (non-finite values, lengths
+    beyond ``LENGTH_LIMIT``), so internal callers (time-of-impact searches) pay no more."""
+    st = None if settings is None else Nested(Settings).check(settings, f"{call}: settings")
+    rule = Settings.rule("contact_margin") if st is not None else DISTANCE
+    margin = rule.check(margin, f"{call}: margin", st)
+    bounding_volume = Settings.rule("bounding_volume").check(bounding_volume, f"{call}: bounding_volume")
+    return st, float(margin), bounding_volume
+
+
+def _check_shape(shape, what, settings):
+    if not isinstance(shape, Shape) or shape.type not in RANK:
+        raise ContactSimError(f"{what}: must be a contact_sim shape, got {type(shape).__name__}")
+    if settings is not None:
+        shape.check_fits(settings, what)
+
+
+def _check_pose(pose, what, settings):
     """``(position (3,), unit orientation (4,))`` from a pose; any non-zero quaternion is normalised."""
     try:
         p, q = pose
     except (TypeError, ValueError):
         raise ContactSimError(f"{what}: must be (position (3,), orientation (4,) x,y,z,w), got {pose!r}") from None
-    return vector(p, 3, f"{what}.position"), unit_quaternion(q, f"{what}.orientation", np.inf)
+    rule = POSITION if settings is not None else COORDINATES
+    return rule.check(p, f"{what}.position", settings), ANY_ORIENTATION.check(q, f"{what}.orientation", settings)
 
 
-def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto", stats=False):
+def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto", stats=False, settings=None):
     """Contacts between two shapes (``Contacts`` with ``body_a = 0``, ``body_b = 1``).
 
     ``pose_* = (position (3,), orientation (4,) x,y,z,w)`` of the shape frame. ``normal (K, 3)``
     points from B to A; ``depth (K,)`` > 0 penetrating, ``-separation`` within ``margin``.
     Stateless; runs the same bounding-volume and kernel stages as ``detect_world``. With
-    ``stats=True`` returns ``(Contacts, DetectionStats)``.
+    ``stats=True`` returns ``(Contacts, DetectionStats)``. Arguments are checked (finite, lengths
+    within ``validate.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
+    its world bounds (positions, shape sizes, margin), as a world would check them.
     """
     t0 = time.perf_counter()
-    for s, what in ((shape_a, "shape_a"), (shape_b, "shape_b")):
-        if not isinstance(s, Shape) or s.type not in RANK:
-            raise ContactSimError(f"collide: {what} must be a contact_sim shape, got {type(s).__name__}")
-    pa, qa = _check_pose(pose_a, "collide: pose_a")
-    pb, qb = _check_pose(pose_b, "collide: pose_b")
-    try:
-        margin = float(margin)
-    except (TypeError, ValueError):
-        raise ContactSimError(f"collide: margin must be a number, got {margin!r}") from None
-    if not np.isfinite(margin) or margin < 0:
-        raise ContactSimError(f"collide: margin must be a finite number >= 0, got {margin!r}")
+    st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
+    _check_shape(shape_a, "collide: shape_a", st)
+    _check_shape(shape_b, "collide: shape_b", st)
+    pa, qa = _check_pose(pose_a, "collide: pose_a", st)
+    pb, qb = _check_pose(pose_b, "collide: pose_b", st)
+    stats = Flag().check(stats, "collide: stats")
     if shape_a.type == "mesh" and shape_b.type == "mesh":
         raise ContactSimError("collide: mesh-mesh pairs are not supported; make one of them convex")
     bodies = _bodies_cached((shape_a, shape_b))
@@ -379,32 +398,48 @@ def _bodies_cached(shapes):
     return b
 
 
-def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_volume="auto"):
+def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_volume="auto", settings=None):
     """Contacts of many given pairs at once (no broad phase): ``(Contacts, DetectionStats)``.
 
     ``shapes`` list of N shapes (repeat the same object for identical bodies: its geometry is
-    prepared once), ``positions (N, 3)``, ``orientations (N, 4)`` x,y,z,w, ``pairs (K, 2)`` int.
-    ``body_a``/``body_b`` of the result index ``shapes``. Same stages and kernels as ``collide``.
+    prepared once), ``positions (N, 3)``, ``orientations (N, 4)`` x,y,z,w (any non-zero length),
+    ``pairs (K, 2)`` int. ``body_a``/``body_b`` of the result index ``shapes``. Same stages and
+    kernels as ``collide``, and the same checks (world bounds only with ``settings``).
     """
     t0 = time.perf_counter()
+    st, margin, bounding_volume = _check_query("collide_pairs", settings, margin, bounding_volume)
+    if isinstance(shapes, Shape) or not isinstance(shapes, (list, tuple)):
+        raise ContactSimError(f"collide_pairs: shapes must be a list of contact_sim shapes, got {type(shapes).__name__}")
     for i, s in enumerate(shapes):
-        if not isinstance(s, Shape) or s.type not in RANK:
-            raise ContactSimError(f"collide_pairs: shapes[{i}] must be a contact_sim shape, got {type(s).__name__}")
-    pos = np.asarray(positions, float).reshape(-1, 3)
-    q = np.asarray(orientations, float).reshape(-1, 4)
-    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
-    if len(pos) != len(shapes) or len(q) != len(shapes):
-        raise ContactSimError(f"collide_pairs: {len(shapes)} shapes need {len(shapes)} positions and orientations, "
-                              f"got {len(pos)} and {len(q)}")
-    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(q))):
-        raise ContactSimError("collide_pairs: positions and orientations must be finite (no NaN/inf)")
-    nq = np.linalg.norm(q, axis=1)
-    if np.any(nq < 1e-12):
-        raise ContactSimError(f"collide_pairs: orientation {int(np.argmin(nq))} is a zero quaternion")
-    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(shapes)):
-        raise ContactSimError(f"collide_pairs: pair indices must be in [0, {len(shapes) - 1}]")
+        _check_shape(s, f"collide_pairs: shapes[{i}]", st)
+    n = len(shapes)
+    lengths = [len(v) if isinstance(v, (list, tuple)) or (isinstance(v, np.ndarray) and v.ndim) else None
+               for v in (positions, orientations)]
+    if None not in lengths and lengths != [n, n]:
+        raise ContactSimError(f"collide_pairs: {n} shapes but {lengths[0]} positions and {lengths[1]} orientations")
+    pos = (POSITIONS if st is not None else POINTS).check(positions, "collide_pairs: positions", st, count=n,
+                                                          what="positions")
+    q = ANY_ORIENTATION.check_rows(orientations, "collide_pairs: orientations", st, count=n)
+    pairs = _check_pairs(pairs, n)
     bodies = _Bodies(list(shapes))
-    st = DetectionStats(bodies=len(shapes), candidate_pairs=len(pairs), bounding_volume=bounding_volume,
-                        margin=float(margin))
-    return _detect(bodies, list(shapes), pos, q / nq[:, None], pairs[:, 0], pairs[:, 1], float(margin),
-                   bounding_volume, st, t0, {"broad": 0.0})
+    stats = DetectionStats(bodies=n, candidate_pairs=len(pairs), bounding_volume=bounding_volume, margin=margin)
+    return _detect(bodies, list(shapes), pos, q, pairs[:, 0], pairs[:, 1], margin, bounding_volume, stats, t0,
+                   {"broad": 0.0})
+
+
+def _check_pairs(pairs, n):
+    """``(K, 2)`` int indices into ``n`` shapes, no pair of a shape with itself."""
+    what = "collide_pairs: pairs"
+    p = Rows(2).check(pairs, what, what="pairs")
+    if not np.all(p == np.floor(p)):
+        i = int(np.flatnonzero(np.any(p != np.floor(p), axis=1))[0])
+        raise ContactSimError(f"{what}[{i}]: indices must be whole numbers, got {p[i].tolist()}")
+    bad = np.flatnonzero(np.any((p < 0) | (p >= n), axis=1))
+    if bad.size:
+        i = int(bad[0])
+        raise ContactSimError(f"{what}[{i}]: indices must be in [0, {n - 1}], got {show(p[i])}")
+    same = np.flatnonzero(p[:, 0] == p[:, 1])
+    if same.size:
+        i = int(same[0])
+        raise ContactSimError(f"{what}[{i}]: a shape cannot be paired with itself, got {show(p[i])}")
+    return p.astype(np.int64)
