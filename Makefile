@@ -25,8 +25,12 @@ $(STAMP): setup.py requirements/ros.txt requirements/dev.txt
 run: $(STAMP)
 	$(VENV)/bin/contact-sim run $(ARGS)
 
+# the whole suite, then (with no ARGS) the quick exact-answer tests once more through the plain
+# Python path of every compiled kernel (NUMBA_DISABLE_JIT=1), so that path stays correct too
 test: $(STAMP)
 	$(PY) -m pytest $(ARGS)
+	@if [ -z "$(ARGS)" ]; then echo "exact-answer tests without the JIT:"; \
+	  NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q -m exact -p no:cacheprovider; fi
 
 # every benchmark in bench/ (tables on stdout, CSV/PNG in bench/results/; pybullet is the
 # reference), the hard cases' measured figures, then the README's "Measured results" block

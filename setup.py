@@ -26,11 +26,11 @@ setup(
         ("share/" + PACKAGE, ["package.xml"]),
     ] + tree("config", "share/" + PACKAGE),
     python_requires=">=3.10",
-    install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60"],
+    install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60", "numba>=0.60"],
     extras_require={
         # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
         "plot": ["matplotlib>=3.6"],
-        "test": ["pytest>=7", "pytest-timeout>=2.1", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
+        "test": ["pytest>=7", "pytest-timeout>=2.1", "hypothesis>=6.100", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
         "bench": ["matplotlib>=3.6", "python-fcl>=0.7", "pybullet>=3.2"],
     },
     zip_safe=True,

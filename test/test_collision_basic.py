@@ -7,6 +7,8 @@ from contact_sim import quat as Q
 from contact_sim.collision import collide, detect_world, DetectionStats
 from contact_sim.contacts import FEATURES
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 I = (0.0, 0.0, 0.0, 1.0)
 
 

@@ -6,6 +6,8 @@ from scipy.integrate import solve_ivp
 import contact_sim as cs
 from contact_sim import quat
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 
 def _free_world(gravity=(0.0, 0.0, -9.81)):
     return cs.World(gravity=gravity)

@@ -5,6 +5,8 @@ import pytest
 import contact_sim as cs
 from contact_sim import quat
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 
 def world_with_paddle():
     w = cs.World(gravity=(0, 0, 0))

@@ -2,8 +2,11 @@
 import os
 
 import numpy as np
+import pytest
 
 import contact_sim as cs
+
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
 
 SCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config", "scenes")
 G = 9.81

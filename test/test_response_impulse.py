@@ -8,6 +8,8 @@ import contact_sim as cs
 from contact_sim import dynamics, quat
 from contact_sim.response import solver
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 SCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config", "scenes")
 
 

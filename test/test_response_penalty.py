@@ -7,6 +7,8 @@ import pytest
 import contact_sim as cs
 from contact_sim.response import PenaltyStiffnessWarning
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 SCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config", "scenes")
 
 

@@ -5,6 +5,8 @@ import pytest
 import contact_sim as cs
 from contact_sim import stepper
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 G, R = 9.81, 0.1
 
 

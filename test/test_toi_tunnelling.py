@@ -9,6 +9,8 @@ import contact_sim as cs
 from contact_sim import stepper
 from contact_sim.response import TunnellingWarning
 
+pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
+
 SCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config", "scenes")
 WALL_FRONT = 0.5 - 0.005
 
