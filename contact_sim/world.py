@@ -599,14 +599,17 @@ class World:
 
     def _advance_free(self, dt):
         """Move every body as if nothing touched for ``dt``: dynamic bodies ballistically with
-        torque-free rotation, kinematic bodies at their constant linear and angular velocity."""
+        torque-free rotation, kinematic bodies at their constant linear and angular velocity.
+        Returns the rotational energy change (J) of the splitting for tumbling bodies (see
+        ``dynamics.integrate_free``)."""
         dynamic = self.kind == DYNAMIC
-        dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
+        drift = dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
         kin = np.flatnonzero((self.kind == KINEMATIC) & self.s.omega.any(axis=1))
         if kin.size:
             s = self.s
             turn = quat.from_rotvec(s.omega[kin] * dt)
             s.quat[kin] = quat.normalize(quat.mul(turn, s.quat[kin]))
+        return drift
 
     # ------------------------------------------------------------------ reporting
     def _spin(self, mask):
