@@ -359,12 +359,19 @@ def _impulse_step(world, dt, m):
                 # (e > 0) does so in this step from the approach speed it has now (Box2D's
                 # restitution rule: the rebound starts up to one gap early, and e = 1 loses nothing)
                 g_n = np.einsum("ij,ij->i", c.normal, g[c.body_a] - g[c.body_b])
-                spec_target = (c.depth - 0.5 * g_n * t_left * t_left) / t_left
+                # never positive: a pair nearer than gravity's sag over the step is only stopped here
+                # (pushing it apart to arrive touching would be work done by the contact); the resting
+                # stage's constant force then lands it exactly
+                spec_target = np.minimum((c.depth - 0.5 * g_n * t_left * t_left) / t_left, 0.0)
                 closing = ~touching & (vn0 < spec_target)
                 spec_target = np.where(closing & (e > 0), np.maximum(spec_target, -e * vn0), spec_target)
             bounced = impact | (closing & (e > 0))
             if impact.any() or closing.any():
-                ti = np.flatnonzero(touching | closing)
+                # a touching pair that separates takes no impact impulse: it was not hit; were it
+                # held at v_n = 0 against the push of the others' impulses, the LCP would make it
+                # push a separating body along (positive work: a corner gained energy). If the
+                # others' impulses turn it into an approach, the resting stage stops it inelastically
+                ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
                 r1 = rows.select(ti)
                 if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
                     r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
@@ -395,13 +402,12 @@ def _impulse_step(world, dt, m):
                 # every contact rests (the usual case): read the arrays as they are, no gathers
                 ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
                 r2 = rows.select(rmask)
-                target = np.minimum(c.depth[ri], 0.0) / t_left   # close a gap, never open one
-                if spec:
-                    # a speculative contact: the displacement over T of the constant-force model,
-                    # (v_start + v_end)/2·T, may close the gap exactly, never more (and never asks the
-                    # pair to separate)
-                    vs = vn1[ri]
-                    target = np.where(touching[ri], target, np.minimum(2.0 * c.depth[ri] / t_left - vs, 0.0))
+                # the constant contact force acts over T on the displacement (v_start + v_end)/2·T: that
+                # may close a gap exactly, never more, and never asks the pair to separate; an
+                # approaching pair ends at rest (inelastic), a separating one may come back by its own
+                # displacement: the force then does no work (an end-velocity target of 0 made a force
+                # that held a separating body up, and added energy)
+                target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - vn1[ri], 0.0)
                 warm = _project_warm(_warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
                                      mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,

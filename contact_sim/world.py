@@ -552,6 +552,14 @@ class World:
         saved = self.s.copy(), dict(self.__dict__)
         try:
             stepper.step(self, dt)
+        except ContactSimError as exc:
+            # every input was checked before the step: a refusal from inside it is the engine's own
+            # failure (an internal query handed a bad value), not the caller's bad input
+            self._undo(saved)
+            if isinstance(exc, EngineError):
+                raise
+            raise EngineError(f"step: an internal query failed ({exc}); the world is as it was before this "
+                              f"step (a failure on valid input, please report it)") from exc
         except BaseException:
             self._undo(saved)
             raise

@@ -350,7 +350,14 @@ def disc_projection(kt, vfree, radius, newton=12):
     trust region, solved by Newton on ``1/|λ(ν)| − 1/radius``, which converges monotonically from
     ``ν = 0``). Then ``vfree + kt λ = −ν λ``: friction opposes the resulting sliding velocity."""
     out = np.zeros_like(vfree)
-    ok = (radius > 0) & np.any(vfree != 0, axis=1)
+    vmag = np.sqrt(np.einsum("ki,ki->k", vfree, vfree))
+    ok = (radius > 0) & (vmag > 0)
+    # a disc far smaller than the sticking impulse (a friction coefficient of 1e-300, a contact
+    # barely pressed): ν is then so large that λ = −radius·vfree/|vfree| to round-off (and the
+    # Newton iteration below would overflow on 1/radius)
+    far = ok & (radius * (kt[:, 0, 0] + kt[:, 1, 1]) <= 1e-14 * vmag)
+    out[far] = -(radius[far] / vmag[far])[:, None] * vfree[far]
+    ok &= ~far
     if not ok.any():
         return out
     a, b, c = kt[ok, 0, 0], kt[ok, 0, 1], kt[ok, 1, 1]
