@@ -44,7 +44,7 @@ class Settings(Declared):
     response: str = declare("auto", Choice(RESPONSES), "kinematic | penalty | impulse | auto")
     friction: object = declare("auto", Tristate(), "true | false | auto")
     resting: object = declare("auto", Tristate(), "resting-contact solver: true | false | auto")
-    solver_iterations: int = declare(20, Number(ge=1, le=100_000, integer=True))
+    solver_iterations: int = declare(100, Number(ge=1, le=100_000, integer=True))
     solver_tolerance: float = declare(1e-9, Number(ge=0, le="max_speed", unit="m/s"),
                                       "m/s: residual at which the solver stops")
     max_impacts_per_step: int = declare(8, Number(ge=1, le=10_000, integer=True),

@@ -315,6 +315,8 @@ def _impulse_step(world, dt, m):
     warm_out = None
     first = True
     drift = 0.0
+    rest_bound = 0.0
+    world._cs_kick_error = 0.0
     spec = SPECULATIVE and not exact_toi
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
@@ -364,7 +366,6 @@ def _impulse_step(world, dt, m):
                 # stage's constant force then lands it exactly
                 spec_target = np.minimum((c.depth - 0.5 * g_n * t_left * t_left) / t_left, 0.0)
                 closing = ~touching & (vn0 < spec_target)
-                spec_target = np.where(closing & (e > 0), np.maximum(spec_target, -e * vn0), spec_target)
             bounced = impact | (closing & (e > 0))
             if impact.any() or closing.any():
                 # a touching pair that separates takes no impact impulse: it was not hit; were it
@@ -375,14 +376,27 @@ def _impulse_step(world, dt, m):
                 r1 = rows.select(ti)
                 if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
                     r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
-                target = np.where(touching[ti], np.where(vn0[ti] < 0, -e[ti] * vn0[ti], 0.0),
-                                  spec_target[ti] if spec else 0.0)
+                # compression: the pairs are stopped (touching) or slowed to arrive touching
+                # (speculative), with friction; inelastic, so it can only take energy away
+                target = np.where(touching[ti], 0.0, spec_target[ti] if spec else 0.0)
                 res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
                                         mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
                                         tolerance=st.solver_tolerance, method=SOLVER_METHOD)
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
+                # restitution, its own stage (Box2D's restitution pass): the pairs that were hit and
+                # bounce get normal impulses only, up to −e × the approach speed recorded before the
+                # step. Friction stays in the compression, so a sticking impact cannot gain energy
+                # (Newton's rule with friction in one solve can: Kane's paradox); e = 1 keeps it
+                hit = bounced & (lam[:, 0] > 0)
+                if hit.any():
+                    hi = np.flatnonzero(hit)
+                    res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],
+                                            iterations=st.solver_iterations, tolerance=st.solver_tolerance,
+                                            method=SOLVER_METHOD)
+                    lam[hi, 0] += res.impulse[:, 0]
+                    iters = max(iters, res.iterations)
                 vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
             else:
                 vn1 = vn0
@@ -417,6 +431,10 @@ def _impulse_step(world, dt, m):
                 residual = max(residual, res.residual)
                 lam2 = np.zeros((k, 3))
                 lam2[ri] = res.impulse
+                # the constant-force model is first order in what the force does while the contact
+                # point moves during the interval: its work is right to within ½|λ|·|v_point|
+                vs_rows = solver.row_velocity(r2, s.vel, s.omega)
+                rest_bound += 0.5 * float(np.sum(np.linalg.norm(res.impulse, axis=1) * np.linalg.norm(vs_rows, axis=1)))
                 dv_rest = v_end - v_start_end
                 dw_rest = w_end - w_start_end
                 # copies: stored across steps, never views of this step's contacts
@@ -467,7 +485,8 @@ def _impulse_step(world, dt, m):
     world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
                         "contacts": len(world.contacts), "impacts": events, "toi": m.toi,
                         "response": m.response, "correction_energy": correction,
-                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift}
+                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift,
+                        "kick_error_bound": world.__dict__.pop("_cs_kick_error"), "rest_work_bound": rest_bound}
 
 
 def _potential_change(world, dx):
@@ -525,20 +544,41 @@ def _advance(world, tau, half_dv, half_dw):
     ``2·half_dv (N,3)`` (angular ``2·half_dw``): kick half, drift exactly, kick half."""
     s = world.s
     s.vel += half_dv
+    kicked = np.flatnonzero(np.any(half_dw != 0, axis=1))
+    if kicked.size:
+        ke0 = _rotational_energy(world, kicked)
     s.omega += half_dw
     drift = world._advance_free(tau)
     s.vel += half_dv
     s.omega += half_dw
+    if kicked.size:
+        # the torque's two half-kicks around a turning drift are exact to first order in the angle
+        # turned: what they move of a body's rotational energy is right to within |ω|·τ of itself
+        moved = np.abs(_rotational_energy(world, kicked) - ke0)
+        turned = np.linalg.norm(s.omega[kicked], axis=1) * tau
+        world._cs_kick_error = getattr(world, "_cs_kick_error", 0.0) + float(moved @ turned)
     return drift
 
 
+def _rotational_energy(world, idx):
+    """Rotational kinetic energy ``(k,)`` (J) of the bodies ``idx``."""
+    s = world.s
+    iw = dynamics.rotate_inertia(quat.to_matrix(s.quat[idx]), world.inertia_body[idx])
+    return 0.5 * np.einsum("ni,nij,nj->n", s.omega[idx], iw, s.omega[idx])
+
+
 def _move(world, dx, dtheta):
-    """Displace centres by ``dx (N,3)`` and rotate by rotation vectors ``dtheta (N,3)``."""
+    """Displace centres by ``dx (N,3)`` and rotate by rotation vectors ``dtheta (N,3)``. The angular
+    velocity turns with the body (its body-frame spin is kept): a world-frame ω left behind while
+    the body turns under it changes ½ωᵀI_wω, and a spinning body gained energy from being pushed out
+    of an overlap."""
     s = world.s
     s.pos += dx
     turn = np.flatnonzero(np.any(dtheta != 0, axis=1))
     if turn.size:
-        s.quat[turn] = quat.normalize(quat.mul(quat.from_rotvec(dtheta[turn]), s.quat[turn]))
+        dq = quat.from_rotvec(dtheta[turn])
+        s.quat[turn] = quat.normalize(quat.mul(dq, s.quat[turn]))
+        s.omega[turn] = quat.rotate(dq, s.omega[turn])
 
 
 def _split_impulse(world, c, rows, dt):
@@ -604,4 +644,5 @@ def _penalty_step(world, dt, m):
         iters, residual = 0, 0.0
     world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen, "contacts": k,
                         "impacts": 0, "toi": m.toi, "response": m.response, "correction_energy": 0.0,
-                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift}
+                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift,
+                        "kick_error_bound": 0.0, "rest_work_bound": 0.0}

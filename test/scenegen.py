@@ -34,9 +34,9 @@ def unit_quaternion(draw):
 
 
 @st.composite
-def shapes(draw, scale):
+def shapes(draw, scale, kinds=SHAPES):
     """A finite shape (its scene mapping) about ``scale`` m across (within a factor of ten)."""
-    kind = draw(st.sampled_from(SHAPES))
+    kind = draw(st.sampled_from(kinds))
     size = scale * draw(st.floats(0.3, 3.0))
     if kind == "sphere":
         return {"type": "sphere", "radius": size / 2}
@@ -66,11 +66,13 @@ def flat_tile(half, n=3):
 
 
 @st.composite
-def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, elastic=None, gravity=True):
+def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, elastic=None, gravity=True,
+           separated=False, kinds=SHAPES):
     """``(world, info)``: a generated world and what the invariants need to know about it
     (``info["kinematic"]`` names of kinematic bodies, ``info["scale"]`` the scene's size,
     ``info["scene"]`` the scene mapping it was loaded from: a failure prints it, and it becomes
-    a regression test as it is)."""
+    a regression test as it is). ``separated``: bodies start apart (on a lattice, walls and meshes
+    left out), for properties that only hold from a valid state."""
     scale = 10 ** draw(st.floats(-2.0, 1.0))          # body sizes over four decades: 3 mm to 30 m
     dt = draw(st.sampled_from([1 / 60, 1 / 120, 1 / 240]))
     response = draw(st.sampled_from(responses))
@@ -83,14 +85,14 @@ def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, e
              "materials": {"m": {"restitution": restitution, "friction": 0.0 if elastic is not None else friction}},
              "bodies": [{"name": "ground", "kind": "static", "shape": {"type": "plane"}, "material": "m"}]}
     bodies = scene["bodies"]
-    extent = 4.0 * scale
-    walls = draw(st.sampled_from(["none", "corner", "box"]))
+    extent = (8.0 if separated else 4.0) * scale
+    walls = draw(st.sampled_from(["none", "corner", "box"])) if not separated else "box"
     planes = {"corner": [("wall_x0", [1, 0, 0]), ("wall_y0", [0, 1, 0])],
               "box": [("wall_x0", [1, 0, 0]), ("wall_y0", [0, 1, 0]), ("wall_x1", [-1, 0, 0]), ("wall_y1", [0, -1, 0])]}
     for name, normal in planes.get(walls, []):
         bodies.append({"name": name, "kind": "static", "shape": {"type": "plane", "normal": normal, "offset": -extent},
                        "material": "m"})
-    extra = draw(st.sampled_from(["none", "step", "terrain"]))
+    extra = draw(st.sampled_from(["none", "step", "terrain"])) if not separated else "none"
     if extra == "step":
         bodies.append({"name": "step", "kind": "static", "material": "m",
                        "shape": {"type": "mesh", "vertices": (L_VERTS * scale * 2).tolist(), "faces": L_FACES.tolist()}})
@@ -101,9 +103,12 @@ def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, e
     m0 = draw(st.floats(0.1, 10.0))
     kin = []
     for i in range(n):
-        shape = draw(shapes(scale))
+        shape = draw(shapes(scale, kinds))
         is_kin = kinematic and i > 0 and draw(st.booleans()) and draw(st.booleans())   # about a quarter
-        pos = [draw(st.floats(-extent, extent)), draw(st.floats(-extent, extent)), draw(st.floats(0.0, 3 * extent))]
+        if separated:   # cells 7 scales apart (a body is at most 3√3 across), 4.5 from the walls
+            pos = [(-3.5 + 7 * (i % 2)) * scale, (-3.5 + 7 * ((i // 2) % 2)) * scale, (3.0 + 7.0 * (i // 4)) * scale]
+        else:
+            pos = [draw(st.floats(-extent, extent)), draw(st.floats(-extent, extent)), draw(st.floats(0.0, 3 * extent))]
         b = {"shape": shape, "position": pos, "orientation": unit_quaternion(draw), "material": "m"}
         speed = scale * draw(st.floats(0.0, 20.0))      # up to twenty body sizes per second
         direction = np.array(unit_quaternion(draw)[:3]) + 1e-9
@@ -129,9 +134,11 @@ def calls(draw, names, kinematic, n=12):
                                     + ["state", "reset", "detect", "collide"]))
         if kind == "step":
             out.append(("step", draw(st.integers(1, 6))))
-        elif kind == "pose":
+        elif kind == "pose":   # a move of up to a body size, a turn of up to 0.3 rad, in one step
+            axis = np.array(unit_quaternion(draw)[:3]) + 1e-9
+            turn = draw(st.floats(0.0, 0.3)) * axis / np.linalg.norm(axis)
             out.append(("pose", draw(st.sampled_from(kinematic)), draw(st.floats(-1.0, 1.0)),
-                        draw(st.floats(-1.0, 0.0)), unit_quaternion(draw)))
+                        draw(st.floats(-1.0, 0.0)), turn.tolist()))
         elif kind == "state":
             out.append(("state", draw(st.sampled_from(names)), draw(st.floats(-3.0, 3.0))))
         elif kind == "collide":

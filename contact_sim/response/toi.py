@@ -283,6 +283,9 @@ def candidate_pairs(world, motion, T, exclude, swept=False):
     still = ~(np.any(m.vel[i] != m.vel[j], axis=1) | np.any(m.acc[i] != m.acc[j], axis=1)
               | np.any(m.omega[i] != 0, axis=1) | np.any(m.omega[j] != 0, axis=1))
     ok &= ~still
+    # mesh–mesh pairs are not detected (issue 14): no time of impact either
+    typ_mesh = np.array([sh.type == "mesh" for sh in world.shapes])
+    ok &= ~(typ_mesh[i] & typ_mesh[j])
     i, j = i[ok], j[ok]
     if len(exclude):
         keep = ~np.isin(i * n + j, exclude)
