@@ -12,7 +12,7 @@ SHELL  := /bin/bash
 # this machine's pip config names local indexes that may not exist: drop that noise, keep errors
 QUIET  := 2>&1 | { grep -v "is ignored: it is neither" || true; }
 
-.PHONY: run test fuzz bench clean venv
+.PHONY: run test fuzz stability bench clean venv
 
 venv: $(STAMP)
 
@@ -31,6 +31,10 @@ test: $(STAMP)
 	$(PY) -m pytest $(ARGS)
 	@if [ -z "$(ARGS)" ]; then echo "exact-answer tests without the JIT:"; \
 	  NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q -m exact -p no:cacheprovider; fi
+
+# the ten-second stability scenes (test/test_stability.py, marker stability; prints HARD lines)
+stability: $(STAMP)
+	$(PY) -m pytest -q -s -m stability -p no:cacheprovider $(ARGS)
 
 # the long property-based profile (test/test_properties.py, marker fuzz): CI runs it after make test
 fuzz: $(STAMP)

@@ -374,6 +374,10 @@ def _impulse_step(world, dt, m):
                 # others' impulses turn it into an approach, the resting stage stops it inelastically
                 ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
                 r1 = rows.select(ti)
+                # the kinetic energy the impact starts from, for the restitution stage's cap below
+                bodies0 = np.unique(np.concatenate([c.body_a[ti], c.body_b[ti]]))
+                bodies0 = bodies0[dyn[bodies0]]
+                kinetic0 = _kinetic_energy(world, bodies0)
                 if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
                     r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
                 # compression: the pairs are stopped (touching) or slowed to arrive touching
@@ -385,6 +389,7 @@ def _impulse_step(world, dt, m):
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
+                vel_c, omega_c = s.vel[bodies0].copy(), s.omega[bodies0].copy()   # after compression
                 # restitution, its own stage (Box2D's restitution pass): the pairs that were hit and
                 # bounce get normal impulses only, up to −e × the approach speed recorded before the
                 # step. Friction stays in the compression, so a sticking impact cannot gain energy
@@ -395,7 +400,7 @@ def _impulse_step(world, dt, m):
                     res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],
                                             iterations=st.solver_iterations, tolerance=st.solver_tolerance,
                                             method=SOLVER_METHOD)
-                    lam[hi, 0] += res.impulse[:, 0]
+                    lam[hi, 0] += res.impulse[:, 0] * _energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
                     iters = max(iters, res.iterations)
                 vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
             else:
@@ -445,15 +450,17 @@ def _impulse_step(world, dt, m):
             near = touching.copy()
             if dv_rest is not None:
                 near[ri] = True
-            if exact_toi:   # pairs already in contact: keys min·N + max (no time of impact for them)
+            if exact_toi or m.continuous:   # pairs already in contact: keys min·N + max (no time of impact for them)
                 ea, eb = c.body_a[near], c.body_b[near]
                 exclude = np.minimum(ea, eb) * len(world) + np.maximum(ea, eb)
         first = False
         tau = t_left
-        if exact_toi and events < st.max_impacts_per_step:
+        if (exact_toi or m.continuous) and events < st.max_impacts_per_step:
             acc = g if dv_rest is None else g + dv_rest / t_left
             motion = toi_mod.Motion(world, acc, rotating)
-            ev, pair = toi_mod.earliest_event(world, motion, t_left, exclude, swept=m.toi == "swept")
+            # next_step with continuous bodies: a search for the fast bodies' pairs only
+            ev, pair = toi_mod.earliest_event(world, motion, t_left, exclude, swept=m.toi == "swept",
+                                              only=m.continuous if not exact_toi else None)
             if ev < t_left:
                 tau = ev
                 events += 1
@@ -558,6 +565,49 @@ def _advance(world, tau, half_dv, half_dw):
         turned = np.linalg.norm(s.omega[kicked], axis=1) * tau
         world._cs_kick_error = getattr(world, "_cs_kick_error", 0.0) + float(moved @ turned)
     return drift
+
+
+def _kinetic_energy(world, idx):
+    """Kinetic energy (J, a float) of the bodies ``idx (k,)``, linear plus rotational."""
+    s = world.s
+    rigid = idx[~world.particle[idx]]
+    return float(0.5 * np.sum(world.mass[idx] * np.einsum("ij,ij->i", s.vel[idx], s.vel[idx]))
+                 + _rotational_energy(world, rigid).sum())
+
+
+def _energetic_cap(world, idx, kinetic0, vel_c, omega_c):
+    """Scale the restitution stage's velocity change back so that the impact ends with no more
+    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx``); returns the
+    factor applied (1 when nothing was needed).
+
+    Newton's rule, one target ``−e·v_n0`` per contact, is exact for one contact and for contacts
+    that close at one speed; contacts closing at different speeds (a tumbling box meeting a wall
+    corner first, the others within the speculative margin) can be given more rebound than the
+    approach had: energy from nothing. Stronge's energetic view bounds the rebound by the energy the
+    compression stored; the velocities after restitution are ``v_c + s·Δv`` and the kinetic energy is
+    quadratic in ``s``, so the largest ``s ≤ 1`` that keeps it at ``kinetic0`` is a root."""
+    s = world.s
+    if idx.size == 0:
+        return 1.0
+    kinetic1 = _kinetic_energy(world, idx)
+    if kinetic1 <= kinetic0:
+        return 1.0
+    dv, dw = s.vel[idx] - vel_c, s.omega[idx] - omega_c
+    rigid = ~world.particle[idx]
+    iw = dynamics.rotate_inertia(quat.to_matrix(s.quat[idx]), world.inertia_body[idx])
+    iw[~rigid] = 0.0
+    m = world.mass[idx]
+    # K(s) = K_c + b s + a s², K_c the energy after compression
+    a = 0.5 * (np.sum(m * np.einsum("ij,ij->i", dv, dv)) + np.einsum("ni,nij,nj->", dw, iw, dw))
+    b = np.sum(m * np.einsum("ij,ij->i", vel_c, dv)) + np.einsum("ni,nij,nj->", omega_c, iw, dw)
+    kc = 0.5 * (np.sum(m * np.einsum("ij,ij->i", vel_c, vel_c)) + np.einsum("ni,nij,nj->", omega_c, iw, omega_c))
+    room = max(kinetic0 - kc, 0.0)
+    if a <= 0.0:
+        return 1.0
+    f = float(np.clip((-b + np.sqrt(max(b * b + 4.0 * a * room, 0.0))) / (2.0 * a), 0.0, 1.0))
+    s.vel[idx] = vel_c + f * dv
+    s.omega[idx] = omega_c + f * dw
+    return f
 
 
 def _rotational_energy(world, idx):

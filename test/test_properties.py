@@ -35,7 +35,7 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 import contact_sim as cs
@@ -47,10 +47,13 @@ from scenegen import calls, scenes
 # derandomized: CI sees the same examples every run (a red CI is a regression, not a new draw);
 # CONTACT_SIM_FUZZ_RANDOM=1 draws new ones, to look for more
 RANDOM = os.environ.get("CONTACT_SIM_FUZZ_RANDOM") == "1"
+# no shrinking: a failure carries its whole scene and call list in its notes, and shrinking a
+# stepped world took minutes of CI for a smaller copy of the same report
+PHASES = [Phase.explicit, Phase.generate]
 QUICK = settings(max_examples=12, deadline=None, derandomize=not RANDOM, database=None,
-                 suppress_health_check=list(HealthCheck))
+                 suppress_health_check=list(HealthCheck), phases=PHASES)
 LONG = settings(max_examples=40, deadline=None, derandomize=not RANDOM, database=None,
-                suppress_health_check=list(HealthCheck))
+                suppress_health_check=list(HealthCheck), phases=PHASES)
 
 
 # ---------------------------------------------------------------------------- invariants

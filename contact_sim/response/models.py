@@ -41,6 +41,7 @@ class Models:
     resting: bool
     rotation: bool
     reasons: list = field(default_factory=list)
+    continuous: tuple = ()   # next_step with a time-of-impact search for these bodies only (the fast ones)
 
 
 def _can_touch(world):
@@ -150,11 +151,20 @@ def _choose(world, dt, fast):
     if not rotation and rigid.any() and response != "kinematic":
         reasons.append("rotation skipped in responses: frictionless spheres (contact forces pass through the centre)")
     # time of impact
+    continuous = ()
     if st.toi == "auto":
-        if fast:
+        if fast and len(world) <= FRACTIONAL_AUTO_MAX_BODIES and dyn.sum() <= 4:
             toi = "swept"
             reasons.append(f"time of impact swept: {fast[0][0]} moves {fast[0][1]:.3g} m per step, more than "
                            f"the thinnest size it can meet ({fast[0][2]:.3g} m)")
+        elif fast:
+            # the continuous test applies to the bodies that need it: the rest of a big world keeps
+            # next_step (sub-stepping everything at every impact of one fast body cost seconds a step)
+            toi = "next_step"
+            continuous = tuple(world.index(name) for name, _, _ in fast)
+            reasons.append(f"time of impact next_step, continuous for {len(fast)} bod{'y' if len(fast) == 1 else 'ies'} "
+                           f"that move more than the thinnest size they can meet in a step ({fast[0][0]} moves "
+                           f"{fast[0][1]:.3g} m, more than {fast[0][2]:.3g} m)")
         elif len(world) <= FRACTIONAL_AUTO_MAX_BODIES and dyn.sum() <= 4 and response != "penalty":
             toi = "fractional"
             reasons.append("time of impact fractional: a few bodies, exact impact times are cheap")
@@ -185,7 +195,7 @@ def _choose(world, dt, fast):
     else:
         resting = bool(st.resting) and response != "penalty"
         reasons.append(f"resting-contact solver {'on' if resting else 'off'}: set by the scene")
-    return Models(response, toi, friction, resting, rotation, reasons)
+    return Models(response, toi, friction, resting, rotation, reasons, continuous)
 
 
 def describe(world):
@@ -230,6 +240,8 @@ def preflight(world, models=None, dt=None):
                             f"{limit:g}): iterative contact solvers converge slowly"))
     if m.toi == "next_step":   # fractional and swept are continuous (see response.toi): nothing passes
         for name, travel, thin in thin_and_fast(world, dt):
+            if world.index(name) in m.continuous:   # auto gave it its own time-of-impact search
+                continue
             out.append((TunnellingWarning,
                         f"{name!r} moves {travel:.3g} m per step, more than the thinnest size it can meet "
                         f"({thin:.3g} m), without swept or fractional time of impact (toi {m.toi}): it can pass through"))

@@ -242,12 +242,13 @@ def _extents(world):
     return derived(world, "extents", (), lambda: np.array([_extent(sh) for sh in world.shapes]), key=len(world))
 
 
-def candidate_pairs(world, motion, T, exclude, swept=False):
+def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
     """Pairs ``(i, j)`` (two ``(P,) int`` arrays, ``i < j``) that may touch within ``T``: the
     spheres bounding their paths overlap, found by the broad phase over the boxes of those spheres
     (O(N log N)); planes against every path that reaches them. Pairs without a dynamic body, pairs
     whose collision groups exclude each other and pairs in ``exclude`` (keys ``min·N + max (E,)``,
-    those already in contact) are skipped, and so are pairs with no relative motion at all."""
+    those already in contact) are skipped, and so are pairs with no relative motion at all. With
+    ``only`` (body indices), pairs without one of those bodies are skipped too."""
     from ..collision import broadphase
 
     n = len(world)
@@ -286,6 +287,10 @@ def candidate_pairs(world, motion, T, exclude, swept=False):
     # mesh–mesh pairs are not detected (issue 14): no time of impact either
     typ_mesh = np.array([sh.type == "mesh" for sh in world.shapes])
     ok &= ~(typ_mesh[i] & typ_mesh[j])
+    if only is not None:
+        sel = np.zeros(n, bool)
+        sel[list(only)] = True
+        ok &= sel[i] | sel[j]
     i, j = i[ok], j[ok]
     if len(exclude):
         keep = ~np.isin(i * n + j, exclude)
@@ -341,13 +346,13 @@ def _types(world):
         key=len(world))
 
 
-def earliest_event(world, motion, T, exclude, swept=False):
+def earliest_event(world, motion, T, exclude, swept=False, only=None):
     """``(τ, (i, j))`` of the first touching event in ``(0, T]`` or ``(inf, None)``.
 
     Closed-form pairs are solved together (vectorised); the pairs that need the sampled search
     (``pair_toi``: bracket + Brent, inherently one root at a time) are searched only up to the
     earliest closed-form time, nearest paths first."""
-    i, j = candidate_pairs(world, motion, T, exclude, swept)
+    i, j = candidate_pairs(world, motion, T, exclude, swept, only)
     if len(i) == 0:
         return np.inf, None
     tau = _closed_form_tois(world, motion, i, j, T)
