@@ -1,0 +1,212 @@
+"""Contact manifolds: at most four points per pair, and the face–face patch of two polyhedra.
+
+``reduce4`` keeps the deepest point, the farthest from it, the one making the largest triangle
+with those two and the one farthest on the other side (a flat patch keeps its corners: among points
+equally deep to round-off the one farthest from the patch centre is the first pick).
+``face_patch`` is the intersection of a reference face and the most anti-parallel face of the other
+body, which is what Sutherland–Hodgman clipping of the incident face against the reference face's
+side planes produces: incident vertices inside the reference face's prism, reference vertices
+inside the incident face (taken onto it along the normal) and the crossings of their edges.
+
+Kernel helpers write rows into the output arrays of a narrow-phase kernel: ``out_i (K, 3)``
+(pair, feature, feature id) and ``out_f (K, 7)`` (point (3), normal B→A (3), depth).
+"""
+import numpy as np
+
+from ..contacts import FEATURES, FID_FACE_A, fid
+from ..jit import njit
+from .vec3 import cross, dot
+
+F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
+    "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
+TOUCH_TOLERANCE = 1e-9   # × the smaller body's size: a distance this short is touching, its direction noise
+# point codes of a face patch (the feature id's last field): what the point is on
+CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18, 3 << 18
+
+
+@njit
+def reduce4(pts, depth, valid, normal, keep):
+    """``keep (C,)`` bool: at most 4 of the ``valid (C,)`` candidates ``pts (C, 3)`` with ``depth (C,)``."""
+    C = pts.shape[0]
+    keep[:] = False
+    dmax, cnt = -np.inf, 0
+    centre = np.zeros(3)
+    for i in range(C):
+        if valid[i]:
+            dmax = max(dmax, depth[i])
+            cnt += 1
+            centre += pts[i]
+    if cnt == 0:
+        return 0
+    centre /= cnt
+    spread = np.zeros(C)
+    smax = 0.0
+    for i in range(C):
+        if valid[i]:
+            r = pts[i] - centre
+            spread[i] = dot(r, r)
+            smax = max(smax, spread[i])
+    tol = TOUCH_TOLERANCE * np.sqrt(smax) + 1e-300
+    i0, best = 0, -1.0
+    for i in range(C):
+        s = spread[i] if (valid[i] and depth[i] >= dmax - tol) else -1.0
+        if s > best:
+            i0, best = i, s
+    keep[i0] = True
+    p0 = pts[i0]
+    i1, far = 0, -1.0
+    for i in range(C):
+        if valid[i]:
+            r = pts[i] - p0
+            d2 = dot(r, r)
+            if d2 > far:
+                i1, far = i, d2
+    if far > 1e-20 + 1e-18 * far:
+        keep[i1] = True
+    r1 = pts[i1] - p0
+    area = np.zeros(C)
+    i2, big = 0, -1.0
+    for i in range(C):
+        r = pts[i] - p0
+        area[i] = (r1[1] * r[2] - r1[2] * r[1]) * normal[0] + (r1[2] * r[0] - r1[0] * r[2]) * normal[1] \
+            + (r1[0] * r[1] - r1[1] * r[0]) * normal[2]
+        a = abs(area[i]) if valid[i] else -1.0
+        if a > big:
+            i2, big = i, a
+    if big > np.sqrt(far) * 1e-9 * np.sqrt(far) + 1e-20:
+        keep[i2] = True
+    side = np.sign(area[i2])
+    i3, opp = 0, -1.0
+    for i in range(C):
+        o = -side * area[i] if valid[i] else -1.0
+        if o > opp:
+            i3, opp = i, o
+    if opp > far * 1e-9 + 1e-20:
+        keep[i3] = True
+    n = 0
+    for i in range(C):
+        keep[i] = keep[i] and valid[i]
+        n += keep[i]
+    return n
+
+
+@njit
+def put(out_i, out_f, k, pair, point, normal, depth, feature, feature_id):
+    """Write contact row ``k``; returns ``k + 1``."""
+    out_i[k, 0], out_i[k, 1], out_i[k, 2] = pair, feature, feature_id
+    for j in range(3):
+        out_f[k, j] = point[j]
+        out_f[k, 3 + j] = normal[j]
+    out_f[k, 6] = depth
+    return k + 1
+
+
+@njit
+def _cross_dot(a, b, n):
+    """``(a × b)·n``."""
+    return (a[1] * b[2] - a[2] * b[1]) * n[0] + (a[2] * b[0] - a[0] * b[2]) * n[1] + (a[0] * b[1] - a[1] * b[0]) * n[2]
+
+
+@njit
+def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin, sup_u, sup_sep, sup_v,
+               ref_is_a, pair, out_i, out_f, k):
+    """Contacts of a face–face patch; returns the new row count.
+
+    Reference body R: world vertices ``VR (Vr, 3)``, planes ``NR (Pr, 3)``, ``dR (Pr,)``, reference
+    face ``fr`` with vertex loop ``loopR (M1,)``; incident body I: ``VI``, ``NI``, ``dI``, its face
+    rows ``facesI (Pi, 2)`` into ``loopsI``. ``sup_u (3,)``, ``sup_sep``, ``sup_v``: I's deepest
+    vertex below the reference plane (a candidate whenever the patch misses the deepest
+    penetration, so the pair's deepest contact has exactly the SAT depth). Normals point B→A:
+    ``-n_ref`` when the reference body is the kernel's A."""
+    nref, dref = NR[fr], dR[fr]
+    fi, low = 0, np.inf
+    for p in range(NI.shape[0]):
+        x = dot(NI[p], nref)
+        if x < low:
+            fi, low = p, x
+    ni, di = NI[fi], dI[fi]
+    l0, M2 = facesI[fi, 0], facesI[fi, 1]
+    M1 = loopR.shape[0]
+    P = np.empty((M1, 3))
+    Q = np.empty((M2, 3))
+    for m in range(M1):
+        P[m] = VR[loopR[m]]
+    for q in range(M2):
+        Q[q] = VI[loopsI[l0 + q]]
+    tol = 1e-9 * scale
+    eP, sP, lenP = np.empty((M1, 3)), np.empty((M1, 3)), np.empty(M1)
+    for m in range(M1):
+        eP[m] = P[(m + 1) % M1] - P[m]
+        sP[m] = cross(eP[m], nref)
+        lenP[m] = np.sqrt(dot(eP[m], eP[m]))
+    eQ, sQ, lenQ = np.empty((M2, 3)), np.empty((M2, 3)), np.empty(M2)
+    for q in range(M2):
+        eQ[q] = Q[(q + 1) % M2] - Q[q]
+        sQ[q] = cross(eQ[q], ni)
+        lenQ[q] = np.sqrt(dot(eQ[q], eQ[q]))
+    C = 1 + M2 + M1 + M1 * M2
+    U = np.empty((C, 3))
+    SEP = np.empty(C)
+    VAL = np.zeros(C, np.bool_)
+    CODE = np.empty(C, np.int64)
+    U[0], SEP[0], CODE[0] = sup_u, sup_sep, CODE_SUPPORT + sup_v
+    c = 1
+    for q in range(M2):      # 1. incident vertices inside the reference face's prism
+        inside = True
+        for m in range(M1):
+            if dot(sP[m], Q[q]) - dot(sP[m], P[m]) > tol * lenP[m]:
+                inside = False
+                break
+        U[c], SEP[c], CODE[c] = Q[q], dot(Q[q], nref) - dref, CODE_INCIDENT + loopsI[l0 + q]
+        VAL[c] = inside
+        c += 1
+    den = dot(ni, nref)
+    if not abs(den) > 1e-12:
+        den = -1e-12
+    for m in range(M1):      # 2. reference vertices, along the normal onto the incident face, inside it
+        t = (di - dot(P[m], ni)) / den
+        S = P[m] + t * nref
+        inside = True
+        for q in range(M2):
+            if dot(sQ[q], S) - dot(sQ[q], Q[q]) > tol * lenQ[q]:
+                inside = False
+                break
+        U[c], SEP[c], CODE[c] = S, t + dot(P[m], nref) - dref, CODE_REFERENCE + loopR[m]
+        VAL[c] = inside
+        c += 1
+    Qp = np.empty((M2, 3))
+    for q in range(M2):
+        Qp[q] = Q[q] - (dot(Q[q], nref) - dref) * nref
+    for m in range(M1):      # 3. edge crossings, in the reference plane
+        for q in range(M2):
+            eQp = Qp[(q + 1) % M2] - Qp[q]
+            den3 = _cross_dot(eP[m], eQp, nref)
+            w = Qp[q] - P[m]
+            ok = abs(den3) > 1e-12 * (lenP[m] * lenQ[q]) + 1e-300
+            dd = den3 if ok else 1.0
+            alpha = _cross_dot(w, eQp, nref) / dd
+            beta = _cross_dot(w, eP[m], nref) / dd
+            U[c] = Q[q] + beta * eQ[q]
+            SEP[c] = dot(U[c], nref) - dref
+            CODE[c] = CODE_CROSSING + (m << 9) + q
+            VAL[c] = ok and 0 <= alpha <= 1 and 0 <= beta <= 1
+            c += 1
+    best = np.inf
+    for i in range(1, C):
+        VAL[i] = VAL[i] and SEP[i] <= margin
+        if VAL[i]:
+            best = min(best, SEP[i])
+    VAL[0] = best > sup_sep + tol
+    pts = np.empty((C, 3))
+    for i in range(C):
+        pts[i] = U[i] - 0.5 * SEP[i] * nref
+    keep = np.empty(C, np.bool_)
+    n = reduce4(pts, -SEP, VAL, nref, keep)
+    feat = F_FACE if n >= 3 else (F_EDGE if n == 2 else F_VERTEX)
+    normal = -nref if ref_is_a else nref
+    kind = FID_FACE_A if ref_is_a else FID_FACE_A + 1
+    for i in range(C):
+        if keep[i]:
+            k = put(out_i, out_f, k, pair, pts[i], normal, -SEP[i], feat, fid(kind, fr, fi, CODE[i]))
+    return k
+

@@ -1,0 +1,209 @@
+"""Narrow-phase kernels of pairs with a sphere or a plane: exact closest points.
+
+Every kernel has the one signature of ``dispatch.KERNEL_ARGS``: the geometry table's arrays, the
+pairs ``a, b (K,)`` (body indices, kernel A of the higher rank), body poses ``pos (N, 3)``,
+``R (N, 3, 3)``, the margin, ``counters (3,)``, and the output rows ``out_i (4K, 3)``,
+``out_f (4K, 7)`` (``manifold.put``); it returns the number of rows written. A pair is reported
+when its separation is <= margin, with ``depth = -separation`` and the point half-way between the
+two surfaces along the normal (so swapping A and B keeps it).
+"""
+import numpy as np
+
+from ..contacts import FID_PLANE, FID_POINT, fid
+from ..jit import njit
+from .dispatch import collider
+from .geometry import BOX, CONVEX, MESH, PLANE, SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
+    SI_V0, SPHERE
+from .manifold import F_PLANE, F_SPHERE, put, reduce4
+from .vec3 import dot, mtv, mv, norm
+
+
+@njit
+def plane_world(sf, s, p, R):
+    """World normal ``(3,)`` and offset of plane shape ``s`` carried by ``p (3,)``, ``R (3, 3)``."""
+    n = mv(R, sf[s, SF_PLANE:SF_PLANE + 3])
+    return n, sf[s, SF_PLANE + 3] + dot(n, p)
+
+
+@njit
+def sphere_row(out_i, out_f, k, pair, sep, normal, cb, rb, margin):
+    """The one contact of a pair with a sphere B (centre ``cb``, radius ``rb``) at ``sep``."""
+    if sep > margin:
+        return k
+    depth = -sep
+    return put(out_i, out_f, k, pair, cb + normal * (rb - 0.5 * depth), normal, depth, F_SPHERE, fid(FID_POINT, 0, 0, 0))
+
+
+@collider((SPHERE, PLANE))
+@njit
+def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                 out_i, out_f):
+    """Sphere A against plane B: the true signed distance, one contact."""
+    k = 0
+    for i in range(a.shape[0]):
+        sa = shape_of[a[i]]
+        nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
+        ra = sf[sa, SF_RADIUS]
+        ca = pos[a[i]]
+        sep = dot(nb, ca) - ra - db
+        if sep <= margin:
+            depth = -sep
+            k = put(out_i, out_f, k, i, ca - nb * (ra - 0.5 * depth), nb, depth, F_PLANE, fid(FID_POINT, 0, 0, 0))
+    return k
+
+
+@collider((SPHERE, SPHERE))
+@njit
+def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                  out_i, out_f):
+    """Sphere A against sphere B (concentric: the normal is +z, any direction being right)."""
+    k = 0
+    for i in range(a.shape[0]):
+        ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
+        d = pos[a[i]] - pos[b[i]]
+        dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        n = d / dist if dist > 1e-300 else np.array([0.0, 0.0, 1.0])
+        k = sphere_row(out_i, out_f, k, i, dist - ra - rb, n, pos[b[i]], rb, margin)
+    return k
+
+
+@collider((BOX, SPHERE))
+@njit
+def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+               out_i, out_f):
+    """Box A against sphere B: clamp the centre into the box; a centre inside exits by the nearest face."""
+    k = 0
+    for i in range(a.shape[0]):
+        sa, sb = shape_of[a[i]], shape_of[b[i]]
+        h = sf[sa, SF_HALF:SF_HALF + 3]
+        Ra, cb, rb = R[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
+        q = mtv(Ra, cb - pos[a[i]])
+        d = np.empty(3)
+        for j in range(3):
+            d[j] = q[j] - min(max(q[j], -h[j]), h[j])
+        dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if dist <= 0.0:
+            ax, gap = 0, h[0] - abs(q[0])
+            for j in range(1, 3):
+                g = h[j] - abs(q[j])
+                if g < gap:
+                    ax, gap = j, g
+            out = np.zeros(3)
+            out[ax] = 1.0 if q[ax] >= 0 else -1.0
+            sep = -gap - rb
+        else:
+            out = d / dist
+            sep = dist - rb
+        k = sphere_row(out_i, out_f, k, i, sep, -mv(Ra, out), cb, rb, margin)
+    return k
+
+
+@njit
+def closest_on_triangle(p, a, b, c):
+    """Closest point ``(3,)`` on triangle ``a, b, c`` to ``p`` (Ericson, Real-Time Collision
+    Detection 5.1.5: vertex, edge and face regions in turn)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = dot(ab, ap), dot(ac, ap)
+    if d1 <= 0 and d2 <= 0:
+        return a
+    bp = p - b
+    d3, d4 = dot(ab, bp), dot(ac, bp)
+    if d3 >= 0 and d4 <= d3:
+        return b
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0 and d1 >= 0 and d3 <= 0:
+        den = d1 - d3
+        return a + ab * (d1 / den if den != 0 else d1)
+    cp = p - c
+    d5, d6 = dot(ab, cp), dot(ac, cp)
+    if d6 >= 0 and d5 <= d6:
+        return c
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0 and d2 >= 0 and d6 <= 0:
+        den = d2 - d6
+        return a + ac * (d2 / den if den != 0 else d2)
+    va = d3 * d6 - d5 * d4
+    if va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+        den = (d4 - d3) + (d5 - d6)
+        return b + (c - b) * ((d4 - d3) / den if den != 0 else d4 - d3)
+    den = va + vb + vc
+    if den == 0:
+        den = 1.0
+    return a + ab * (vb / den) + ac * (vc / den)
+
+
+@njit
+def world_verts(verts, v0, nv, p, R, out):
+    """``out[:nv]`` = vertices ``v0 .. v0 + nv`` carried by ``p (3,)``, ``R (3, 3)``."""
+    for v in range(nv):
+        out[v] = mv(R, verts[v0 + v]) + p
+
+
+@njit
+def nearest_triangle(V, tris, t0, nt, c):
+    """``(index, closest point (3,), distance)`` of the triangle nearest ``c`` (world vertices ``V``)."""
+    best, j, qb = np.inf, 0, np.zeros(3)
+    for t in range(nt):
+        q = closest_on_triangle(c, V[tris[t0 + t, 0]], V[tris[t0 + t, 1]], V[tris[t0 + t, 2]])
+        e = q - c
+        dd = np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+        if dd < best:
+            best, j, qb = dd, t, q
+    return j, qb, best
+
+
+@collider((BOX, PLANE), (CONVEX, PLANE), (MESH, PLANE))
+@njit
+def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+               out_i, out_f):
+    """Polyhedron or mesh A against plane B: every vertex within the margin is a candidate; a
+    resting face keeps at most 4 of them, spanning the patch."""
+    nmax = max(1, si[:, SI_NV].max())
+    pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
+    k = 0
+    for i in range(a.shape[0]):
+        sa = shape_of[a[i]]
+        nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
+        v0, nv = si[sa, SI_V0], si[sa, SI_NV]
+        Ra, pa = R[a[i]], pos[a[i]]
+        hit = False
+        for v in range(nv):
+            w = mv(Ra, verts[v0 + v]) + pa
+            sep = dot(w, nb) - db
+            val[v] = sep <= margin
+            hit |= val[v]
+            pts[v] = w - 0.5 * sep * nb
+            dep[v] = -sep
+        if not hit:
+            continue
+        reduce4(pts[:nv], dep[:nv], val[:nv], nb, keep[:nv])
+        for v in range(nv):
+            if keep[v]:
+                k = put(out_i, out_f, k, i, pts[v], nb, dep[v], F_PLANE, fid(FID_PLANE, v, 0, 0))
+    return k
+
+
+@collider((CONVEX, SPHERE))
+@njit
+def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                out_i, out_f):
+    """Convex polyhedron A against sphere B: the exact distance from the centre to the nearest
+    triangle; a centre inside exits through the nearest face plane."""
+    V = np.empty((max(1, si[:, SI_NV].max()), 3))
+    k = 0
+    for i in range(a.shape[0]):
+        sa, sb = shape_of[a[i]], shape_of[b[i]]
+        Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
+        world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pa, Ra, V)
+        j, qb, dist = nearest_triangle(V, tris, si[sa, SI_T0], si[sa, SI_NT], cb)
+        p0, m, fn = si[sa, SI_P0], -np.inf, np.zeros(3)
+        for p in range(si[sa, SI_NP]):
+            n = mv(Ra, planes[p0 + p, :3])
+            s = dot(n, cb) - (planes[p0 + p, 3] + dot(n, pa))
+            if s > m:
+                m, fn = s, n
+        inside = m <= 0
+        sep = (m if inside else dist) - rb
+        normal = -fn if (inside or dist <= 1e-300) else (qb - cb) / dist
+        k = sphere_row(out_i, out_f, k, i, sep, normal, cb, rb, margin)
+    return k
