@@ -15,7 +15,7 @@ import numpy as np
 
 from ..contacts import FEATURES, FID_FACE_A, fid
 from ..jit import njit
-from .vec3 import cross, dot
+from .vec3 import dot, dotr
 
 F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
@@ -26,66 +26,65 @@ CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18
 
 @njit
 def reduce4(pts, depth, valid, normal, keep):
-    """``keep (C,)`` bool: at most 4 of the ``valid (C,)`` candidates ``pts (C, 3)`` with ``depth (C,)``."""
+    """``keep (C,)`` bool: at most 4 of the ``valid (C,)`` candidates ``pts (C, 3)`` with ``depth (C,)``;
+    returns how many. (Scalar arithmetic throughout: a temporary array costs more than the math.)"""
     C = pts.shape[0]
-    keep[:] = False
     dmax, cnt = -np.inf, 0
-    centre = np.zeros(3)
+    cx, cy, cz = 0.0, 0.0, 0.0
     for i in range(C):
+        keep[i] = False
         if valid[i]:
             dmax = max(dmax, depth[i])
             cnt += 1
-            centre += pts[i]
+            cx, cy, cz = cx + pts[i, 0], cy + pts[i, 1], cz + pts[i, 2]
     if cnt == 0:
         return 0
-    centre /= cnt
-    spread = np.zeros(C)
+    cx, cy, cz = cx / cnt, cy / cnt, cz / cnt
     smax = 0.0
     for i in range(C):
         if valid[i]:
-            r = pts[i] - centre
-            spread[i] = dot(r, r)
-            smax = max(smax, spread[i])
+            smax = max(smax, (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2)
     tol = TOUCH_TOLERANCE * np.sqrt(smax) + 1e-300
+    # the deepest point; among points equally deep to round-off (a face resting flat on a face), the
+    # one farthest from the patch's centre, so that a flat patch keeps its corners
     i0, best = 0, -1.0
     for i in range(C):
-        s = spread[i] if (valid[i] and depth[i] >= dmax - tol) else -1.0
-        if s > best:
-            i0, best = i, s
+        if valid[i] and depth[i] >= dmax - tol:
+            sp = (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2
+            if sp > best:
+                i0, best = i, sp
     keep[i0] = True
-    p0 = pts[i0]
+    x0, y0, z0 = pts[i0, 0], pts[i0, 1], pts[i0, 2]
     i1, far = 0, -1.0
     for i in range(C):
         if valid[i]:
-            r = pts[i] - p0
-            d2 = dot(r, r)
+            d2 = (pts[i, 0] - x0) ** 2 + (pts[i, 1] - y0) ** 2 + (pts[i, 2] - z0) ** 2
             if d2 > far:
                 i1, far = i, d2
     if far > 1e-20 + 1e-18 * far:
         keep[i1] = True
-    r1 = pts[i1] - p0
-    area = np.zeros(C)
-    i2, big = 0, -1.0
+    ax, ay, az = pts[i1, 0] - x0, pts[i1, 1] - y0, pts[i1, 2] - z0
+    i2, big, a2 = 0, -1.0, 0.0
     for i in range(C):
-        r = pts[i] - p0
-        area[i] = (r1[1] * r[2] - r1[2] * r[1]) * normal[0] + (r1[2] * r[0] - r1[0] * r[2]) * normal[1] \
-            + (r1[0] * r[1] - r1[1] * r[0]) * normal[2]
-        a = abs(area[i]) if valid[i] else -1.0
-        if a > big:
-            i2, big = i, a
+        if valid[i]:
+            rx, ry, rz = pts[i, 0] - x0, pts[i, 1] - y0, pts[i, 2] - z0
+            ar = (ay * rz - az * ry) * normal[0] + (az * rx - ax * rz) * normal[1] + (ax * ry - ay * rx) * normal[2]
+            if abs(ar) > big:
+                i2, big, a2 = i, abs(ar), ar
     if big > np.sqrt(far) * 1e-9 * np.sqrt(far) + 1e-20:
         keep[i2] = True
-    side = np.sign(area[i2])
+    side = np.sign(a2)
     i3, opp = 0, -1.0
     for i in range(C):
-        o = -side * area[i] if valid[i] else -1.0
-        if o > opp:
-            i3, opp = i, o
+        if valid[i]:
+            rx, ry, rz = pts[i, 0] - x0, pts[i, 1] - y0, pts[i, 2] - z0
+            ar = (ay * rz - az * ry) * normal[0] + (az * rx - ax * rz) * normal[1] + (ax * ry - ay * rx) * normal[2]
+            if -side * ar > opp:
+                i3, opp = i, -side * ar
     if opp > far * 1e-9 + 1e-20:
         keep[i3] = True
     n = 0
     for i in range(C):
-        keep[i] = keep[i] and valid[i]
         n += keep[i]
     return n
 
@@ -108,6 +107,19 @@ def _cross_dot(a, b, n):
 
 
 @njit
+def _edges(P, n, e, s, length):
+    """Loop edges ``e[m] = P[m+1] - P[m]``, their outward side normals ``s = e × n`` and lengths."""
+    M = P.shape[0]
+    for m in range(M):
+        for j in range(3):
+            e[m, j] = P[(m + 1) % M, j] - P[m, j]
+        s[m, 0] = e[m, 1] * n[2] - e[m, 2] * n[1]
+        s[m, 1] = e[m, 2] * n[0] - e[m, 0] * n[2]
+        s[m, 2] = e[m, 0] * n[1] - e[m, 1] * n[0]
+        length[m] = np.sqrt(e[m, 0] ** 2 + e[m, 1] ** 2 + e[m, 2] ** 2)
+
+
+@njit
 def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin, sup_u, sup_sep, sup_v,
                ref_is_a, pair, out_i, out_f, k):
     """Contacts of a face–face patch; returns the new row count.
@@ -121,7 +133,7 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
     nref, dref = NR[fr], dR[fr]
     fi, low = 0, np.inf
     for p in range(NI.shape[0]):
-        x = dot(NI[p], nref)
+        x = NI[p, 0] * nref[0] + NI[p, 1] * nref[1] + NI[p, 2] * nref[2]
         if x < low:
             fi, low = p, x
     ni, di = NI[fi], dI[fi]
@@ -135,15 +147,9 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
         Q[q] = VI[loopsI[l0 + q]]
     tol = 1e-9 * scale
     eP, sP, lenP = np.empty((M1, 3)), np.empty((M1, 3)), np.empty(M1)
-    for m in range(M1):
-        eP[m] = P[(m + 1) % M1] - P[m]
-        sP[m] = cross(eP[m], nref)
-        lenP[m] = np.sqrt(dot(eP[m], eP[m]))
+    _edges(P, nref, eP, sP, lenP)
     eQ, sQ, lenQ = np.empty((M2, 3)), np.empty((M2, 3)), np.empty(M2)
-    for q in range(M2):
-        eQ[q] = Q[(q + 1) % M2] - Q[q]
-        sQ[q] = cross(eQ[q], ni)
-        lenQ[q] = np.sqrt(dot(eQ[q], eQ[q]))
+    _edges(Q, ni, eQ, sQ, lenQ)
     C = 1 + M2 + M1 + M1 * M2
     U = np.empty((C, 3))
     SEP = np.empty(C)
@@ -154,10 +160,10 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
     for q in range(M2):      # 1. incident vertices inside the reference face's prism
         inside = True
         for m in range(M1):
-            if dot(sP[m], Q[q]) - dot(sP[m], P[m]) > tol * lenP[m]:
+            if dotr(sP, m, Q, q) - dotr(sP, m, P, m) > tol * lenP[m]:
                 inside = False
                 break
-        U[c], SEP[c], CODE[c] = Q[q], dot(Q[q], nref) - dref, CODE_INCIDENT + loopsI[l0 + q]
+        U[c], SEP[c], CODE[c] = Q[q], Q[q, 0] * nref[0] + Q[q, 1] * nref[1] + Q[q, 2] * nref[2] - dref, CODE_INCIDENT + loopsI[l0 + q]
         VAL[c] = inside
         c += 1
     den = dot(ni, nref)
@@ -165,29 +171,39 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
         den = -1e-12
     for m in range(M1):      # 2. reference vertices, along the normal onto the incident face, inside it
         t = (di - dot(P[m], ni)) / den
-        S = P[m] + t * nref
+        for j in range(3):
+            U[c, j] = P[m, j] + t * nref[j]
         inside = True
         for q in range(M2):
-            if dot(sQ[q], S) - dot(sQ[q], Q[q]) > tol * lenQ[q]:
+            if dotr(sQ, q, U, c) - dotr(sQ, q, Q, q) > tol * lenQ[q]:
                 inside = False
                 break
-        U[c], SEP[c], CODE[c] = S, t + dot(P[m], nref) - dref, CODE_REFERENCE + loopR[m]
+        SEP[c], CODE[c] = t + dot(P[m], nref) - dref, CODE_REFERENCE + loopR[m]
         VAL[c] = inside
         c += 1
     Qp = np.empty((M2, 3))
     for q in range(M2):
-        Qp[q] = Q[q] - (dot(Q[q], nref) - dref) * nref
+        h = dot(Q[q], nref) - dref
+        for j in range(3):
+            Qp[q, j] = Q[q, j] - h * nref[j]
+    eQp = np.empty((M2, 3))
+    for q in range(M2):
+        for j in range(3):
+            eQp[q, j] = Qp[(q + 1) % M2, j] - Qp[q, j]
     for m in range(M1):      # 3. edge crossings, in the reference plane
         for q in range(M2):
-            eQp = Qp[(q + 1) % M2] - Qp[q]
-            den3 = _cross_dot(eP[m], eQp, nref)
-            w = Qp[q] - P[m]
+            den3 = _cross_dot(eP[m], eQp[q], nref)
+            wx, wy, wz = Qp[q, 0] - P[m, 0], Qp[q, 1] - P[m, 1], Qp[q, 2] - P[m, 2]
             ok = abs(den3) > 1e-12 * (lenP[m] * lenQ[q]) + 1e-300
             dd = den3 if ok else 1.0
-            alpha = _cross_dot(w, eQp, nref) / dd
-            beta = _cross_dot(w, eP[m], nref) / dd
-            U[c] = Q[q] + beta * eQ[q]
-            SEP[c] = dot(U[c], nref) - dref
+            e, f = eQp[q], eP[m]
+            alpha = ((wy * e[2] - wz * e[1]) * nref[0] + (wz * e[0] - wx * e[2]) * nref[1]
+                     + (wx * e[1] - wy * e[0]) * nref[2]) / dd
+            beta = ((wy * f[2] - wz * f[1]) * nref[0] + (wz * f[0] - wx * f[2]) * nref[1]
+                    + (wx * f[1] - wy * f[0]) * nref[2]) / dd
+            for j in range(3):
+                U[c, j] = Q[q, j] + beta * eQ[q, j]
+            SEP[c] = U[c, 0] * nref[0] + U[c, 1] * nref[1] + U[c, 2] * nref[2] - dref
             CODE[c] = CODE_CROSSING + (m << 9) + q
             VAL[c] = ok and 0 <= alpha <= 1 and 0 <= beta <= 1
             c += 1
@@ -197,16 +213,18 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
         if VAL[i]:
             best = min(best, SEP[i])
     VAL[0] = best > sup_sep + tol
-    pts = np.empty((C, 3))
+    pts, DEP = np.empty((C, 3)), np.empty(C)
     for i in range(C):
-        pts[i] = U[i] - 0.5 * SEP[i] * nref
+        DEP[i] = -SEP[i]
+        for j in range(3):
+            pts[i, j] = U[i, j] - 0.5 * SEP[i] * nref[j]
     keep = np.empty(C, np.bool_)
-    n = reduce4(pts, -SEP, VAL, nref, keep)
+    n = reduce4(pts, DEP, VAL, nref, keep)
     feat = F_FACE if n >= 3 else (F_EDGE if n == 2 else F_VERTEX)
     normal = -nref if ref_is_a else nref
     kind = FID_FACE_A if ref_is_a else FID_FACE_A + 1
     for i in range(C):
         if keep[i]:
-            k = put(out_i, out_f, k, pair, pts[i], normal, -SEP[i], feat, fid(kind, fr, fi, CODE[i]))
+            k = put(out_i, out_f, k, pair, pts[i], normal, DEP[i], feat, fid(kind, fr, fi, CODE[i]))
     return k
 

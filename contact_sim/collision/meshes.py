@@ -32,23 +32,24 @@ def parity_inside(p, V, tris, t0, nt, eps=1e-9):
     vertices ``V``; rays that graze an edge or vertex are discarded in favour of the next (when all
     three graze, the majority vote of their parities)."""
     votes = 0
+    px, py, pz = p[0], p[1], p[2]
     for r in range(RAYS.shape[0]):
-        ray = RAYS[r]
+        rx, ry, rz = RAYS[r, 0], RAYS[r, 1], RAYS[r, 2]
         hits, bad = 0, False
         for t in range(nt):
-            T0 = V[tris[t0 + t, 0]]
-            e1 = V[tris[t0 + t, 1]] - T0
-            e2 = V[tris[t0 + t, 2]] - T0
-            h = cross(ray, e2)
-            det = dot(e1, h)
+            T0, T1, T2 = V[tris[t0 + t, 0]], V[tris[t0 + t, 1]], V[tris[t0 + t, 2]]
+            e1x, e1y, e1z = T1[0] - T0[0], T1[1] - T0[1], T1[2] - T0[2]
+            e2x, e2y, e2z = T2[0] - T0[0], T2[1] - T0[1], T2[2] - T0[2]
+            hx, hy, hz = ry * e2z - rz * e2y, rz * e2x - rx * e2z, rx * e2y - ry * e2x
+            det = e1x * hx + e1y * hy + e1z * hz
             if not abs(det) > 1e-14:
                 continue
             inv = 1.0 / det
-            s = p - T0
-            u = dot(s, h) * inv
-            qv = cross(s, e1)
-            v = dot(qv, ray) * inv
-            tt = dot(e2, qv) * inv
+            sx, sy, sz = px - T0[0], py - T0[1], pz - T0[2]
+            u = (sx * hx + sy * hy + sz * hz) * inv
+            qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
+            v = (qx * rx + qy * ry + qz * rz) * inv
+            tt = (e2x * qx + e2y * qy + e2z * qz) * inv
             w = 1.0 - u - v
             hit = tt > 0 and u >= 0 and v >= 0 and w >= 0
             if (tt > -eps and (abs(u) < eps or abs(v) < eps or abs(w) < eps) and u > -eps and v > -eps

@@ -27,18 +27,19 @@ from ..jit import njit
 from .dispatch import collider
 from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
-from .vec3 import cross, dot, mv, norm
+from .vec3 import cross, dot, dotr, mv, norm, transform_rows
 
 
 @njit
 def world_poly(verts, planes, si, s, p, R, V, N, d):
     """World vertices ``V[:nv]``, plane normals ``N[:np]`` and offsets ``d[:np]`` of shape ``s``."""
     v0, p0 = si[s, SI_V0], si[s, SI_P0]
-    for v in range(si[s, SI_NV]):
-        V[v] = mv(R, verts[v0 + v]) + p
+    transform_rows(verts[v0:v0 + si[s, SI_NV]], p, R, V, si[s, SI_NV])
     for q in range(si[s, SI_NP]):
-        N[q] = mv(R, planes[p0 + q, :3])
-        d[q] = planes[p0 + q, 3] + dot(N[q], p)
+        x, y, z = planes[p0 + q, 0], planes[p0 + q, 1], planes[p0 + q, 2]
+        for i in range(3):
+            N[q, i] = R[i, 0] * x + R[i, 1] * y + R[i, 2] * z
+        d[q] = planes[p0 + q, 3] + N[q, 0] * p[0] + N[q, 1] * p[1] + N[q, 2] * p[2]
 
 
 @njit
@@ -49,7 +50,7 @@ def face_query(N, d, npl, V, nv):
     for p in range(npl):
         m = np.inf
         for v in range(nv):
-            m = min(m, dot(N[p], V[v]) - d[p])
+            m = min(m, dotr(N, p, V, v) - d[p])
         if m > best:
             best, face = m, p
     inside = False
@@ -57,7 +58,7 @@ def face_query(N, d, npl, V, nv):
         for v in range(nv):
             worst = -np.inf
             for p in range(npl):
-                worst = max(worst, dot(N[p], V[v]) - d[p])
+                worst = max(worst, dotr(N, p, V, v) - d[p])
                 if worst >= 0:
                     break
             if worst < 0:
@@ -74,32 +75,42 @@ def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side):
     best, bea, beb = -np.inf, 0, 0
     for i in range(ea_n):
         a1, a2 = NA[EA[i, 2]], NA[EA[i, 3]]
-        bxa = cross(a2, a1)
-        for p in range(npb):          # which side of A's arc's great circle each of B's normals lies
-            side[p] = dot(NB[p], bxa)
+        # b × a: the arc's great-circle normal (A's edge direction on the Gauss map)
+        bx = a2[1] * a1[2] - a2[2] * a1[1]
+        by = a2[2] * a1[0] - a2[0] * a1[2]
+        bz = a2[0] * a1[1] - a2[1] * a1[0]
+        for p in range(npb):          # which side of that great circle each of B's normals lies
+            side[p] = NB[p, 0] * bx + NB[p, 1] * by + NB[p, 2] * bz
         A0 = VA[EA[i, 0]]
-        da = VA[EA[i, 1]] - A0
-        la = norm(da)
+        A1 = VA[EA[i, 1]]
+        dax, day, daz = A1[0] - A0[0], A1[1] - A0[1], A1[2] - A0[2]
+        la = np.sqrt(dax * dax + day * day + daz * daz)
         for j in range(eb_n):
             cba, dba = -side[EB[j, 2]], -side[EB[j, 3]]
             if not cba * dba < 0:
                 continue
-            c, dd = -NB[EB[j, 2]], -NB[EB[j, 3]]
-            dxc = cross(dd, c)
-            adc, bdc = dot(a1, dxc), dot(a2, dxc)
+            c, d = NB[EB[j, 2]], NB[EB[j, 3]]
+            # (-d) × (-c) = d × c
+            xx = d[1] * c[2] - d[2] * c[1]
+            xy = d[2] * c[0] - d[0] * c[2]
+            xz = d[0] * c[1] - d[1] * c[0]
+            adc = a1[0] * xx + a1[1] * xy + a1[2] * xz
+            bdc = a2[0] * xx + a2[1] * xy + a2[2] * xz
             if not (adc * bdc < 0 and cba * bdc > 0):
                 continue
-            B0 = VB[EB[j, 0]]
-            db = VB[EB[j, 1]] - B0
-            axis = cross(da, db)
-            length = norm(axis)
-            if not length > 1e-9 * la * norm(db):
+            B0, B1 = VB[EB[j, 0]], VB[EB[j, 1]]
+            dbx, dby, dbz = B1[0] - B0[0], B1[1] - B0[1], B1[2] - B0[2]
+            ax = day * dbz - daz * dby
+            ay = daz * dbx - dax * dbz
+            az = dax * dby - day * dbx
+            length = np.sqrt(ax * ax + ay * ay + az * az)
+            if not length > 1e-9 * la * np.sqrt(dbx * dbx + dby * dby + dbz * dbz):
                 sep = -np.inf
             else:
-                axis /= length
-                if dot(axis, A0 - cA) < 0:
-                    axis = -axis
-                sep = dot(axis, B0 - A0)
+                ax, ay, az = ax / length, ay / length, az / length
+                if ax * (A0[0] - cA[0]) + ay * (A0[1] - cA[1]) + az * (A0[2] - cA[2]) < 0:
+                    ax, ay, az = -ax, -ay, -az
+                sep = ax * (B0[0] - A0[0]) + ay * (B0[1] - A0[1]) + az * (B0[2] - A0[2])
             if sep >= best:
                 best, bea, beb = sep, i, j
                 if sep > margin:
@@ -197,7 +208,7 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             # the incident body's deepest vertex below the reference face is always a candidate
             j, low = 0, np.inf
             for v in range(nvb):
-                x = dot(NA[fa], VB[v]) - dA[fa]
+                x = dotr(NA, fa, VB, v) - dA[fa]
                 if x < low:
                     j, low = v, x
             loopR = loops[fA[fa, 0]:fA[fa, 0] + fA[fa, 1]]
@@ -206,7 +217,7 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         else:
             j, low = 0, np.inf
             for v in range(nva):
-                x = dot(NB[fb], VA[v]) - dB[fb]
+                x = dotr(NB, fb, VA, v) - dB[fb]
                 if x < low:
                     j, low = v, x
             loopR = loops[fB[fb, 0]:fB[fb, 0] + fB[fb, 1]]

@@ -15,7 +15,7 @@ from .dispatch import collider
 from .geometry import BOX, CONVEX, MESH, PLANE, SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
     SI_V0, SPHERE
 from .manifold import F_PLANE, F_SPHERE, put, reduce4
-from .vec3 import dot, mtv, mv, norm
+from .vec3 import closest_on_triangle, dot, mtv, mv, transform_rows
 
 
 @njit
@@ -99,57 +99,22 @@ def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
 
 
 @njit
-def closest_on_triangle(p, a, b, c):
-    """Closest point ``(3,)`` on triangle ``a, b, c`` to ``p`` (Ericson, Real-Time Collision
-    Detection 5.1.5: vertex, edge and face regions in turn)."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = dot(ab, ap), dot(ac, ap)
-    if d1 <= 0 and d2 <= 0:
-        return a
-    bp = p - b
-    d3, d4 = dot(ab, bp), dot(ac, bp)
-    if d3 >= 0 and d4 <= d3:
-        return b
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0 and d1 >= 0 and d3 <= 0:
-        den = d1 - d3
-        return a + ab * (d1 / den if den != 0 else d1)
-    cp = p - c
-    d5, d6 = dot(ab, cp), dot(ac, cp)
-    if d6 >= 0 and d5 <= d6:
-        return c
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0 and d2 >= 0 and d6 <= 0:
-        den = d2 - d6
-        return a + ac * (d2 / den if den != 0 else d2)
-    va = d3 * d6 - d5 * d4
-    if va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
-        den = (d4 - d3) + (d5 - d6)
-        return b + (c - b) * ((d4 - d3) / den if den != 0 else d4 - d3)
-    den = va + vb + vc
-    if den == 0:
-        den = 1.0
-    return a + ab * (vb / den) + ac * (vc / den)
-
-
-@njit
 def world_verts(verts, v0, nv, p, R, out):
     """``out[:nv]`` = vertices ``v0 .. v0 + nv`` carried by ``p (3,)``, ``R (3, 3)``."""
-    for v in range(nv):
-        out[v] = mv(R, verts[v0 + v]) + p
+    transform_rows(verts[v0:v0 + nv], p, R, out, nv)
 
 
 @njit
 def nearest_triangle(V, tris, t0, nt, c):
     """``(index, closest point (3,), distance)`` of the triangle nearest ``c`` (world vertices ``V``)."""
-    best, j, qb = np.inf, 0, np.zeros(3)
+    best, j, bx, by, bz = np.inf, 0, 0.0, 0.0, 0.0
+    cx, cy, cz = c[0], c[1], c[2]
     for t in range(nt):
-        q = closest_on_triangle(c, V[tris[t0 + t, 0]], V[tris[t0 + t, 1]], V[tris[t0 + t, 2]])
-        e = q - c
-        dd = np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+        qx, qy, qz = closest_on_triangle(cx, cy, cz, V, tris[t0 + t, 0], tris[t0 + t, 1], tris[t0 + t, 2])
+        dd = np.sqrt((qx - cx) ** 2 + (qy - cy) ** 2 + (qz - cz) ** 2)
         if dd < best:
-            best, j, qb = dd, t, q
-    return j, qb, best
+            best, j, bx, by, bz = dd, t, qx, qy, qz
+    return j, np.array([bx, by, bz]), best
 
 
 @collider((BOX, PLANE), (CONVEX, PLANE), (MESH, PLANE))
@@ -167,12 +132,13 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
         v0, nv = si[sa, SI_V0], si[sa, SI_NV]
         Ra, pa = R[a[i]], pos[a[i]]
         hit = False
+        transform_rows(verts[v0:v0 + nv], pa, Ra, pts, nv)
         for v in range(nv):
-            w = mv(Ra, verts[v0 + v]) + pa
-            sep = dot(w, nb) - db
+            sep = dot(pts[v], nb) - db
             val[v] = sep <= margin
             hit |= val[v]
-            pts[v] = w - 0.5 * sep * nb
+            for j in range(3):
+                pts[v, j] -= 0.5 * sep * nb[j]
             dep[v] = -sep
         if not hit:
             continue
@@ -196,12 +162,16 @@ def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
         Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
         world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pa, Ra, V)
         j, qb, dist = nearest_triangle(V, tris, si[sa, SI_T0], si[sa, SI_NT], cb)
-        p0, m, fn = si[sa, SI_P0], -np.inf, np.zeros(3)
+        p0, m, fp = si[sa, SI_P0], -np.inf, 0
         for p in range(si[sa, SI_NP]):
-            n = mv(Ra, planes[p0 + p, :3])
-            s = dot(n, cb) - (planes[p0 + p, 3] + dot(n, pa))
+            n = planes[p0 + p]
+            nx = Ra[0, 0] * n[0] + Ra[0, 1] * n[1] + Ra[0, 2] * n[2]
+            ny = Ra[1, 0] * n[0] + Ra[1, 1] * n[1] + Ra[1, 2] * n[2]
+            nz = Ra[2, 0] * n[0] + Ra[2, 1] * n[1] + Ra[2, 2] * n[2]
+            s = nx * cb[0] + ny * cb[1] + nz * cb[2] - (n[3] + (nx * pa[0] + ny * pa[1] + nz * pa[2]))
             if s > m:
-                m, fn = s, n
+                m, fp = s, p
+        fn = mv(Ra, planes[p0 + fp, :3])
         inside = m <= 0
         sep = (m if inside else dist) - rb
         normal = -fn if (inside or dist <= 1e-300) else (qb - cb) / dist

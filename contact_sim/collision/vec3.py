@@ -12,6 +12,13 @@ def dot(a, b):
 
 
 @njit
+def dotr(X, i, Y, j):
+    """``X[i] · Y[j]`` of rows of ``(n, 3)`` arrays, without making row views (each view costs a
+    reference-count round trip in compiled code, more than the product)."""
+    return X[i, 0] * Y[j, 0] + X[i, 1] * Y[j, 1] + X[i, 2] * Y[j, 2]
+
+
+@njit
 def cross(a, b):
     """``a × b`` of 3-vectors, a new ``(3,)`` array."""
     out = np.empty(3)
@@ -42,3 +49,59 @@ def mtv(R, v):
 @njit
 def norm(a):
     return np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+@njit
+def closest_on_triangle(px, py, pz, V, ia, ib, ic):
+    """Closest point ``(x, y, z)`` on the triangle of rows ``ia, ib, ic`` of ``V (n, 3)`` to ``p``
+    (Ericson, Real-Time Collision Detection 5.1.5: vertex, edge and face regions in turn), no
+    temporaries."""
+    a0, a1, a2 = V[ia, 0], V[ia, 1], V[ia, 2]
+    b0, b1, b2 = V[ib, 0], V[ib, 1], V[ib, 2]
+    c0, c1, c2 = V[ic, 0], V[ic, 1], V[ic, 2]
+    abx, aby, abz = b0 - a0, b1 - a1, b2 - a2
+    acx, acy, acz = c0 - a0, c1 - a1, c2 - a2
+    apx, apy, apz = px - a0, py - a1, pz - a2
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0 and d2 <= 0:
+        return a0, a1, a2
+    bpx, bpy, bpz = px - b0, py - b1, pz - b2
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0 and d4 <= d3:
+        return b0, b1, b2
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0 and d1 >= 0 and d3 <= 0:
+        den = d1 - d3
+        v = d1 / den if den != 0 else d1
+        return a0 + abx * v, a1 + aby * v, a2 + abz * v
+    cpx, cpy, cpz = px - c0, py - c1, pz - c2
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0 and d5 <= d6:
+        return c0, c1, c2
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0 and d2 >= 0 and d6 <= 0:
+        den = d2 - d6
+        w = d2 / den if den != 0 else d2
+        return a0 + acx * w, a1 + acy * w, a2 + acz * w
+    va = d3 * d6 - d5 * d4
+    if va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+        den = (d4 - d3) + (d5 - d6)
+        w = (d4 - d3) / den if den != 0 else d4 - d3
+        return b0 + (c0 - b0) * w, b1 + (c1 - b1) * w, b2 + (c2 - b2) * w
+    den = va + vb + vc
+    if den == 0:
+        den = 1.0
+    v, w = vb / den, vc / den
+    return a0 + abx * v + acx * w, a1 + aby * v + acy * w, a2 + abz * v + acz * w
+
+
+@njit
+def transform_rows(src, p, R, out, n):
+    """``out[:n] = R src[:n] + p`` row by row, no temporaries."""
+    for v in range(n):
+        x, y, z = src[v, 0], src[v, 1], src[v, 2]
+        for i in range(3):
+            out[v, i] = R[i, 0] * x + R[i, 1] * y + R[i, 2] * z + p[i]
