@@ -102,9 +102,11 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
         if tri_plane[t] < 0:
             return -1, -1
     # face loops: the plane's vertices (ascending index), ordered by angle about their mean
+    # (scalar code and insertion sorts on scratch arrays: faces have a handful of vertices)
     by_plane = np.argsort(tri_plane, kind="mergesort")
     stamp = np.full(nv, -1, np.int64)
     ids = np.empty(nv, np.int64)
+    ang = np.empty(nv)
     nl = 0
     k = 0
     for p in range(npl):
@@ -118,26 +120,40 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
                     ids[m] = vi
                     m += 1
             k += 1
-        sel = np.sort(ids[:m])
-        mean = np.zeros(3)
+        for i in range(1, m):
+            x, j = ids[i], i - 1
+            while j >= 0 and ids[j] > x:
+                ids[j + 1] = ids[j]
+                j -= 1
+            ids[j + 1] = x
+        mx, my, mz = 0.0, 0.0, 0.0
         for j in range(m):
-            mean += v[sel[j]]
-        mean /= m
-        n = pn[p]
-        u = v[sel[0]] - mean
-        if np.sqrt(u @ u) < 1e-15:
-            u = np.cross(n, np.array([1.0, 0, 0])) if abs(n[0]) < 0.9 else np.cross(n, np.array([0, 1.0, 0]))
-        u = u - n * (u @ n)
-        u /= np.sqrt(u @ u)
-        w = np.cross(n, u)
-        ang = np.empty(m)
+            mx, my, mz = mx + v[ids[j], 0], my + v[ids[j], 1], mz + v[ids[j], 2]
+        mx, my, mz = mx / m, my / m, mz / m
+        nx, ny, nz = pn[p, 0], pn[p, 1], pn[p, 2]
+        ux, uy, uz = v[ids[0], 0] - mx, v[ids[0], 1] - my, v[ids[0], 2] - mz
+        if np.sqrt(ux * ux + uy * uy + uz * uz) < 1e-15:
+            if abs(nx) < 0.9:      # n × x
+                ux, uy, uz = 0.0, nz, -ny
+            else:                  # n × y
+                ux, uy, uz = -nz, 0.0, nx
+        un = ux * nx + uy * ny + uz * nz
+        ux, uy, uz = ux - nx * un, uy - ny * un, uz - nz * un
+        ul = np.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / ul, uy / ul, uz / ul
+        wx, wy, wz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
         for j in range(m):
-            rel = v[sel[j]] - mean
-            ang[j] = np.arctan2(rel @ w, rel @ u)
-        order = np.argsort(ang, kind="mergesort")
+            rx, ry, rz = v[ids[j], 0] - mx, v[ids[j], 1] - my, v[ids[j], 2] - mz
+            ang[j] = np.arctan2(rx * wx + ry * wy + rz * wz, rx * ux + ry * uy + rz * uz)
+        for i in range(1, m):     # stable insertion sort of the loop by angle
+            x, y, j = ang[i], ids[i], i - 1
+            while j >= 0 and ang[j] > x:
+                ang[j + 1], ids[j + 1] = ang[j], ids[j]
+                j -= 1
+            ang[j + 1], ids[j + 1] = x, y
         faces[p, 0], faces[p, 1] = nl, m
         for j in range(m):
-            loops[nl + j] = sel[order[j]]
+            loops[nl + j] = ids[j]
         nl += m
     # edges: the 3T directed edges as (low, high) keys, stable-sorted, grouped
     key = np.empty(3 * nt, np.int64)
@@ -168,13 +184,16 @@ class ShapeGeom:
     __slots__ = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris")
 
 
+_NONE_F3, _NONE_F4 = np.zeros((0, 3)), np.zeros((0, 4))
+_NONE_I, _NONE_I2, _NONE_I3, _NONE_I4 = (np.zeros((0,) + s, np.int64) for s in ((), (2,), (3,), (4,)))
+
+
 def _primitive(shape):
     g = ShapeGeom()
     g.sf, g.si = np.zeros(NSF), np.zeros(NSI, np.int64)
     g.si[SI_RANK] = RANK[shape.type]
-    g.verts, g.planes = np.zeros((0, 3)), np.zeros((0, 4))
-    g.faces, g.loops = np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
-    g.edges, g.tris = np.zeros((0, 4), np.int64), np.zeros((0, 3), np.int64)
+    # shared empty arrays (never written): a sphere or plane has no polyhedron geometry
+    g.verts, g.planes, g.faces, g.loops, g.edges, g.tris = _NONE_F3, _NONE_F4, _NONE_I2, _NONE_I, _NONE_I4, _NONE_I3
     if shape.type == "plane":
         g.sf[SF_PLANE:SF_PLANE + 3], g.sf[SF_PLANE + 3] = shape.normal, shape.offset
     else:
@@ -186,42 +205,84 @@ def _primitive(shape):
     return g
 
 
+@njit
+def _prepare_batch(vs, verts, ts, tris, fnorm, ps, pnorm, poff, convex, loops, faces, edges, counts, fl):
+    """``_prepare_one`` for shapes ``s`` whose vertices are ``verts[vs[s]:vs[s+1]]``, triangles
+    (and normals) ``tris[ts[s]:ts[s+1]]``, planes ``pnorm/poff[ps[s]:ps[s+1]]``: loops, faces and
+    edges at the same offsets (loops and edges sized 3 per triangle); ``counts (S, 2)`` loop and
+    edge counts (-1: a triangle on no plane); ``fl (S, 14)`` bounding sphere (4), AABB centre and
+    half sizes (6), scale (the largest extent), centroid (3)."""
+    for s in range(vs.shape[0] - 1):
+        v = verts[vs[s]:vs[s + 1]]
+        t0, t1, p0, p1 = ts[s], ts[s + 1], ps[s], ps[s + 1]
+        nl, ne = _prepare_one(v, tris[t0:t1], fnorm[t0:t1], pnorm[p0:p1], poff[p0:p1], convex[s],
+                              loops[3 * t0:3 * t1], faces[p0:p1], edges[3 * t0:3 * t1])
+        counts[s, 0], counts[s, 1] = nl, ne
+        c, r = bounding_sphere_kernel(v)
+        fl[s, 0:3], fl[s, 3] = c, r
+        for k in range(3):
+            lo, hi, tot = v[0, k], v[0, k], 0.0
+            for i in range(v.shape[0]):
+                lo, hi, tot = min(lo, v[i, k]), max(hi, v[i, k]), tot + v[i, k]
+            fl[s, 4 + k], fl[s, 7 + k] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            fl[s, 11 + k] = tot / v.shape[0]
+        fl[s, 10] = max(max(fl[s, 7], fl[s, 8], fl[s, 9]) * 2.0, 1e-12)
+
+
 def prepare_shapes(shapes):
-    """Prepare (and cache on each shape) the geometry of ``shapes`` that lack it."""
-    todo = [s for s in shapes if getattr(s, "_cs_geom", None) is None]
-    for s in todo:
-        if s.type in ("plane", "sphere"):
-            s._cs_geom = _primitive(s)
-            continue
-        v = np.ascontiguousarray(s.vertices, float)
-        f = np.ascontiguousarray(s.faces, np.int64)
-        fn = np.ascontiguousarray(s.face_normals, float)
-        convex = bool(getattr(s, "convex", True))
-        if convex:
-            pn, pd = np.ascontiguousarray(s.plane_normals, float), np.ascontiguousarray(s.plane_offsets, float)
+    """Prepare (and cache on each shape) the geometry of ``shapes`` that lack it: one compiled pass
+    over all new polyhedra."""
+    todo, seen = [], set()
+    for s in shapes:
+        if getattr(s, "_cs_geom", None) is None and id(s) not in seen:
+            seen.add(id(s))
+            if s.type in ("plane", "sphere"):
+                s._cs_geom = _primitive(s)
+            else:
+                todo.append(s)
+    if not todo:
+        return
+    V = [np.asarray(s.vertices, float) for s in todo]
+    T = [np.asarray(s.faces, np.int64) for s in todo]
+    FN = [np.asarray(s.face_normals, float) for s in todo]
+    convex = np.array([bool(getattr(s, "convex", True)) for s in todo])
+    PN, PD = [], []
+    for s, v, f, fn, cv in zip(todo, V, T, FN, convex):
+        if cv:
+            PN.append(np.asarray(s.plane_normals, float))
+            PD.append(np.asarray(s.plane_offsets, float))
         else:
-            pn, pd = fn, np.einsum("ij,ij->i", fn, v[f[:, 0]])
-        loops = np.empty(3 * len(f), np.int64)
-        faces = np.empty((len(pn), 2), np.int64)
-        edges = np.empty((3 * len(f), 4), np.int64)
-        nl, ne = _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges)
-        if nl < 0:
-            raise ContactSimError(f"{s!r}: a face does not lie on any hull plane")
+            PN.append(fn)
+            PD.append(np.einsum("ij,ij->i", fn, v[f[:, 0]]))
+    offs = [np.concatenate([[0], np.cumsum([len(x) for x in X])]).astype(np.int64) for X in (V, T, PN)]
+    vs, ts, ps = offs
+    tris, fn = np.concatenate(T), np.concatenate(FN)
+    pn, pd = np.concatenate(PN), np.concatenate(PD)
+    nt = len(tris)
+    loops, edges = np.empty(3 * nt, np.int64), np.empty((3 * nt, 4), np.int64)
+    faces = np.empty((len(pn), 2), np.int64)
+    counts, fl = np.empty((len(todo), 2), np.int64), np.empty((len(todo), 14))
+    _prepare_batch(vs, np.concatenate(V), ts, tris, fn, ps, pn, pd, convex, loops, faces, edges, counts, fl)
+    planes = np.column_stack([pn, pd])
+    bad = np.flatnonzero(counts[:, 0] < 0)
+    if bad.size:
+        raise ContactSimError(f"{todo[int(bad[0])]!r}: a face does not lie on any hull plane")
+    S = len(todo)
+    SF, SI = np.zeros((S, NSF)), np.zeros((S, NSI), np.int64)
+    SI[:, SI_RANK] = [RANK[s.type] for s in todo]
+    SI[:, SI_NV], SI[:, SI_NP], SI[:, SI_NE], SI[:, SI_NT] = np.diff(vs), np.diff(ps), counts[:, 1], np.diff(ts)
+    SI[:, SI_CLOSED] = [bool(s.watertight) if s.type == "mesh" else 1 for s in todo]
+    SF[:, SF_SPHERE:SF_SPHERE + 4], SF[:, SF_BOX:SF_BOX + 6] = fl[:, 0:4], fl[:, 4:10]
+    SF[:, SF_SCALE], SF[:, SF_CENTROID:SF_CENTROID + 3] = fl[:, 10], fl[:, 11:14]
+    for k, s in enumerate(todo):
+        nl, ne = counts[k]
         g = ShapeGeom()
-        g.verts, g.tris, g.faces, g.loops, g.edges = v, f, faces, loops[:nl], edges[:ne]
-        g.planes = np.column_stack([pn, pd])
-        g.sf, g.si = np.zeros(NSF), np.zeros(NSI, np.int64)
-        g.si[SI_RANK] = RANK[s.type]
-        g.si[SI_NV], g.si[SI_NP], g.si[SI_NE], g.si[SI_NT] = len(v), len(pn), ne, len(f)
-        g.si[SI_CLOSED] = bool(s.watertight) if s.type == "mesh" else 1
+        g.sf, g.si = SF[k], SI[k]
         if s.type == "box":
             g.sf[SF_HALF:SF_HALF + 3] = s.half
-        c, r = bounding_sphere_kernel(v)
-        g.sf[SF_SPHERE:SF_SPHERE + 3], g.sf[SF_SPHERE + 3] = c, r
-        lo, hi = v.min(axis=0), v.max(axis=0)
-        g.sf[SF_BOX:SF_BOX + 3], g.sf[SF_BOX + 3:SF_BOX + 6] = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        g.sf[SF_SCALE] = max(float((hi - lo).max()), 1e-12)
-        g.sf[SF_CENTROID:SF_CENTROID + 3] = v.mean(axis=0)
+        g.verts, g.tris = V[k], T[k]
+        g.faces, g.planes = faces[ps[k]:ps[k + 1]], planes[ps[k]:ps[k + 1]]
+        g.loops, g.edges = loops[3 * ts[k]:3 * ts[k] + nl], edges[3 * ts[k]:3 * ts[k] + ne]
         s._cs_geom = g
 
 
