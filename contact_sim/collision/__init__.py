@@ -39,7 +39,7 @@ from ..settings import Settings
 from ..shapes import Shape
 from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
                         show)
-from . import bounding, broadphase, dispatch
+from . import bounding, broadphase, dispatch, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
 
 __all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
@@ -284,6 +284,14 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     its world bounds (positions, shape sizes, margin), as a world would check them.
     """
     t0 = time.perf_counter()
+    if (settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin)
+            and isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
+            and shape_b.type in RANK and not (shape_a.type == "mesh" and shape_b.type == "mesh")):
+        fa, fb = single.fast_pose(pose_a), single.fast_pose(pose_b)
+        if fa is not None and fb is not None:
+            bodies = _bodies_cached((shape_a, shape_b))
+            plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
+            return single.collide_fast(plan, fa[0], fa[1], fb[0], fb[1], margin)
     st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
     _check_shape(shape_a, "collide: shape_a", st)
     _check_shape(shape_b, "collide: shape_b", st)

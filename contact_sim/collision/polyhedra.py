@@ -68,49 +68,60 @@ def face_query(N, d, npl, V, nv):
 
 
 @njit
-def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side):
+def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side, NBt, eb2, eb3):
     """Best edge×edge separation over the edge pairs that build a face of the Minkowski difference
     (Gauss-map arcs crossing), ``(separation, edge of A, edge of B)``; stops early once an axis
-    separates by more than ``margin``. Edges ``E* (E, 4)`` hold local vertex and plane indices."""
+    separates by more than ``margin``. Edges ``E* (E, 4)`` hold local vertex and plane indices.
+    Scratch: ``side (P,)``, B's normals transposed ``NBt (3, P)`` (so the side loop is one SIMD
+    sweep) and B's edge planes ``eb2, eb3 (E,)`` as contiguous columns."""
     best, bea, beb = -np.inf, 0, 0
+    for p in range(npb):
+        NBt[0, p], NBt[1, p], NBt[2, p] = NB[p, 0], NB[p, 1], NB[p, 2]
+    for j in range(eb_n):
+        eb2[j], eb3[j] = EB[j, 2], EB[j, 3]
+    cx, cy, cz = cA[0], cA[1], cA[2]
     for i in range(ea_n):
-        a1, a2 = NA[EA[i, 2]], NA[EA[i, 3]]
+        i0, i1, q1, q2 = EA[i, 0], EA[i, 1], EA[i, 2], EA[i, 3]
+        a1x, a1y, a1z = NA[q1, 0], NA[q1, 1], NA[q1, 2]
+        a2x, a2y, a2z = NA[q2, 0], NA[q2, 1], NA[q2, 2]
         # b × a: the arc's great-circle normal (A's edge direction on the Gauss map)
-        bx = a2[1] * a1[2] - a2[2] * a1[1]
-        by = a2[2] * a1[0] - a2[0] * a1[2]
-        bz = a2[0] * a1[1] - a2[1] * a1[0]
+        bx = a2y * a1z - a2z * a1y
+        by = a2z * a1x - a2x * a1z
+        bz = a2x * a1y - a2y * a1x
         for p in range(npb):          # which side of that great circle each of B's normals lies
-            side[p] = NB[p, 0] * bx + NB[p, 1] * by + NB[p, 2] * bz
-        A0 = VA[EA[i, 0]]
-        A1 = VA[EA[i, 1]]
-        dax, day, daz = A1[0] - A0[0], A1[1] - A0[1], A1[2] - A0[2]
-        la = np.sqrt(dax * dax + day * day + daz * daz)
+            side[p] = NBt[0, p] * bx + NBt[1, p] * by + NBt[2, p] * bz
+        A0x, A0y, A0z = VA[i0, 0], VA[i0, 1], VA[i0, 2]
+        dax, day, daz = VA[i1, 0] - A0x, VA[i1, 1] - A0y, VA[i1, 2] - A0z
+        la = -1.0
         for j in range(eb_n):
-            cba, dba = -side[EB[j, 2]], -side[EB[j, 3]]
+            cba, dba = -side[eb2[j]], -side[eb3[j]]
             if not cba * dba < 0:
                 continue
-            c, d = NB[EB[j, 2]], NB[EB[j, 3]]
+            c, d = eb2[j], eb3[j]
             # (-d) × (-c) = d × c
-            xx = d[1] * c[2] - d[2] * c[1]
-            xy = d[2] * c[0] - d[0] * c[2]
-            xz = d[0] * c[1] - d[1] * c[0]
-            adc = a1[0] * xx + a1[1] * xy + a1[2] * xz
-            bdc = a2[0] * xx + a2[1] * xy + a2[2] * xz
+            xx = NB[d, 1] * NB[c, 2] - NB[d, 2] * NB[c, 1]
+            xy = NB[d, 2] * NB[c, 0] - NB[d, 0] * NB[c, 2]
+            xz = NB[d, 0] * NB[c, 1] - NB[d, 1] * NB[c, 0]
+            adc = a1x * xx + a1y * xy + a1z * xz
+            bdc = a2x * xx + a2y * xy + a2z * xz
             if not (adc * bdc < 0 and cba * bdc > 0):
                 continue
-            B0, B1 = VB[EB[j, 0]], VB[EB[j, 1]]
-            dbx, dby, dbz = B1[0] - B0[0], B1[1] - B0[1], B1[2] - B0[2]
+            j0, j1 = EB[j, 0], EB[j, 1]
+            B0x, B0y, B0z = VB[j0, 0], VB[j0, 1], VB[j0, 2]
+            dbx, dby, dbz = VB[j1, 0] - B0x, VB[j1, 1] - B0y, VB[j1, 2] - B0z
             ax = day * dbz - daz * dby
             ay = daz * dbx - dax * dbz
             az = dax * dby - day * dbx
             length = np.sqrt(ax * ax + ay * ay + az * az)
+            if la < 0:
+                la = np.sqrt(dax * dax + day * day + daz * daz)
             if not length > 1e-9 * la * np.sqrt(dbx * dbx + dby * dby + dbz * dbz):
                 sep = -np.inf
             else:
                 ax, ay, az = ax / length, ay / length, az / length
-                if ax * (A0[0] - cA[0]) + ay * (A0[1] - cA[1]) + az * (A0[2] - cA[2]) < 0:
+                if ax * (A0x - cx) + ay * (A0y - cy) + az * (A0z - cz) < 0:
                     ax, ay, az = -ax, -ay, -az
-                sep = ax * (B0[0] - A0[0]) + ay * (B0[1] - A0[1]) + az * (B0[2] - A0[2])
+                sep = ax * (B0x - A0x) + ay * (B0y - A0y) + az * (B0z - A0z)
             if sep >= best:
                 best, bea, beb = sep, i, j
                 if sep > margin:
@@ -164,7 +175,8 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     VA, VB = np.empty((nv, 3)), np.empty((nv, 3))
     NA, NB = np.empty((npl, 3)), np.empty((npl, 3))
     dA, dB = np.empty(npl), np.empty(npl)
-    side = np.empty(npl)
+    side, NBt = np.empty(npl), np.empty((3, npl))
+    eb2, eb3 = np.empty(ne, np.int64), np.empty(ne, np.int64)
     k = 0
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
@@ -193,7 +205,7 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             counters[1] += 1
             counters[2] += edge_crosses_face(VA, EA, EA.shape[0], NB, dB, npb, fB, loops, VB) or \
                 edge_crosses_face(VB, EB, EB.shape[0], NA, dA, npa, fA, loops, VA)
-        esep, ea, eb = edge_query(VA, NA, EA, EA.shape[0], cA, VB, NB, EB, EB.shape[0], npb, margin, side)
+        esep, ea, eb = edge_query(VA, NA, EA, EA.shape[0], cA, VB, NB, EB, EB.shape[0], npb, margin, side, NBt, eb2, eb3)
         if esep > margin:
             continue
         if esep > face_sep + 1e-9 * scale:

@@ -1,0 +1,93 @@
+"""The stateless one-pair query's fast path (``collide`` called in a loop).
+
+For plainly valid input (numbers, finite, within ``LENGTH_LIMIT``, a non-zero quaternion, margin a
+plain number, default bounding volume, no settings, no statistics) the pair skips the batch
+machinery: one compiled call builds both rotations, one calls the pair's kernel. Anything else
+returns ``None`` here and goes through the full checks (which name the problem) and the batch
+pipeline; both paths run the same kernels, so they give the same contacts.
+"""
+import math
+
+import numpy as np
+
+from ..contacts import Contacts
+from ..jit import njit
+from ..validate import LENGTH_LIMIT
+from . import dispatch
+
+_NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
+
+
+def _plain(v, n):
+    """``v`` as a list of ``n`` Python floats when it is plainly ``n`` numbers, else None."""
+    if type(v) is np.ndarray:
+        if v.shape != (n,) or v.dtype.kind not in "fi":
+            return None
+        return v.tolist()
+    if type(v) in (tuple, list) and len(v) == n and all(type(x) in _NUMBER for x in v):
+        return [float(x) for x in v]
+    return None
+
+
+def fast_pose(pose):
+    """``(position [3], orientation [4] normalised)`` of a plainly valid pose, else None."""
+    if type(pose) not in (tuple, list) or len(pose) != 2:
+        return None
+    p, q = _plain(pose[0], 3), _plain(pose[1], 4)
+    if p is None or q is None:
+        return None
+    if not (abs(p[0]) <= LENGTH_LIMIT and abs(p[1]) <= LENGTH_LIMIT and abs(p[2]) <= LENGTH_LIMIT):
+        return None   # NaN, inf or too far: the full check says which
+    if not max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < 1e150:
+        return None
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if not norm >= 1e-12:
+        return None
+    return p, [q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm]
+
+
+def plain_margin(margin):
+    return type(margin) in _NUMBER and 0 <= margin <= LENGTH_LIMIT
+
+
+@njit
+def pose_arrays(pa, qa, pb, qb, pos, R):
+    """``pos (2, 3)`` and rotation matrices ``R (2, 3, 3)`` of two poses (quaternions x, y, z, w)."""
+    for k in range(2):
+        p, q = (pa, qa) if k == 0 else (pb, qb)
+        x, y, z, w = q[0], q[1], q[2], q[3]
+        pos[k, 0], pos[k, 1], pos[k, 2] = p[0], p[1], p[2]
+        R[k, 0, 0], R[k, 0, 1], R[k, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+        R[k, 1, 0], R[k, 1, 1], R[k, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+        R[k, 2, 0], R[k, 2, 1], R[k, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+
+
+class PairPlan:
+    """What a shape pair needs for the fast path: its kernel, the kernel's A/B order."""
+
+    def __init__(self, bodies):
+        r = bodies.rank
+        self.swap = bool(r[0] < r[1])
+        self.a = np.array([1 if self.swap else 0], np.int64)
+        self.b = np.array([0 if self.swap else 1], np.int64)
+        self.kernel = dispatch.kernel_for(int(max(r)), int(min(r)))
+        self.arrays = bodies.geom.arrays()
+        self.shape_of = bodies.shape_of
+
+
+def collide_fast(plan, pa, qa, pb, qb, margin):
+    """Contacts of one pair on the fast path (``body_a = 0``, ``body_b = 1``)."""
+    pos, R = np.empty((2, 3)), np.empty((2, 3, 3))
+    pose_arrays(np.array(pa), np.array(qa), np.array(pb), np.array(qb), pos, R)
+    out_i, out_f = np.empty((4, 3), np.int64), np.empty((4, 7))
+    k = 0
+    if plan.kernel is not None:
+        k = plan.kernel(*plan.arrays, plan.shape_of, plan.a, plan.b, pos, R, float(margin), np.zeros(3, np.int64),
+                        out_i, out_f)
+    normal = out_f[:k, 3:6]
+    if plan.swap:
+        normal = -normal
+    return Contacts(body_a=np.zeros(k, np.int64), body_b=np.ones(k, np.int64), point=out_f[:k, 0:3],
+                    normal=normal, depth=out_f[:k, 6], impulse=np.zeros((k, 3)), normal_impulse=np.zeros(k),
+                    friction_impulse=np.zeros((k, 3)), relative_normal_velocity=np.zeros(k),
+                    feature=out_i[:k, 1], feature_id=out_i[:k, 2])
