@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import quat as Q
 from ..contacts import Contacts
 from ..errors import ContactSimError
 from ..memo import derived
@@ -41,6 +40,7 @@ from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION
                         show)
 from . import bounding, broadphase, dispatch, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
+from .vec3 import rotations
 
 __all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
 
@@ -84,6 +84,7 @@ class _Bodies:
         sf = self.geom.sf[self.shape_of]
         self.rank = self.geom.si[self.shape_of, SI_RANK]
         self.is_plane = self.rank == 0
+        self.finite = np.flatnonzero(~self.is_plane)
         self.aabb_c = sf[:, SF_BOX:SF_BOX + 3]
         self.aabb_h = sf[:, SF_BOX + 3:SF_BOX + 6]
         self.plane_n, self.plane_d = sf[:, SF_PLANE:SF_PLANE + 3], sf[:, SF_PLANE + 3]
@@ -169,7 +170,9 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
 
 
 def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
-    R = Q.to_matrix(quat) if R is None else R
+    if R is None:
+        R = np.empty((len(quat), 3, 3))
+        rotations(np.ascontiguousarray(quat, float), R)
     # canonical order: A has the higher rank; remember to flip normals back
     swap = bodies.rank[ia] < bodies.rank[ib]
     a = np.where(swap, ib, ia)
@@ -223,9 +226,11 @@ def detect_world(world, margin=None):
     if bodies.n < 2:
         ia = ib = np.zeros(0, np.int64)
     else:
-        R = Q.to_matrix(quat)
-        fin = np.flatnonzero(~bodies.is_plane)
-        c, h = broadphase.world_aabbs(pos[fin], R[fin], bodies.aabb_c[fin], bodies.aabb_h[fin])
+        R = np.empty((bodies.n, 3, 3))
+        rotations(quat, R)
+        fin = bodies.finite
+        c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
+        broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
         i, j = bodies.pair_cache.pairs(c, h, margin)
         i, j = fin[i], fin[j]
         pl = np.flatnonzero(bodies.is_plane)
@@ -234,11 +239,11 @@ def detect_world(world, margin=None):
             dw = bodies.plane_d[pl] + np.einsum("ni,ni->n", nw, pos[pl])
             p, f = broadphase.plane_pairs(pl, nw, dw, fin, c, h, margin)
             i, j = np.concatenate([i, np.minimum(p, f)]), np.concatenate([j, np.maximum(p, f)])
-        kind, group, mask = world.kind, world.group, world.mask
-        keep = ~((kind[i] == 0) & (kind[j] == 0))
-        keep &= ((group[i] & mask[j]) != 0) & ((group[j] & mask[i]) != 0)
-        order = np.lexsort((j[keep], i[keep]))
-        ia, ib = i[keep][order], j[keep][order]
+            order = np.lexsort((j, i))
+            i, j = i[order], j[order]
+        ia, ib = np.empty_like(i), np.empty_like(j)
+        n = broadphase.body_filter(i, j, world.kind, world.group, world.mask, ia, ib)
+        ia, ib = ia[:n], ib[:n]
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
     return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)

@@ -11,9 +11,9 @@ import math
 import numpy as np
 
 from ..contacts import Contacts
-from ..jit import njit
 from ..validate import LENGTH_LIMIT
 from . import dispatch
+from .vec3 import rotations
 
 _NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
 
@@ -50,16 +50,11 @@ def plain_margin(margin):
     return type(margin) in _NUMBER and 0 <= margin <= LENGTH_LIMIT
 
 
-@njit
-def pose_arrays(pa, qa, pb, qb, pos, R):
+def pose_arrays(pa, qa, pb, qb):
     """``pos (2, 3)`` and rotation matrices ``R (2, 3, 3)`` of two poses (quaternions x, y, z, w)."""
-    for k in range(2):
-        p, q = (pa, qa) if k == 0 else (pb, qb)
-        x, y, z, w = q[0], q[1], q[2], q[3]
-        pos[k, 0], pos[k, 1], pos[k, 2] = p[0], p[1], p[2]
-        R[k, 0, 0], R[k, 0, 1], R[k, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
-        R[k, 1, 0], R[k, 1, 1], R[k, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
-        R[k, 2, 0], R[k, 2, 1], R[k, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+    R = np.empty((2, 3, 3))
+    rotations(np.array([qa, qb]), R)
+    return np.array([pa, pb]), R
 
 
 class PairPlan:
@@ -77,8 +72,7 @@ class PairPlan:
 
 def collide_fast(plan, pa, qa, pb, qb, margin):
     """Contacts of one pair on the fast path (``body_a = 0``, ``body_b = 1``)."""
-    pos, R = np.empty((2, 3)), np.empty((2, 3, 3))
-    pose_arrays(np.array(pa), np.array(qa), np.array(pb), np.array(qb), pos, R)
+    pos, R = pose_arrays(pa, qa, pb, qb)
     out_i, out_f = np.empty((4, 3), np.int64), np.empty((4, 7))
     k = 0
     if plan.kernel is not None:

@@ -105,3 +105,13 @@ def transform_rows(src, p, R, out, n):
         x, y, z = src[v, 0], src[v, 1], src[v, 2]
         for i in range(3):
             out[v, i] = R[i, 0] * x + R[i, 1] * y + R[i, 2] * z + p[i]
+
+
+@njit
+def rotations(quat, R):
+    """``R (N, 3, 3)`` of unit quaternions ``quat (N, 4)`` x, y, z, w (one pass, no temporaries)."""
+    for k in range(quat.shape[0]):
+        x, y, z, w = quat[k, 0], quat[k, 1], quat[k, 2], quat[k, 3]
+        R[k, 0, 0], R[k, 0, 1], R[k, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+        R[k, 1, 0], R[k, 1, 1], R[k, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+        R[k, 2, 0], R[k, 2, 1], R[k, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
