@@ -204,3 +204,18 @@ def test_contacts_select_concat_keep_feature_ids():
     both = Contacts.concat([c, Contacts.empty(), s])
     assert len(both.feature_id) == 2 * len(c) and both.feature_id.dtype == np.int64
     assert Contacts.empty().feature_id.shape == (0,)
+
+
+def test_a_translated_copy_does_not_reuse_the_prepared_geometry():
+    """A hull used in a query, then added to a world (which moves its origin to the centre of
+    mass), collides at its new geometry."""
+    h = cs.Convex(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]))
+    collide(h, ((0, 0, 0), I), cs.Plane(), ((0, 0, -1), I))          # prepares and caches h's geometry
+    w = cs.World(gravity=(0, 0, 0))
+    w.add_body("floor", cs.Plane(), kind="static")
+    w.add_body("h", h, density=1000.0, position=(0, 0, 0.01))
+    c = w.detect()
+    assert len(c) == 0                                                   # 1 cm above the floor
+    w.set_state("h", position=(0, 0, -0.01))
+    c = w.detect()
+    assert len(c) == 3 and np.allclose(c.depth, 0.01)
