@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import ContactSimError
 from ..jit import njit
+from .vec3 import counting_order
 
 # shape type -> rank; kernels take A with the higher rank (so a plane or sphere is always B)
 RANK = {"plane": 0, "sphere": 1, "box": 2, "convex": 3, "mesh": 4}
@@ -86,7 +87,10 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
     nv, nt, npl = v.shape[0], f.shape[0], pn.shape[0]
     scale = 1e-12
     for k in range(3):
-        scale = max(scale, v[:, k].max() - v[:, k].min())
+        lo_k, hi_k = v[0, k], v[0, k]
+        for i in range(nv):
+            lo_k, hi_k = min(lo_k, v[i, k]), max(hi_k, v[i, k])
+        scale = max(scale, hi_k - lo_k)
     tri_plane = np.empty(nt, np.int64)
     for t in range(nt):
         if not convex:
@@ -103,8 +107,9 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
             return -1, -1
     # face loops: the plane's vertices (ascending index), ordered by angle about their mean
     # (scalar code and insertion sorts on scratch arrays: faces have a handful of vertices)
-    by_plane = np.argsort(tri_plane, kind="mergesort")
-    stamp = np.full(nv, -1, np.int64)
+    by_plane = np.empty(nt, np.int64)
+    counting_order(tri_plane, npl, by_plane)
+    stamp = -np.ones(nv, np.int64)
     ids = np.empty(nv, np.int64)
     ang = np.empty(nv)
     nl = 0
@@ -161,7 +166,17 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
         for t in range(nt):
             a, b = f[t, s], f[t, (s + 1) % 3]
             key[s * nt + t] = min(a, b) * nv + max(a, b)
-    order = np.argsort(key, kind="mergesort")
+    # stable sort by (low, high): two counting passes (least significant first)
+    part, hi, order = np.empty(3 * nt, np.int64), np.empty(3 * nt, np.int64), np.empty(3 * nt, np.int64)
+    for i in range(3 * nt):
+        hi[i] = key[i] % nv
+    counting_order(hi, nv, part)
+    lo = np.empty(3 * nt, np.int64)
+    for i in range(3 * nt):
+        lo[i] = key[part[i]] // nv
+    counting_order(lo, nv, order)
+    for i in range(3 * nt):
+        order[i] = part[order[i]]
     ne = 0
     i = 0
     while i < 3 * nt:
@@ -219,7 +234,7 @@ def _prepare_batch(vs, verts, ts, tris, fnorm, ps, pnorm, poff, convex, loops, f
                               loops[3 * t0:3 * t1], faces[p0:p1], edges[3 * t0:3 * t1])
         counts[s, 0], counts[s, 1] = nl, ne
         c, r = bounding_sphere_kernel(v)
-        fl[s, 0:3], fl[s, 3] = c, r
+        fl[s, 0], fl[s, 1], fl[s, 2], fl[s, 3] = c[0], c[1], c[2], r
         for k in range(3):
             lo, hi, tot = v[0, k], v[0, k], 0.0
             for i in range(v.shape[0]):

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..contacts import FEATURES, FID_FACE_A, fid
 from ..jit import njit
-from .vec3 import dot, dotr
+from .vec3 import dot, dotr, set_row
 
 F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
@@ -142,9 +142,9 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
     P = np.empty((M1, 3))
     Q = np.empty((M2, 3))
     for m in range(M1):
-        P[m] = VR[loopR[m]]
+        set_row(P, m, VR[loopR[m]])
     for q in range(M2):
-        Q[q] = VI[loopsI[l0 + q]]
+        set_row(Q, q, VI[loopsI[l0 + q]])
     tol = 1e-9 * scale
     eP, sP, lenP = np.empty((M1, 3)), np.empty((M1, 3)), np.empty(M1)
     _edges(P, nref, eP, sP, lenP)
@@ -155,7 +155,8 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
     SEP = np.empty(C)
     VAL = np.zeros(C, np.bool_)
     CODE = np.empty(C, np.int64)
-    U[0], SEP[0], CODE[0] = sup_u, sup_sep, CODE_SUPPORT + sup_v
+    set_row(U, 0, sup_u)
+    SEP[0], CODE[0] = sup_sep, CODE_SUPPORT + sup_v
     c = 1
     for q in range(M2):      # 1. incident vertices inside the reference face's prism
         inside = True
@@ -163,7 +164,9 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
             if dotr(sP, m, Q, q) - dotr(sP, m, P, m) > tol * lenP[m]:
                 inside = False
                 break
-        U[c], SEP[c], CODE[c] = Q[q], Q[q, 0] * nref[0] + Q[q, 1] * nref[1] + Q[q, 2] * nref[2] - dref, CODE_INCIDENT + loopsI[l0 + q]
+        set_row(U, c, Q[q])
+        SEP[c] = Q[q, 0] * nref[0] + Q[q, 1] * nref[1] + Q[q, 2] * nref[2] - dref
+        CODE[c] = CODE_INCIDENT + loopsI[l0 + q]
         VAL[c] = inside
         c += 1
     den = dot(ni, nref)

@@ -18,7 +18,7 @@ from .geometry import BOX, CONVEX, MESH, SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, 
 from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, put, reduce4
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
-from .vec3 import cross, dot, norm
+from .vec3 import col_max, set_row, cross, dot, norm
 
 # rays for the parity test: generic directions, so a ray through an edge or vertex is rare; when
 # one is (a barycentric coordinate or the distance within a tolerance of 0) the next ray decides
@@ -97,8 +97,8 @@ def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
                 out_i, out_f):
     """Triangle mesh A against sphere B: the nearest triangle; a centre inside is penetrating by
     the distance to the surface."""
-    V = np.empty((max(1, si[:, SI_NV].max()), 3))
-    k = 0
+    V = np.empty((col_max(si, SI_NV), 3))
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         cb, rb = pos[b[i]], sf[sb, SF_RADIUS]
@@ -139,7 +139,10 @@ def _crossings(VX, EX, NY, dY, npl, facesY, loops, VY, sgn, tag, P, Nn, D, F, I,
                     inside = False
                     break
             if inside and c < P.shape[0]:
-                P[c], Nn[c], D[c], F[c], I[c] = X, sgn * NY[p], min(abs(s0), abs(s1)), F_EDGE, fid(FID_CROSSING, e, p, tag)
+                set_row(P, c, X)
+                for j in range(3):
+                    Nn[c, j] = sgn * NY[p, j]
+                D[c], F[c], I[c] = min(abs(s0), abs(s1)), F_EDGE, fid(FID_CROSSING, e, p, tag)
                 c += 1
     return c
 
@@ -153,14 +156,16 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     within the margin of it (depth = distance to the nearest triangle), and for pairs with neither
     an edge of one crossing a face of the other (depth = the shallower endpoint's distance to the
     face plane: an estimate, not an exact penetration depth). At most 4 per pair."""
-    nv, npl = max(1, si[:, SI_NV].max()), max(1, si[:, SI_NP].max())
+    nv, npl = col_max(si, SI_NV), col_max(si, SI_NP)
     VM, VP = np.empty((nv, 3)), np.empty((nv, 3))
     NM, NP = np.empty((npl, 3)), np.empty((npl, 3))
     dM, dP = np.empty(npl), np.empty(npl)
-    cap = 2 * nv + 64
+    # candidates of a pair: every vertex of both, and up to 4096 edge-face crossings (more are
+    # dropped: reduced to 4 anyway, and a pair only gets there when no vertex settled it)
+    cap = 2 * nv + 4096
     P, Nn, D = np.empty((cap, 3)), np.empty((cap, 3)), np.empty(cap)
     F, I = np.empty(cap, np.int64), np.empty(cap, np.int64)
-    k = 0
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sm, sp = shape_of[a[i]], shape_of[b[i]]
         world_poly(verts, planes, si, sm, pos[a[i]], R[a[i]], VM, NM, dM)
@@ -168,7 +173,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         nvm, nvp, npm, npp = si[sm, SI_NV], si[sp, SI_NV], si[sm, SI_NP], si[sp, SI_NP]
         t0, nt, closed = si[sm, SI_T0], si[sm, SI_NT], si[sm, SI_CLOSED] != 0
         touch_tol = TOUCH_TOLERANCE * min(sf[sm, SF_SCALE], sf[sp, SF_SCALE])
-        c = 0
+        c = np.int64(0)
         for v in range(nvm):       # (b) mesh vertices against the polyhedron's planes
             m, pm = -np.inf, 0
             for p in range(npp):
@@ -176,8 +181,9 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                 if x > m:
                     m, pm = x, p
             if m <= margin:
-                P[c], Nn[c], D[c], F[c], I[c] = VM[v] - 0.5 * m * NP[pm], NP[pm], -m, F_VERTEX, \
-                    fid(FID_POLY_VERTEX, v, pm, 0)
+                for j in range(3):
+                    P[c, j], Nn[c, j] = VM[v, j] - 0.5 * m * NP[pm, j], NP[pm, j]
+                D[c], F[c], I[c] = -m, F_VERTEX, fid(FID_POLY_VERTEX, v, pm, 0)
                 c += 1
         for u in range(nvp):       # (a) polyhedron vertices against the mesh triangles
             j, qb, dist = nearest_triangle(VM, tris, t0, nt, VP[u])
@@ -191,7 +197,9 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             else:
                 tn = tri_normal(VM, tris, t0 + j)
                 na = -tn / norm(tn)
-            P[c], Nn[c], D[c], F[c], I[c] = VP[u] - 0.5 * sep * na, na, -sep, F_VERTEX, fid(FID_MESH_VERTEX, u, j, 0)
+            for jj in range(3):
+                P[c, jj], Nn[c, jj] = VP[u, jj] - 0.5 * sep * na[jj], na[jj]
+            D[c], F[c], I[c] = -sep, F_VERTEX, fid(FID_MESH_VERTEX, u, j, 0)
             c += 1
         if c:
             counters[0] += 1
@@ -210,7 +218,13 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                 k = put(out_i, out_f, k, i, P[r], Nn[r], D[r], F[r], I[r])
             continue
         # at most 4: the deepest points, spread as reduce4 does (in order of depth)
-        order = np.argsort(-D[:c], kind="mergesort")
+        order = np.arange(c)
+        for r in range(1, c):     # stable insertion sort, deepest first
+            o, j = order[r], r - 1
+            while j >= 0 and D[order[j]] < D[o]:
+                order[j + 1] = order[j]
+                j -= 1
+            order[j + 1] = o
         ps, ds = P[order], D[order]
         keep = np.empty(c, np.bool_)
         reduce4(ps, ds, np.ones(c, np.bool_), Nn[order[0]], keep)

@@ -27,7 +27,7 @@ from ..jit import njit
 from .dispatch import collider
 from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
-from .vec3 import cross, dot, dotr, mv, norm, transform_rows
+from .vec3 import col_max, cross, dot, dotr, mv, norm, transform_rows
 
 
 @njit
@@ -171,13 +171,13 @@ def segment_closest(p1, q1, p2, q2):
 def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
               out_i, out_f):
     """Convex polyhedra A and B: SAT with Gauss-map pruning, then the edge or face contacts."""
-    nv, npl, ne = max(1, si[:, SI_NV].max()), max(1, si[:, SI_NP].max()), max(1, si[:, SI_NE].max())
+    nv, npl, ne = col_max(si, SI_NV), col_max(si, SI_NP), col_max(si, SI_NE)
     VA, VB = np.empty((nv, 3)), np.empty((nv, 3))
     NA, NB = np.empty((npl, 3)), np.empty((npl, 3))
     dA, dB = np.empty(npl), np.empty(npl)
     side, NBt = np.empty(npl), np.empty((3, npl))
     eb2, eb3 = np.empty(ne, np.int64), np.empty(ne, np.int64)
-    k = 0
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, Rb, pa, pb = R[a[i]], R[b[i]], pos[a[i]], pos[b[i]]
@@ -216,23 +216,18 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             if dot(nrm, a0 - cA) < 0:   # outward from A
                 nrm = -nrm
             k = put(out_i, out_f, k, i, 0.5 * (cpa + cpb), -nrm, -esep, F_EDGE, fid(FID_EDGE, ea, eb, 0))
-        elif sepA >= sepB:
-            # the incident body's deepest vertex below the reference face is always a candidate
-            j, low = 0, np.inf
-            for v in range(nvb):
-                x = dotr(NA, fa, VB, v) - dA[fa]
-                if x < low:
-                    j, low = v, x
-            loopR = loops[fA[fa, 0]:fA[fa, 0] + fA[fa, 1]]
-            k = face_patch(VA, NA[:npa], dA[:npa], fa, loopR, VB, NB[:npb], dB[:npb], fB, loops, scale, margin,
-                           VB[j], sepA, j, True, i, out_i, out_f, k)
         else:
-            j, low = 0, np.inf
-            for v in range(nva):
-                x = dotr(NB, fb, VA, v) - dB[fb]
+            # reference face on the body with the larger face separation; the incident body's
+            # deepest vertex below it is always a candidate (one call site: one compiled version)
+            ref_a = sepA >= sepB
+            VR, NR, dR, fr, fR, npr = (VA, NA, dA, fa, fA, npa) if ref_a else (VB, NB, dB, fb, fB, npb)
+            VI, NI, dI, fI, npi, nvi = (VB, NB, dB, fB, npb, nvb) if ref_a else (VA, NA, dA, fA, npa, nva)
+            j, low = np.int64(0), np.inf
+            for v in range(nvi):
+                x = dotr(NR, fr, VI, v) - dR[fr]
                 if x < low:
                     j, low = v, x
-            loopR = loops[fB[fb, 0]:fB[fb, 0] + fB[fb, 1]]
-            k = face_patch(VB, NB[:npb], dB[:npb], fb, loopR, VA, NA[:npa], dA[:npa], fA, loops, scale, margin,
-                           VA[j], sepB, j, False, i, out_i, out_f, k)
+            loopR = loops[fR[fr, 0]:fR[fr, 0] + fR[fr, 1]]
+            k = face_patch(VR, NR[:npr], dR[:npr], fr, loopR, VI, NI[:npi], dI[:npi], fI, loops, scale, margin,
+                           VI[j], max(sepA, sepB), j, ref_a, i, out_i, out_f, k)
     return k

@@ -15,7 +15,7 @@ from .dispatch import collider
 from .geometry import BOX, CONVEX, MESH, PLANE, SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
     SI_V0, SPHERE
 from .manifold import F_PLANE, F_SPHERE, put, reduce4
-from .vec3 import closest_on_triangle, dot, mtv, mv, transform_rows
+from .vec3 import col_max, closest_on_triangle, dot, mtv, mv, transform_rows
 
 
 @njit
@@ -39,7 +39,7 @@ def sphere_row(out_i, out_f, k, pair, sep, normal, cb, rb, margin):
 def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
                  out_i, out_f):
     """Sphere A against plane B: the true signed distance, one contact."""
-    k = 0
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
@@ -57,7 +57,7 @@ def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, 
 def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
                   out_i, out_f):
     """Sphere A against sphere B (concentric: the normal is +z, any direction being right)."""
-    k = 0
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
         d = pos[a[i]] - pos[b[i]]
@@ -72,7 +72,7 @@ def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a,
 def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
                out_i, out_f):
     """Box A against sphere B: clamp the centre into the box; a centre inside exits by the nearest face."""
-    k = 0
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         h = sf[sa, SF_HALF:SF_HALF + 3]
@@ -123,9 +123,9 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
                out_i, out_f):
     """Polyhedron or mesh A against plane B: every vertex within the margin is a candidate; a
     resting face keeps at most 4 of them, spanning the patch."""
-    nmax = max(1, si[:, SI_NV].max())
+    nmax = col_max(si, SI_NV)
     pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
-    k = 0
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
@@ -155,8 +155,8 @@ def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
                 out_i, out_f):
     """Convex polyhedron A against sphere B: the exact distance from the centre to the nearest
     triangle; a centre inside exits through the nearest face plane."""
-    V = np.empty((max(1, si[:, SI_NV].max()), 3))
-    k = 0
+    V = np.empty((col_max(si, SI_NV), 3))
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]

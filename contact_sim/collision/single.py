@@ -19,31 +19,34 @@ _NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
 
 
 def _plain(v, n):
-    """``v`` as a list of ``n`` Python floats when it is plainly ``n`` numbers, else None."""
-    if type(v) is np.ndarray:
-        if v.shape != (n,) or v.dtype.kind not in "fi":
-            return None
-        return v.tolist()
-    if type(v) in (tuple, list) and len(v) == n and all(type(x) in _NUMBER for x in v):
-        return [float(x) for x in v]
+    """``v`` as ``n`` Python numbers (a list, or ``v`` itself) when it is plainly that, else None."""
+    t = type(v)
+    if t is np.ndarray:
+        return v.tolist() if v.shape == (n,) and v.dtype.kind in "fi" else None
+    if (t is tuple or t is list) and len(v) == n:
+        for x in v:
+            tx = type(x)
+            if tx is not float and tx is not int:
+                return None
+        return v
     return None
 
 
 def fast_pose(pose):
-    """``(position [3], orientation [4] normalised)`` of a plainly valid pose, else None."""
-    if type(pose) not in (tuple, list) or len(pose) != 2:
+    """``(position (3 numbers), orientation (4 numbers, normalised))`` of a plainly valid pose, else None."""
+    if (type(pose) is not tuple and type(pose) is not list) or len(pose) != 2:
         return None
     p, q = _plain(pose[0], 3), _plain(pose[1], 4)
     if p is None or q is None:
         return None
-    if not (abs(p[0]) <= LENGTH_LIMIT and abs(p[1]) <= LENGTH_LIMIT and abs(p[2]) <= LENGTH_LIMIT):
+    x, y, z, w = q
+    if not (abs(p[0]) <= LENGTH_LIMIT and abs(p[1]) <= LENGTH_LIMIT and abs(p[2]) <= LENGTH_LIMIT
+            and abs(x) < 1e150 and abs(y) < 1e150 and abs(z) < 1e150 and abs(w) < 1e150):
         return None   # NaN, inf or too far: the full check says which
-    if not max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < 1e150:
-        return None
-    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
     if not norm >= 1e-12:
         return None
-    return p, [q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm]
+    return p, (x / norm, y / norm, z / norm, w / norm)
 
 
 def plain_margin(margin):
@@ -53,8 +56,8 @@ def plain_margin(margin):
 def pose_arrays(pa, qa, pb, qb):
     """``pos (2, 3)`` and rotation matrices ``R (2, 3, 3)`` of two poses (quaternions x, y, z, w)."""
     R = np.empty((2, 3, 3))
-    rotations(np.array([qa, qb]), R)
-    return np.array([pa, pb]), R
+    rotations(np.array((qa, qb), float), R)
+    return np.array((pa, pb), float), R
 
 
 class PairPlan:
@@ -81,7 +84,7 @@ def collide_fast(plan, pa, qa, pb, qb, margin):
     normal = out_f[:k, 3:6]
     if plan.swap:
         normal = -normal
-    return Contacts(body_a=np.zeros(k, np.int64), body_b=np.ones(k, np.int64), point=out_f[:k, 0:3],
+    return Contacts(body_a=np.zeros(k, np.int64), body_b=np.full(k, 1, np.int64), point=out_f[:k, 0:3],
                     normal=normal, depth=out_f[:k, 6], impulse=np.zeros((k, 3)), normal_impulse=np.zeros(k),
                     friction_impulse=np.zeros((k, 3)), relative_normal_velocity=np.zeros(k),
                     feature=out_i[:k, 1], feature_id=out_i[:k, 2])

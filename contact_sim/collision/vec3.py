@@ -115,3 +115,32 @@ def rotations(quat, R):
         R[k, 0, 0], R[k, 0, 1], R[k, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
         R[k, 1, 0], R[k, 1, 1], R[k, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
         R[k, 2, 0], R[k, 2, 1], R[k, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+
+
+@njit
+def col_max(a, col):
+    """Largest entry of column ``col`` of an int table (at least 1: sizes scratch arrays)."""
+    m = 1
+    for i in range(a.shape[0]):
+        m = max(m, a[i, col])
+    return m
+
+
+@njit
+def counting_order(key, nkeys, order):
+    """``order`` = the stable ascending order of ``key (n,)`` with values in ``[0, nkeys)``."""
+    count = np.zeros(nkeys + 1, np.int64)
+    for i in range(key.shape[0]):
+        count[key[i] + 1] += 1
+    for k in range(nkeys):
+        count[k + 1] += count[k]
+    for i in range(key.shape[0]):
+        order[count[key[i]]] = i
+        count[key[i]] += 1
+
+
+@njit
+def set_row(dst, i, src):
+    """``dst[i, :3] = src[:3]`` component by component (a row assignment from an array compiles the
+    general broadcasting code, seconds of compile time for three numbers)."""
+    dst[i, 0], dst[i, 1], dst[i, 2] = src[0], src[1], src[2]
