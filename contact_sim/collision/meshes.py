@@ -18,7 +18,7 @@ from .geometry import BOX, CONVEX, MESH, SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, 
 from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, put, reduce4
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
-from .vec3 import col_max, set_row, cross, dot, norm
+from .vec3 import col_max, dotr, inside_loop, set_row, cross, dot, norm
 
 # rays for the parity test: generic directions, so a ray through an edge or vertex is rare; when
 # one is (a barycentric coordinate or the distance within a tolerance of 0) the next ray decides
@@ -125,21 +125,17 @@ def _crossings(VX, EX, NY, dY, npl, facesY, loops, VY, sgn, tag, P, Nn, D, F, I,
     """Every crossing of an edge of X through a face polygon of Y as a candidate (point, the face
     normal times ``sgn``, depth = the shallower endpoint's distance to the face plane)."""
     for e in range(EX.shape[0]):
-        E0, E1 = VX[EX[e, 0]], VX[EX[e, 1]]
+        i0, i1 = EX[e, 0], EX[e, 1]
         for p in range(npl):
-            s0, s1 = dot(NY[p], E0) - dY[p], dot(NY[p], E1) - dY[p]
+            s0, s1 = dotr(NY, p, VX, i0) - dY[p], dotr(NY, p, VX, i1) - dY[p]
             if not s0 * s1 < 0:
                 continue
-            X = E0 + (s0 / (s0 - s1)) * (E1 - E0)
-            l0, m = facesY[p, 0], facesY[p, 1]
-            inside = True
-            for q in range(m):
-                L, nxt = VY[loops[l0 + q]], VY[loops[l0 + (q + 1) % m]]
-                if dot(cross(nxt - L, NY[p]), X - L) > eps:
-                    inside = False
-                    break
-            if inside and c < P.shape[0]:
-                set_row(P, c, X)
+            t = s0 / (s0 - s1)
+            x = VX[i0, 0] + t * (VX[i1, 0] - VX[i0, 0])
+            y = VX[i0, 1] + t * (VX[i1, 1] - VX[i0, 1])
+            z = VX[i0, 2] + t * (VX[i1, 2] - VX[i0, 2])
+            if c < P.shape[0] and inside_loop(NY, p, VY, loops, facesY[p, 0], facesY[p, 1], x, y, z, eps):
+                P[c, 0], P[c, 1], P[c, 2] = x, y, z
                 for j in range(3):
                     Nn[c, j] = sgn * NY[p, j]
                 D[c], F[c], I[c] = min(abs(s0), abs(s1)), F_EDGE, fid(FID_CROSSING, e, p, tag)

@@ -27,7 +27,7 @@ from ..jit import njit
 from .dispatch import collider
 from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
-from .vec3 import col_max, cross, dot, dotr, mv, norm, transform_rows
+from .vec3 import col_max, cross, dot, dotr, inside_loop, mv, norm, transform_rows
 
 
 @njit
@@ -133,21 +133,17 @@ def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side, NBt, e
 def edge_crosses_face(VX, EX, ne, NY, dY, npl, faces, loops, VY, eps=1e-12):
     """The lecture's edge–face test: does an edge of X cross a face polygon of Y?"""
     for e in range(ne):
-        E0, E1 = VX[EX[e, 0]], VX[EX[e, 1]]
+        i0, i1 = EX[e, 0], EX[e, 1]
         for p in range(npl):
-            s0 = dot(NY[p], E0) - dY[p]
-            s1 = dot(NY[p], E1) - dY[p]
+            s0 = dotr(NY, p, VX, i0) - dY[p]
+            s1 = dotr(NY, p, VX, i1) - dY[p]
             if not s0 * s1 < 0:
                 continue
-            X = E0 + (s0 / (s0 - s1)) * (E1 - E0)
-            l0, m = faces[p, 0], faces[p, 1]
-            inside = True
-            for q in range(m):
-                L, nxt = VY[loops[l0 + q]], VY[loops[l0 + (q + 1) % m]]
-                if dot(cross(nxt - L, NY[p]), X - L) > eps:
-                    inside = False
-                    break
-            if inside:
+            t = s0 / (s0 - s1)
+            x = VX[i0, 0] + t * (VX[i1, 0] - VX[i0, 0])
+            y = VX[i0, 1] + t * (VX[i1, 1] - VX[i0, 1])
+            z = VX[i0, 2] + t * (VX[i1, 2] - VX[i0, 2])
+            if inside_loop(NY, p, VY, loops, faces[p, 0], faces[p, 1], x, y, z, eps):
                 return True
     return False
 

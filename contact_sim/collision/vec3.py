@@ -144,3 +144,17 @@ def set_row(dst, i, src):
     """``dst[i, :3] = src[:3]`` component by component (a row assignment from an array compiles the
     general broadcasting code, seconds of compile time for three numbers)."""
     dst[i, 0], dst[i, 1], dst[i, 2] = src[0], src[1], src[2]
+
+
+@njit
+def inside_loop(N, p, V, loops, l0, m, x, y, z, eps):
+    """Point ``(x, y, z)`` on the plane of face ``p`` (normal ``N[p]``) inside its polygon
+    ``loops[l0:l0 + m]`` of ``V`` rows: on the inner side of every edge (within ``eps``)."""
+    nx, ny, nz = N[p, 0], N[p, 1], N[p, 2]
+    for q in range(m):
+        i0, i1 = loops[l0 + q], loops[l0 + (q + 1) % m]
+        ex, ey, ez = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]
+        sx, sy, sz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx     # (edge × n): outward
+        if sx * (x - V[i0, 0]) + sy * (y - V[i0, 1]) + sz * (z - V[i0, 2]) > eps:
+            return False
+    return True
