@@ -12,10 +12,12 @@ SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64
 _TRIU = {}          # n -> cached np.triu_indices(n, 1)
 
 
-def _overlap(c, h, i, j, margin):
-    """``(K,) bool``: boxes ``i`` and ``j (K,)`` overlap within ``margin`` on all three axes (the one
-    exact test every method ends with, so they all return the same pairs)."""
-    return np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+def _filter(c, h, i, j, margin):
+    """The pairs ``i, j (K,)`` whose boxes overlap within ``margin`` (compiled ``overlap_filter``)."""
+    i, j = np.ascontiguousarray(i, np.int64), np.ascontiguousarray(j, np.int64)
+    oi, oj = np.empty_like(i), np.empty_like(j)
+    n = overlap_filter(c, h, i, j, margin, oi, oj)
+    return oi[:n], oj[:n]
 
 
 def candidate_pairs(c, h, margin):
@@ -77,9 +79,7 @@ def all_pairs(c, h, margin):
     tri = _TRIU.get(n)
     if tri is None:
         tri = _TRIU[n] = np.triu_indices(n, 1)
-    i, j = tri
-    keep = _overlap(c, h, i, j, margin)
-    return i[keep], j[keep]
+    return _filter(c, h, tri[0], tri[1], margin)
 
 
 def world_aabbs(pos, R, centre_local, half_local):
@@ -114,9 +114,7 @@ def sweep_and_prune(c, h, margin, budget=None):
     i_s = np.repeat(np.arange(n), counts)
     offs = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
     j_s = i_s + 1 + offs
-    i, j = order[i_s], order[j_s]
-    keep = _overlap(c, h, i, j, margin)
-    i, j = i[keep], j[keep]
+    i, j = _filter(c, h, order[i_s], order[j_s], margin)
     return np.minimum(i, j), np.maximum(i, j)
 
 
@@ -181,9 +179,7 @@ def grid_pairs(c, h, margin):
         out_j.append(bj[keep])
     if not out_i:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i, j = np.concatenate(out_i), np.concatenate(out_j)
-    keep = _overlap(c, h, i, j, margin)
-    i, j = i[keep], j[keep]
+    i, j = _filter(c, h, np.concatenate(out_i), np.concatenate(out_j), margin)
     return np.minimum(i, j), np.maximum(i, j)
 
 
@@ -212,7 +208,7 @@ def inside_fat(c, h, fat_c, fat_h):
 @njit
 def overlap_filter(c, h, i, j, margin, oi, oj):
     """The pairs ``i, j`` whose boxes overlap within ``margin`` into ``oi, oj``; returns their count
-    (the exact test of ``_overlap``, order kept)."""
+    (the one exact test every method ends with, so they all return the same pairs; order kept)."""
     n = 0
     for k in range(i.shape[0]):
         a, b = i[k], j[k]

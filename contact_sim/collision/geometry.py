@@ -98,7 +98,13 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
             continue
         fo = fn[t, 0] * v[f[t, 0], 0] + fn[t, 1] * v[f[t, 0], 1] + fn[t, 2] * v[f[t, 0], 2]
         tri_plane[t] = -1
-        for p in range(npl):
+        # merged planes are numbered in order of their first triangle: try the next new plane and
+        # the last one matched first (a hull of distinct faces matches in one test), then all
+        last = tri_plane[t - 1] if t > 0 else -1
+        for k in range(npl + 2):
+            p = last + 1 if k == 0 else (last if k == 1 else k - 2)
+            if p < 0 or p >= npl:
+                continue
             if (fn[t, 0] * pn[p, 0] + fn[t, 1] * pn[p, 1] + fn[t, 2] * pn[p, 2] > 1 - 1e-9
                     and abs(fo - pd[p]) < 1e-9 * scale):
                 tri_plane[t] = p
@@ -115,6 +121,15 @@ def _prepare_one(v, f, fn, pn, pd, convex, loops, faces, edges):
     nl = 0
     k = 0
     for p in range(npl):
+        if (k + 1 == nt or tri_plane[by_plane[k + 1]] != p) and k < nt and tri_plane[by_plane[k]] == p:
+            # a face of one triangle: its winding is already counter-clockwise about its normal
+            # (the face normal is computed from the winding, and the plane is that normal)
+            t = by_plane[k]
+            faces[p, 0], faces[p, 1] = nl, 3
+            loops[nl], loops[nl + 1], loops[nl + 2] = f[t, 0], f[t, 1], f[t, 2]
+            nl += 3
+            k += 1
+            continue
         m = 0
         while k < nt and tri_plane[by_plane[k]] == p:
             t = by_plane[k]
@@ -199,6 +214,31 @@ class ShapeGeom:
     __slots__ = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris")
 
 
+class _InBatch:
+    """A shape's prepared geometry as row ``k`` of a preparation batch: the ``ShapeGeom`` is cut
+    out of the batch only when asked for (a world built from new shapes uses the batch whole)."""
+
+    __slots__ = ("batch", "k", "_geom")
+
+    def __init__(self, batch, k):
+        self.batch, self.k, self._geom = batch, k, None
+
+    def __getattr__(self, name):
+        if self._geom is None:
+            todo, SF, SI, verts, planes, faces, loops, edges, tris = self.batch
+            k, g = self.k, ShapeGeom()
+            v0, nv, p0, npl, t0, nt, ne = (int(SI[k, c]) for c in (SI_V0, SI_NV, SI_P0, SI_NP, SI_T0, SI_NT, SI_NE))
+            g.sf, g.si = SF[k].copy(), SI[k].copy()
+            g.si[[SI_V0, SI_P0, SI_E0, SI_T0, SI_L0]] = 0
+            g.verts, g.planes, g.tris = verts[v0:v0 + nv], planes[p0:p0 + npl], tris[t0:t0 + nt]
+            g.faces = faces[p0:p0 + npl].copy()
+            g.faces[:, 0] -= 3 * t0
+            g.loops = loops[3 * t0:3 * t0 + 3 * nt]
+            g.edges = edges[3 * t0:3 * t0 + ne]
+            self._geom = g
+        return getattr(self._geom, name)
+
+
 _NONE_F3, _NONE_F4 = np.zeros((0, 3)), np.zeros((0, 4))
 _NONE_I, _NONE_I2, _NONE_I3, _NONE_I4 = (np.zeros((0,) + s, np.int64) for s in ((), (2,), (3,), (4,)))
 
@@ -256,7 +296,7 @@ def prepare_shapes(shapes):
             else:
                 todo.append(s)
     if not todo:
-        return
+        return None
     V = [np.asarray(s.vertices, float) for s in todo]
     T = [np.asarray(s.faces, np.int64) for s in todo]
     FN = [np.asarray(s.face_normals, float) for s in todo]
@@ -277,7 +317,8 @@ def prepare_shapes(shapes):
     loops, edges = np.empty(3 * nt, np.int64), np.empty((3 * nt, 4), np.int64)
     faces = np.empty((len(pn), 2), np.int64)
     counts, fl = np.empty((len(todo), 2), np.int64), np.empty((len(todo), 14))
-    _prepare_batch(vs, np.concatenate(V), ts, tris, fn, ps, pn, pd, convex, loops, faces, edges, counts, fl)
+    verts = np.concatenate(V)
+    _prepare_batch(vs, verts, ts, tris, fn, ps, pn, pd, convex, loops, faces, edges, counts, fl)
     planes = np.column_stack([pn, pd])
     bad = np.flatnonzero(counts[:, 0] < 0)
     if bad.size:
@@ -290,15 +331,17 @@ def prepare_shapes(shapes):
     SF[:, SF_SPHERE:SF_SPHERE + 4], SF[:, SF_BOX:SF_BOX + 6] = fl[:, 0:4], fl[:, 4:10]
     SF[:, SF_SCALE], SF[:, SF_CENTROID:SF_CENTROID + 3] = fl[:, 10], fl[:, 11:14]
     for k, s in enumerate(todo):
-        nl, ne = counts[k]
-        g = ShapeGeom()
-        g.sf, g.si = SF[k], SI[k]
         if s.type == "box":
-            g.sf[SF_HALF:SF_HALF + 3] = s.half
-        g.verts, g.tris = V[k], T[k]
-        g.faces, g.planes = faces[ps[k]:ps[k + 1]], planes[ps[k]:ps[k + 1]]
-        g.loops, g.edges = loops[3 * ts[k]:3 * ts[k] + nl], edges[3 * ts[k]:3 * ts[k] + ne]
-        s._cs_geom = g
+            SF[k, SF_HALF:SF_HALF + 3] = s.half
+    # the batch as a table of its own (loops and edges keep their slack of 3 per triangle)
+    SI[:, SI_V0], SI[:, SI_P0], SI[:, SI_T0] = vs[:-1], ps[:-1], ts[:-1]
+    SI[:, SI_E0] = SI[:, SI_L0] = 3 * ts[:-1]
+    faces_t = faces.copy()
+    faces_t[:, 0] += np.repeat(3 * ts[:-1], np.diff(ps))
+    batch = (todo, SF, SI, verts, planes, faces_t, loops, edges, tris)
+    for k, s in enumerate(todo):
+        s._cs_geom = _InBatch(batch, k)
+    return batch
 
 
 class GeomTable:
@@ -306,7 +349,7 @@ class GeomTable:
     each input position to its row (a shape object given several times is stored once)."""
 
     def __init__(self, shapes):
-        prepare_shapes(shapes)
+        batch = prepare_shapes(shapes)
         row, uniq = {}, []
         shape_of = np.empty(len(shapes), np.int64)
         for i, s in enumerate(shapes):
@@ -317,6 +360,10 @@ class GeomTable:
             shape_of[i] = k
         self.shape_of = shape_of
         self.shapes = uniq
+        polys = [s for s in uniq if s.type not in ("plane", "sphere")]
+        if batch is not None and len(batch[0]) == len(polys):
+            self._from_batch(uniq, batch)    # every polyhedron was new: its batch is the table
+            return
         gs = [s._cs_geom for s in uniq]
         self.sf = np.array([g.sf for g in gs]).reshape(len(gs), NSF)
         si = np.array([g.si for g in gs]).reshape(len(gs), NSI)
@@ -340,6 +387,15 @@ class GeomTable:
         if counts.sum():
             self.faces = self.faces.copy()
             self.faces[:, 0] += np.repeat(si[:, SI_L0], counts)
+
+    def _from_batch(self, uniq, batch):
+        todo, SF, SI, self.verts, self.planes, self.faces, self.loops, self.edges, self.tris = batch
+        S = len(uniq)
+        poly = np.array([s.type not in ("plane", "sphere") for s in uniq], bool)
+        self.sf, self.si = np.zeros((S, NSF)), np.zeros((S, NSI), np.int64)
+        self.sf[poly], self.si[poly] = SF, SI     # batch order = order of first appearance
+        for k in np.flatnonzero(~poly):
+            self.sf[k], self.si[k] = uniq[k]._cs_geom.sf, uniq[k]._cs_geom.si
 
     def arrays(self):
         """The arrays every kernel takes first, in the kernels' order."""
