@@ -81,10 +81,12 @@ def collide_fast(plan, pa, qa, pb, qb, margin):
     if plan.kernel is not None:
         k = plan.kernel(*plan.arrays, plan.shape_of, plan.a, plan.b, pos, R, float(margin), np.zeros(3, np.int64),
                         out_i, out_f)
-    normal = out_f[:k, 3:6]
     if plan.swap:
-        normal = -normal
-    return Contacts(body_a=np.zeros(k, np.int64), body_b=np.full(k, 1, np.int64), point=out_f[:k, 0:3],
-                    normal=normal, depth=out_f[:k, 6], impulse=np.zeros((k, 3)), normal_impulse=np.zeros(k),
-                    friction_impulse=np.zeros((k, 3)), relative_normal_velocity=np.zeros(k),
-                    feature=out_i[:k, 1], feature_id=out_i[:k, 2])
+        out_f[:k, 3:6] *= -1.0
+    # the response columns are zero: one block, split into its columns (separate arrays to the user)
+    zero = np.zeros((8, k))
+    ids = np.zeros((2, k), np.int64)
+    ids[1] = 1
+    return Contacts(body_a=ids[0], body_b=ids[1], point=out_f[:k, 0:3], normal=out_f[:k, 3:6], depth=out_f[:k, 6],
+                    impulse=zero[0:3].T, normal_impulse=zero[3], friction_impulse=zero[4:7].T,
+                    relative_normal_velocity=zero[7], feature=out_i[:k, 1], feature_id=out_i[:k, 2])
