@@ -37,7 +37,6 @@ from .response import solver
 from .response import toi as toi_mod
 
 DYNAMIC = 2
-FRACTIONAL_TOUCH = 1e-12  # m: a pair this close counts as touching after an exact time of impact
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
@@ -133,19 +132,28 @@ def _uniform_material(world):
     return derived(world, "uniform_material", (r, f, sf), build)
 
 
-def _rows(world, c, inv_inertia, rel_vel):
+def _rows(world, c, inv_inertia, rel_vel, m):
     return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, world.s.pos, world.inv_mass, inv_inertia,
-                             movable=world.kind == DYNAMIC, rel_vel=rel_vel)
+                             movable=world.kind == DYNAMIC, rel_vel=rel_vel,
+                             dynamic_levers=m.response != "kinematic")
 
 
-def _relative_velocity(world, c):
+def _relative_velocity(world, c, m):
     """Velocity ``(K,3)`` of A's material point at each contact relative to B's, ``ṗ_A − ṗ_B``
-    (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it)."""
+    (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it).
+    Under the kinematic response a dynamic body is a particle, ``v ← v − (1+k)(N·v)N`` acts on the
+    velocity of its centre: its spin is neither seen nor changed (counting it made a spinning box
+    bounce higher than it fell)."""
     s = world.s
     a, b = c.body_a, c.body_b
     if not s.omega.any():   # nothing spins: the points move with their bodies' centres
         return s.vel[a] - s.vel[b]
-    return (s.vel[a] + cross(s.omega[a], c.point - s.pos[a])) - (s.vel[b] + cross(s.omega[b], c.point - s.pos[b]))
+    wa, wb = s.omega[a], s.omega[b]
+    if m.response == "kinematic":
+        dyn = world.kind == DYNAMIC
+        wa = np.where(dyn[a][:, None], 0.0, wa)
+        wb = np.where(dyn[b][:, None], 0.0, wb)
+    return (s.vel[a] + cross(wa, c.point - s.pos[a])) - (s.vel[b] + cross(wb, c.point - s.pos[b]))
 
 
 def _gravity(world):
@@ -294,7 +302,6 @@ def _impulse_step(world, dt, m):
     s = world.s
     margin = st.contact_margin
     exact_toi = m.toi in ("fractional", "swept")
-    touch_eps = FRACTIONAL_TOUCH if exact_toi else margin
     gdt = float(np.linalg.norm(world.gravity)) * dt
     v_imp = IMPACT_SPEED_FRACTION * gdt
     dyn = world.kind == DYNAMIC
@@ -307,11 +314,12 @@ def _impulse_step(world, dt, m):
     pseudo = None
     warm_out = None
     first = True
+    drift = 0.0
     spec = SPECULATIVE and not exact_toi
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
         c = _detect(world, det_margin)
-        rel_vel = _relative_velocity(world, c)
+        rel_vel = _relative_velocity(world, c, m)
         if spec and det_margin > margin and len(c):
             near = _closing_filter(world, c, rel_vel, t_left, margin)
             if not near.all():
@@ -324,12 +332,16 @@ def _impulse_step(world, dt, m):
             if first:
                 max_pen = max(max_pen, float(c.depth.max()))
             R = quat.to_matrix(s.quat)
-            rows = _rows(world, c, _inv_inertia(world, m, R), rel_vel)
+            rows = _rows(world, c, _inv_inertia(world, m, R), rel_vel, m)
             local = _local_points(world, c, R)
             e, mu_s, mu_d = _coefficients(world, c, m)
             fr = m.friction and m.response != "kinematic"
             vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
-            touching = c.depth >= -touch_eps
+            if exact_toi:   # within the time-of-impact search's tolerance of touching, relative to size
+                ext = toi_mod._extents(world)
+                touching = c.depth >= -toi_mod.TOI_TOLERANCE * np.minimum(ext[c.body_a], ext[c.body_b])
+            else:
+                touching = c.depth >= -margin
             if exact_toi:
                 # contacts that close within a millionth of a step of the impact found are hit in the
                 # same instant (a box landing flat, tilted by round-off, hits all four corners at once;
@@ -347,12 +359,19 @@ def _impulse_step(world, dt, m):
                 # (e > 0) does so in this step from the approach speed it has now (Box2D's
                 # restitution rule: the rebound starts up to one gap early, and e = 1 loses nothing)
                 g_n = np.einsum("ij,ij->i", c.normal, g[c.body_a] - g[c.body_b])
-                spec_target = (c.depth - 0.5 * g_n * t_left * t_left) / t_left
+                # never positive: a pair nearer than gravity's sag over the step is only stopped here
+                # (pushing it apart to arrive touching would be work done by the contact); the resting
+                # stage's constant force then lands it exactly
+                spec_target = np.minimum((c.depth - 0.5 * g_n * t_left * t_left) / t_left, 0.0)
                 closing = ~touching & (vn0 < spec_target)
                 spec_target = np.where(closing & (e > 0), np.maximum(spec_target, -e * vn0), spec_target)
             bounced = impact | (closing & (e > 0))
             if impact.any() or closing.any():
-                ti = np.flatnonzero(touching | closing)
+                # a touching pair that separates takes no impact impulse: it was not hit; were it
+                # held at v_n = 0 against the push of the others' impulses, the LCP would make it
+                # push a separating body along (positive work: a corner gained energy). If the
+                # others' impulses turn it into an approach, the resting stage stops it inelastically
+                ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
                 r1 = rows.select(ti)
                 if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
                     r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
@@ -383,13 +402,12 @@ def _impulse_step(world, dt, m):
                 # every contact rests (the usual case): read the arrays as they are, no gathers
                 ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
                 r2 = rows.select(rmask)
-                target = np.minimum(c.depth[ri], 0.0) / t_left   # close a gap, never open one
-                if spec:
-                    # a speculative contact: the displacement over T of the constant-force model,
-                    # (v_start + v_end)/2·T, may close the gap exactly, never more (and never asks the
-                    # pair to separate)
-                    vs = vn1[ri]
-                    target = np.where(touching[ri], target, np.minimum(2.0 * c.depth[ri] / t_left - vs, 0.0))
+                # the constant contact force acts over T on the displacement (v_start + v_end)/2·T: that
+                # may close a gap exactly, never more, and never asks the pair to separate; an
+                # approaching pair ends at rest (inelastic), a separating one may come back by its own
+                # displacement: the force then does no work (an end-velocity target of 0 made a force
+                # that held a separating body up, and added energy)
+                target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - vn1[ri], 0.0)
                 warm = _project_warm(_warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
                                      mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
@@ -433,9 +451,9 @@ def _impulse_step(world, dt, m):
                 loc_rec = local
             records.append((rec, loc_rec))
         if dv_rest is None:
-            world._advance_free(tau)
+            drift += world._advance_free(tau)
         else:
-            _advance(world, tau, 0.5 * dv_rest * frac, 0.5 * dw_rest * frac)
+            drift += _advance(world, tau, 0.5 * dv_rest * frac, 0.5 * dw_rest * frac)
         if frac >= 1.0:
             break
         t_left -= tau
@@ -449,7 +467,7 @@ def _impulse_step(world, dt, m):
     world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
                         "contacts": len(world.contacts), "impacts": events, "toi": m.toi,
                         "response": m.response, "correction_energy": correction,
-                        "kinematic_work": _kinematic_work(world, world.contacts)}
+                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift}
 
 
 def _potential_change(world, dx):
@@ -508,9 +526,10 @@ def _advance(world, tau, half_dv, half_dw):
     s = world.s
     s.vel += half_dv
     s.omega += half_dw
-    world._advance_free(tau)
+    drift = world._advance_free(tau)
     s.vel += half_dv
     s.omega += half_dw
+    return drift
 
 
 def _move(world, dx, dtheta):
@@ -542,35 +561,47 @@ def _split_impulse(world, c, rows, dt):
 
 # ---------------------------------------------------------------------------- penalty
 def _penalty_step(world, dt, m):
-    """Spring ``k·depth`` plus damper ``−c·v_n`` along the normal (never pulling), applied as an
-    impulse ``F·dt`` kick before the drift (symplectic Euler): at rest ``k·depth = m g`` exactly."""
+    """Penalty response: a spring ``k·depth`` and damper ``−c·v_n`` along each contact normal (never
+    pulling), integrated implicitly (backward Euler): the force uses the depth and normal velocity
+    at the *end* of the step, ``F = k·(d − dt·v_n⁺) − c·v_n⁺``, which makes the impulse of each
+    contact ``λ = dt·F`` the solution of ``v_n⁺ + γλ = k·d/(dt·k + c)`` with compliance
+    ``γ = 1/(dt·(dt·k + c))`` (the soft-constraint form of Catto's soft step and ODE's CFM/ERP).
+    Stable for every stiffness and step (the explicit spring exploded above sqrt(k/m)·dt = 2, which
+    the old defaults crossed for a 1 kg body at the default dt); rest is still exactly k·depth = m g.
+    Bodies in contact move by ``x += dt·v⁺`` (symplectic Euler), free bodies ballistically."""
     st = world.settings
     s = world.s
     c = _detect(world, 0.0)
     k = len(c)
     max_pen = float(c.depth.max()) if k else 0.0
     if k:
-        rel_vel = _relative_velocity(world, c)
-        rows = _rows(world, c, _inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel)
+        rel_vel = _relative_velocity(world, c, m)
+        rows = _rows(world, c, _inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel, m)
         vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
-        force = np.maximum(st.penalty.stiffness * np.maximum(c.depth, 0.0) - st.penalty.damping * vn0, 0.0)
-        lam = np.zeros((k, 3))
-        lam[:, 0] = force * dt
-        solver.apply(rows, s.vel, s.omega, lam)
-        world.contacts = _record(c, rows, lam, vn0)
-        # bodies in contact integrate gravity as a kick too (symplectic Euler: x += (v + (F/m + g)dt)dt),
-        # so that rest is exactly k·depth = m g and the spring is stable for sqrt(k/m)·dt < 2;
-        # free bodies keep the exact ballistic step
+        stiff, damp = st.penalty.stiffness, st.penalty.damping
+        gamma = np.full(k, 1.0 / (dt * (dt * stiff + damp)))
+        target = stiff * np.maximum(c.depth, 0.0) / (dt * stiff + damp)
+        g = _gravity(world)
+        v_end = s.vel + g * dt          # the velocity the step would end with without contact
+        w_end = s.omega.copy()
+        res = solver.solve_soft(rows, v_end, w_end, target_n=target, compliance=gamma,
+                                iterations=st.solver_iterations, tolerance=st.solver_tolerance)
+        world.contacts = _record(c, rows, res.impulse, vn0)
+        # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
+        # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step
         touched = np.zeros(len(world), bool)
         touched[c.body_a] = True
         touched[c.body_b] = True
         shift = np.where((touched & (world.kind == DYNAMIC))[:, None], 0.5 * world.gravity * dt, 0.0)
-        s.vel += shift
-        world._advance_free(dt)
+        s.vel += (v_end - g * dt - s.vel) + shift
+        s.omega[...] = w_end
+        drift = world._advance_free(dt)
         s.vel -= shift
+        iters, residual = res.iterations, res.residual
     else:
         world.contacts = Contacts.empty()
-        world._advance_free(dt)
-    world.last_solve = {"iterations": 0, "residual": 0.0, "max_penetration": max_pen, "contacts": k,
+        drift = world._advance_free(dt)
+        iters, residual = 0, 0.0
+    world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen, "contacts": k,
                         "impacts": 0, "toi": m.toi, "response": m.response, "correction_energy": 0.0,
-                        "kinematic_work": _kinematic_work(world, world.contacts)}
+                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift}

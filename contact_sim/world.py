@@ -552,6 +552,14 @@ class World:
         saved = self.s.copy(), dict(self.__dict__)
         try:
             stepper.step(self, dt)
+        except ContactSimError as exc:
+            # every input was checked before the step: a refusal from inside it is the engine's own
+            # failure (an internal query handed a bad value), not the caller's bad input
+            self._undo(saved)
+            if isinstance(exc, EngineError):
+                raise
+            raise EngineError(f"step: an internal query failed ({exc}); the world is as it was before this "
+                              f"step (a failure on valid input, please report it)") from exc
         except BaseException:
             self._undo(saved)
             raise
@@ -599,14 +607,17 @@ class World:
 
     def _advance_free(self, dt):
         """Move every body as if nothing touched for ``dt``: dynamic bodies ballistically with
-        torque-free rotation, kinematic bodies at their constant linear and angular velocity."""
+        torque-free rotation, kinematic bodies at their constant linear and angular velocity.
+        Returns the rotational energy change (J) of the splitting for tumbling bodies (see
+        ``dynamics.integrate_free``)."""
         dynamic = self.kind == DYNAMIC
-        dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
+        drift = dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
         kin = np.flatnonzero((self.kind == KINEMATIC) & self.s.omega.any(axis=1))
         if kin.size:
             s = self.s
             turn = quat.from_rotvec(s.omega[kin] * dt)
             s.quat[kin] = quat.normalize(quat.mul(turn, s.quat[kin]))
+        return drift
 
     # ------------------------------------------------------------------ reporting
     def _spin(self, mask):

@@ -12,7 +12,7 @@ import numpy as np
 from ..memo import derived
 from ..shapes import Sphere
 
-PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the explicit spring is near its stability edge (2)
+PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the step cannot resolve the spring's oscillation
 FRACTIONAL_AUTO_MAX_BODIES = 16
 
 
@@ -21,7 +21,8 @@ class ContactModelWarning(UserWarning):
 
 
 class PenaltyStiffnessWarning(ContactModelWarning):
-    """Penalty stiffness too high for the step size: the explicit spring can go unstable."""
+    """Penalty stiffness too high for the step size to resolve the spring's oscillation (stable, as
+    the spring is integrated implicitly, but its elastic bounce is damped away)."""
 
 
 class TunnellingWarning(ContactModelWarning):
@@ -241,7 +242,9 @@ def preflight(world, models=None, dt=None):
                 out.append((PenaltyStiffnessWarning,
                             f"penalty stiffness {world.settings.penalty.stiffness:g} N/m is too high for dt "
                             f"{dt:.4g} s between {names[i]!r} and {names[j]!r}: sqrt(k/m)·dt = {omega_dt:.3g} "
-                            f"(stable below 2, accurate below {PENALTY_OMEGA_DT_LIMIT:g}); lower k or dt"))
+                            f"(resolved below {PENALTY_OMEGA_DT_LIMIT:g}); the spring is integrated implicitly, "
+                            f"so it stays stable, but its bounce is damped away: lower k or dt for an elastic "
+                            f"contact"))
     return out
 
 

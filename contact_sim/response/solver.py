@@ -165,12 +165,19 @@ class Rows:
         return Rows(*[getattr(self, x)[idx] for x in f], self.movable)
 
 
-def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None, rel_vel=None):
+def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None, rel_vel=None,
+               dynamic_levers=True):
     """Constraint rows for contacts. ``pos (N,3)`` centres of mass; ``vel/omega (N,3)`` (optional) or
     the contact points' relative velocity ``rel_vel (K,3)`` when already known pick the first
-    tangent along the current sliding direction. Returns ``Rows``."""
+    tangent along the current sliding direction. ``dynamic_levers=False`` (the kinematic
+    response) puts each movable body's contact at its centre: it acts as a particle. Returns ``Rows``."""
+    if movable is None:
+        movable = inv_mass > 0
     ra = point - pos[a]
     rb = point - pos[b]
+    if not dynamic_levers:
+        ra = np.where(movable[a][:, None], 0.0, ra)
+        rb = np.where(movable[b][:, None], 0.0, rb)
     hint = rel_vel
     if hint is None and vel is not None:
         hint = (vel[a] + cross(omega[a], ra)) - (vel[b] + cross(omega[b], rb))
@@ -191,8 +198,6 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
             iang = np.zeros_like(ang)
         iangs.append(iang)
     iang_a, iang_b = iangs
-    if movable is None:
-        movable = inv_mass > 0
     return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable)
 
 
@@ -233,7 +238,8 @@ class SolveResult:
     residual: float         # largest impulse change of the last sweep (N·s)
 
 
-def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None):
+def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
+          compliance=None):
     """Projected Gauss–Seidel over coloured contacts, updating ``vel, omega (N,3)`` in place.
 
     Normal row: ``n·v_rel ≥ target_n`` with a non-negative impulse (complementarity: zero impulse
@@ -241,7 +247,9 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
     Friction rows (when ``mu_s``/``mu_d (K,)`` are given): tangential relative velocity driven to
     zero by a 2-D impulse kept in the cone: if the sticking impulse is within ``mu_s·λn`` it is
     taken, otherwise it is scaled to ``mu_d·λn`` (kinetic friction). ``warm (K,3)`` starting
-    impulses (applied first). Returns ``SolveResult``.
+    impulses (applied first). ``compliance (K,)`` softens the normal rows to
+    ``n·v_rel + compliance·λn ≥ target_n`` (the implicit spring–damper of the penalty response).
+    Returns ``SolveResult``.
     """
     k = len(rows.a)
     lam = np.zeros((k, 3)) if warm is None else warm.copy()
@@ -250,7 +258,8 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
     if warm is not None and np.any(warm):
         apply(rows, vel, omega, lam)
     friction = mu_s is not None and np.any(mu_s > 0)
-    kn = rows.K[:, 0, 0]
+    comp = np.zeros(k) if compliance is None else compliance
+    kn = rows.K[:, 0, 0] + comp
     inv_kn = np.where(kn > 0, 1.0 / np.maximum(kn, _TINY), 0.0)
     inv_kt = _inv2(rows.K[:, 1:, 1:]) if friction else None
     # gather each colour's rows once (the sweep below then only does small dense products on the
@@ -266,15 +275,15 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
         cols.append((idx, rows.a[idx], rows.b[idx], ja[idx], jb[idx], wa[idx], wb[idx],
                      target_n[idx], inv_kn[idx], rows.K[idx],
                      inv_kt[idx] if friction else None, mu_s[idx] if friction else None,
-                     mu_d[idx] if friction else None, lam[idx]))
+                     mu_d[idx] if friction else None, comp[idx], lam[idx]))
     vw = np.concatenate([vel, omega], axis=1)
     residual = 0.0
     it = 0
     for it in range(1, iterations + 1):
         residual = 0.0
-        for (idx, a, b, jca, jcb, wca, wcb, tn, ikn, kk, ikt, mus, mud, old) in cols:
+        for (idx, a, b, jca, jcb, wca, wcb, tn, ikn, kk, ikt, mus, mud, cp, old) in cols:
             rv = (jca @ vw[a][:, :, None] - jcb @ vw[b][:, :, None])[:, :, 0]
-            new = _project_row(old, rv, tn, ikn, kk, ikt, mus, mud)
+            new = _project_row(old, rv, tn - cp * old[:, 0], ikn, kk, ikt, mus, mud)
             delta = new - old
             old[...] = new
             dl = delta[:, :, None]
@@ -341,7 +350,14 @@ def disc_projection(kt, vfree, radius, newton=12):
     trust region, solved by Newton on ``1/|λ(ν)| − 1/radius``, which converges monotonically from
     ``ν = 0``). Then ``vfree + kt λ = −ν λ``: friction opposes the resulting sliding velocity."""
     out = np.zeros_like(vfree)
-    ok = (radius > 0) & np.any(vfree != 0, axis=1)
+    vmag = np.sqrt(np.einsum("ki,ki->k", vfree, vfree))
+    ok = (radius > 0) & (vmag > 0)
+    # a disc far smaller than the sticking impulse (a friction coefficient of 1e-300, a contact
+    # barely pressed): ν is then so large that λ = −radius·vfree/|vfree| to round-off (and the
+    # Newton iteration below would overflow on 1/radius)
+    far = ok & (radius * (kt[:, 0, 0] + kt[:, 1, 1]) <= 1e-14 * vmag)
+    out[far] = -(radius[far] / vmag[far])[:, None] * vfree[far]
+    ok &= ~far
     if not ok.any():
         return out
     a, b, c = kt[ok, 0, 0], kt[ok, 0, 1], kt[ok, 1, 1]
@@ -748,3 +764,38 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
                             tolerance=tolerance, warm=warm)
     return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                  tolerance=tolerance, warm=warm)
+
+
+def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, tolerance=1e-9):
+    """Frictionless contacts with compliant normal rows, updating ``vel, omega (N,3)`` in place:
+    ``n·v_rel + compliance·λn ≥ target_n ⟂ λn ≥ 0`` (``compliance, target_n (K,)``). This is the
+    implicit (backward Euler) spring–damper of the penalty response, stable at any stiffness.
+    Exact active set on ``A + diag(compliance)`` up to ``DIRECT_MAX_CONTACTS`` contacts, coloured
+    Gauss–Seidel above (the compliance only improves its conditioning)."""
+    k = len(rows.a)
+    live = rows.movable[rows.a] | rows.movable[rows.b]
+    if not live.all():   # no movable body: no impulse (see solve_auto)
+        lam = np.zeros((k, 3))
+        li = np.flatnonzero(live)
+        if li.size:
+            res = solve_soft(rows.select(li), vel, omega, target_n=target_n[li], compliance=compliance[li],
+                             iterations=iterations, tolerance=tolerance)
+            lam[li] = res.impulse
+            return SolveResult(lam, res.iterations, res.residual)
+        return SolveResult(lam, 0, 0.0)
+    if 0 < k <= DIRECT_MAX_CONTACTS:
+        dense = k <= DIRECT_DENSE_MAX
+        A = delassus(rows, dense)
+        if dense:
+            A[np.arange(0, 3 * k, 3), np.arange(0, 3 * k, 3)] += compliance
+        else:
+            from scipy import sparse
+
+            d = np.zeros(3 * k)
+            d[0::3] = compliance
+            A = (A + sparse.diags(d)).tocsr()
+        res, ok = solve_direct(rows, vel, omega, target_n=target_n, A=A)
+        if ok:
+            return res
+    return solve(rows, vel, omega, target_n=target_n, iterations=iterations, tolerance=tolerance,
+                 compliance=compliance)

@@ -6,13 +6,18 @@ torque-free rotation of ``dynamics.rotate_free``. Roots:
 
 * sphere–plane: the signed distance is a quadratic in τ, solved in closed form (stable formula);
 * sphere–sphere with equal accelerations: ``|Δx + Δv τ|² = R²``, a quadratic, closed form;
-* everything else: the signed distance is sampled finely enough that neither body moves more than
-  half the thinner one's thinnest size between samples (so nothing passes through), and the first
-  sign change is refined with Brent's method (``scipy.optimize.brentq``, ``xtol`` 1e-15 s).
+* everything else: conservative advancement (Mirtich; the method of Bullet's and Box2D's time of
+  impact): from a separation ``d`` the pair cannot touch sooner than ``d / w``, with ``w`` a bound
+  on how fast any two points of the bodies close (relative speed, acceleration over the interval,
+  spin × extent), so time advances by that much until the separation is below ``TOI_TOLERANCE`` ×
+  the smaller body's size: never later than the true contact. Bounded: after ``MAX_ADVANCES``
+  evaluations (a loose bound: a fast spin about the normal) the rest of the interval is sampled at
+  most ``MAX_SAMPLES`` times and the first sign change refined by Brent's method, so a fast-spinning
+  body costs a bounded amount per step instead of thousands of samples.
 
-``swept`` adds the swept-volume test for translating spheres: the segment of the centre over the
-step (inflated by the radius and the parabola's sag) against boxes, planes and spheres; a hit
-makes the pair a candidate whatever its bounding volumes said.
+Candidate pairs come from the broad phase over the boxes bounding each body's path (O(N log N)):
+a fast body among thousands at rest is tested against its neighbours along its path, not
+against every body of the world.
 """
 import numpy as np
 from scipy.optimize import brentq
@@ -22,6 +27,9 @@ from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
 
 XTOL = 1e-15
+TOI_TOLERANCE = 1e-9   # × the smaller body's size: a pair this close counts as touching at its impact time
+MAX_ADVANCES = 16      # conservative-advancement evaluations per pair and search, then bounded sampling
+MAX_SAMPLES = 32       # samples of the rest of the interval when advancement is slow (its bound is loose)
 
 
 def plane_world(shape, pos, q):
@@ -152,27 +160,81 @@ def pair_toi(world, motion, i, j, T, swept=False):
         # |dx|² - R² = (|dx| - R)(|dx| + R): compute c0 without cancellation
         c0 = (np.linalg.norm(dx) - R) * (np.linalg.norm(dx) + R)
         return float(_first_quadratic_root(c0, 2 * dx @ dv, dv @ dv, T))
-    # sampled bracket + Brent
+    # conservative advancement
     def f(tau):
         pi, qi = m.pose(i, tau)
         pj, qj = m.pose(j, tau)
         return signed_distance(world, i, j, pi, qi, pj, qj)
 
-    f0 = f(0.0)
-    if f0 <= 0:
+    tol = TOI_TOLERANCE * min(_extent(si), _extent(sj))
+    rate = _closing_bound(m, i, j, T, _extent(si), _extent(sj))
+    if rate <= 0:
         return np.inf
-    rel = np.linalg.norm(m.vel[i] - m.vel[j]) * T + 0.5 * np.linalg.norm(m.acc[i] - m.acc[j]) * T * T
-    spin = (np.linalg.norm(m.omega[i]) * min(_extent(si), 1e6) + np.linalg.norm(m.omega[j]) * min(_extent(sj), 1e6)) * T
+    tau, d = 0.0, f(0.0)
+    if d <= 0:
+        return np.inf
+    for _ in range(MAX_ADVANCES):
+        if d <= tol:
+            return tau
+        nxt = tau + d / rate
+        if nxt > T:
+            return np.inf
+        dn = f(nxt)
+        if dn < 0:   # the bound was beaten by round-off: the root is between the two, find it exactly
+            return float(brentq(f, tau, nxt, xtol=XTOL, rtol=4 * np.finfo(float).eps))
+        tau, d = nxt, dn
+    # the bound is far from the motion (a fast spin about the contact normal closes nothing): sample
+    # the rest of the interval finely enough that neither body moves more than half the thinner one
+    # between samples, at most MAX_SAMPLES times, and refine the first sign change exactly
     thin = min(si.thinnest(), sj.thinnest())
-    n = int(np.clip(np.ceil((rel + spin) / (0.5 * thin)), 4, 4096))
-    taus = np.linspace(0.0, T, n + 1)
-    prev_t = 0.0
-    for tau in taus[1:]:
-        ft = f(tau)
-        if ft <= 0:
-            return float(brentq(f, prev_t, tau, xtol=XTOL, rtol=4 * np.finfo(float).eps)) if ft < 0 else tau
-        prev_t = tau
+    n = int(np.clip(np.ceil(rate * (T - tau) / (0.5 * thin)), 1, MAX_SAMPLES))
+    prev = tau
+    for t in np.linspace(tau, T, n + 1)[1:]:
+        ft = f(t)
+        if ft <= tol:
+            return float(brentq(f, prev, t, xtol=XTOL, rtol=4 * np.finfo(float).eps)) if ft < 0 else t
+        prev = t
     return np.inf
+
+
+def _closing_bound(m, i, j, T, ext_i, ext_j):
+    """An upper bound (m/s) on how fast any point of body ``i`` can approach any point of body
+    ``j`` during ``[0, T]``: relative centre speed, plus what the relative acceleration adds over the
+    interval, plus each body's largest spin over its torque-free motion (``max_spin``) times its
+    extent."""
+    rel = float(np.linalg.norm(m.vel[i] - m.vel[j]) + np.linalg.norm(m.acc[i] - m.acc[j]) * T)
+    for k, ext in ((i, ext_i), (j, ext_j)):
+        if np.isfinite(ext) and np.any(m.omega[k]):
+            rel += max_spin(m, k) * ext
+    return rel
+
+
+def max_spin(m, k):
+    """The largest ``|ω|`` (rad/s) body ``k`` reaches in torque-free motion from its current spin:
+    with ``pᵢ = Πᵢ²`` (principal-frame angular momentum), ``|ω|² = Σ pᵢ/Iᵢ²`` is largest at a vertex
+    of ``{p ≥ 0: Σ pᵢ = |L|², Σ pᵢ/Iᵢ = 2E}`` (both conserved). A body spinning about a principal
+    axis keeps its ``|ω|`` exactly (the set is that one point); the crude ``|ω|·I_max/I_min`` is only
+    the fallback."""
+    w = m.omega[k]
+    s = m.world.s
+    mom = s.principal_moments[k]
+    if m.world.kind[k] != 2 or not np.all(np.isfinite(mom)) or mom.min() <= 0:
+        return float(np.linalg.norm(w))            # kinematic: spins as told; particles do not spin
+    qp = quat.mul(s.quat[k], s.principal_q[k])
+    pi = mom * quat.rotate(quat.conj(qp), w)
+    p = pi * pi
+    l2, e2 = p.sum(), (p / mom).sum()
+    best = (p / mom ** 2).sum()
+    for z in range(3):   # vertices: one pᵢ = 0, the other two from the two conserved sums
+        a, b = [x for x in range(3) if x != z]
+        det = 1.0 / mom[b] - 1.0 / mom[a]
+        if abs(det) <= 1e-12 / mom[a]:
+            continue
+        pb = (e2 - l2 / mom[a]) / det
+        pa = l2 - pb
+        if pa >= -1e-12 * l2 and pb >= -1e-12 * l2:
+            best = max(best, max(pa, 0.0) / mom[a] ** 2 + max(pb, 0.0) / mom[b] ** 2)
+    return float(np.sqrt(best))
 
 
 def _extents(world):
@@ -181,8 +243,13 @@ def _extents(world):
 
 
 def candidate_pairs(world, motion, T, exclude, swept=False):
-    """Pairs ``(i, j)`` (two ``(P,) int`` arrays, ``i < j``) that may touch within ``T``: bounding
-    spheres of the paths overlap. ``exclude``: keys ``min·N + max (E,) int`` of pairs to skip."""
+    """Pairs ``(i, j)`` (two ``(P,) int`` arrays, ``i < j``) that may touch within ``T``: the
+    spheres bounding their paths overlap, found by the broad phase over the boxes of those spheres
+    (O(N log N)); planes against every path that reaches them. Pairs without a dynamic body, pairs
+    whose collision groups exclude each other and pairs in ``exclude`` (keys ``min·N + max (E,)``,
+    those already in contact) are skipped, and so are pairs with no relative motion at all."""
+    from ..collision import broadphase
+
     n = len(world)
     kind = world.kind
     ext = _extents(world)
@@ -190,14 +257,33 @@ def candidate_pairs(world, motion, T, exclude, swept=False):
     mid = m.pos + 0.5 * m.vel * T + 0.125 * m.acc * T * T
     half_path = 0.5 * np.linalg.norm(m.vel * T + 0.5 * m.acc * T * T, axis=1) + 0.125 * np.linalg.norm(m.acc, axis=1) * T * T
     rad = ext + half_path
-    i, j = np.triu_indices(n, 1)
+    finite = np.flatnonzero(np.isfinite(rad))
+    i, j = broadphase.candidate_pairs(mid[finite], np.repeat(rad[finite, None], 3, axis=1), 0.0)
+    i, j = finite[i], finite[j]
+    planes = np.flatnonzero(~np.isfinite(rad))
+    if planes.size and finite.size:
+        typ = _types(world)
+        pl = planes[typ[planes] == 0]
+        if pl.size:
+            nw = quat.rotate(m.quat[pl], np.array([world.shapes[x].normal for x in pl]))
+            off = np.array([world.shapes[x].offset for x in pl]) + np.einsum("ij,ij->i", nw, m.pos[pl])
+            # a plane moves (kinematic): widen by its own path
+            reach = rad[finite][None, :] + (np.linalg.norm(m.vel[pl], axis=1) * T)[:, None]
+            p, f = np.nonzero(mid[finite] @ nw.T - off[None, :] <= reach.T)   # (finite, plane) pairs
+            pi, fi = pl[f], finite[p]
+            i, j = np.concatenate([i, np.minimum(pi, fi)]), np.concatenate([j, np.maximum(pi, fi)])
+        other = planes[typ[planes] != 0]   # unbounded meshes (none today): every finite body
+        if other.size:
+            oi, fi = np.repeat(other, finite.size), np.tile(finite, other.size)
+            i, j = np.concatenate([i, np.minimum(oi, fi)]), np.concatenate([j, np.maximum(oi, fi)])
     ok = (kind[i] == 2) | (kind[j] == 2)
     g, mk = world.group, world.mask
     ok &= ((g[i] & mk[j]) != 0) & ((g[j] & mk[i]) != 0)
+    # no relative motion: a pair apart now stays apart
+    still = ~(np.any(m.vel[i] != m.vel[j], axis=1) | np.any(m.acc[i] != m.acc[j], axis=1)
+              | np.any(m.omega[i] != 0, axis=1) | np.any(m.omega[j] != 0, axis=1))
+    ok &= ~still
     i, j = i[ok], j[ok]
-    finite = np.isfinite(rad[i]) & np.isfinite(rad[j])
-    close = ~finite | (np.linalg.norm(mid[i] - mid[j], axis=1) <= np.where(finite, rad[i] + rad[j], np.inf))
-    i, j = i[close], j[close]
     if len(exclude):
         keep = ~np.isin(i * n + j, exclude)
         i, j = i[keep], j[keep]
