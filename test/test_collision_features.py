@@ -219,3 +219,19 @@ def test_a_translated_copy_does_not_reuse_the_prepared_geometry():
     w.set_state("h", position=(0, 0, -0.01))
     c = w.detect()
     assert len(c) == 3 and np.allclose(c.depth, 0.01)
+
+
+def test_prepared_shapes_copy_and_deepcopy():
+    """A shape whose geometry came from a preparation batch copies like any other object."""
+    import copy
+
+    shapes = [cs.Convex(np.random.default_rng(k).normal(size=(10, 3))) for k in range(3)]
+    w = cs.World(gravity=(0, 0, 0))
+    for k, s in enumerate(shapes):
+        w.add_body(f"h{k}", s, mass=1.0, position=(3.0 * k, 0, 0))
+    w.detect()
+    for s in w.shapes:
+        d = copy.deepcopy(s)
+        c = collide(d, ((0, 0, 0), I), s, ((0.01, 0, 0), I))
+        assert len(c) >= 1 and np.all(np.isfinite(c.depth))
+        copy.copy(s)

@@ -224,6 +224,9 @@ class _InBatch:
         self.batch, self.k, self._geom = batch, k, None
 
     def __getattr__(self, name):
+        # only the geometry's fields come here (a copy without its slots set must not recurse)
+        if name not in ShapeGeom.__slots__:
+            raise AttributeError(name)
         if self._geom is None:
             todo, SF, SI, verts, planes, faces, loops, edges, tris = self.batch
             k, g = self.k, ShapeGeom()
