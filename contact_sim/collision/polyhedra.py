@@ -201,7 +201,15 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             counters[1] += 1
             counters[2] += edge_crosses_face(VA, EA, EA.shape[0], NB, dB, npb, fB, loops, VB) or \
                 edge_crosses_face(VB, EB, EB.shape[0], NA, dA, npa, fA, loops, VA)
-        esep, ea, eb = edge_query(VA, NA, EA, EA.shape[0], cA, VB, NB, EB, EB.shape[0], npb, margin, side, NBt, eb2, eb3)
+        # the Gauss-map test is symmetric in the two bodies: loop over the body with fewer edges
+        # outside (each outer edge costs a sweep over the other body's normals)
+        if EB.shape[0] < EA.shape[0]:
+            cB = mv(Rb, sf[sb, SF_CENTROID:SF_CENTROID + 3]) + pb
+            esep, eb, ea = edge_query(VB, NB, EB, EB.shape[0], cB, VA, NA, EA, EA.shape[0], npa, margin, side, NBt,
+                                      eb2, eb3)
+        else:
+            esep, ea, eb = edge_query(VA, NA, EA, EA.shape[0], cA, VB, NB, EB, EB.shape[0], npb, margin, side, NBt,
+                                      eb2, eb3)
         if esep > margin:
             continue
         if esep > face_sep + 1e-9 * scale:
