@@ -47,25 +47,25 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     if not TABLE:
         _load()
     arrays = geom.arrays()
+    K = len(a)
+    out_i, out_f = np.empty((4 * K, 3), np.int64), np.empty((4 * K, 7))
+    if K == 0:
+        return out_i, out_f, 0
+    # group the pairs by type pair (one stable sort), each group one kernel call writing after the last
     key = ranks[a] * 5 + ranks[b]
-    present = np.flatnonzero(np.bincount(key, minlength=25)) if len(key) else ()
-    outs, unsupported = [], 0
-    for kk in present:
-        kernel = TABLE.get(divmod(int(kk), 5))
-        sel = None if len(present) == 1 else np.flatnonzero(key == kk)
-        A, B = (a, b) if sel is None else (a[sel], b[sel])
+    order = np.argsort(key, kind="stable")
+    ks, A, B = key[order], a[order], b[order]
+    cuts = np.flatnonzero(ks[1:] != ks[:-1]) + 1
+    starts, ends = np.r_[0, cuts], np.r_[cuts, K]
+    n, unsupported = 0, 0
+    for s, e in zip(starts.tolist(), ends.tolist()):
+        kernel = TABLE.get(divmod(int(ks[s]), 5))
         if kernel is None:
-            unsupported += len(A) if kk != 0 else 0
+            unsupported += (e - s) if ks[s] != 0 else 0   # plane–plane pairs are no contacts
             continue
-        out_i = np.empty((4 * len(A), 3), np.int64)
-        out_f = np.empty((4 * len(A), 7))
-        n = kernel(*arrays, shape_of, A, B, pos, R, margin, counters, out_i, out_f)
-        out_i, out_f = out_i[:n], out_f[:n]
-        if sel is not None:
-            out_i[:, 0] = sel[out_i[:, 0]]
-        outs.append((out_i, out_f))
-    if not outs:
-        return np.zeros((0, 3), np.int64), np.zeros((0, 7)), unsupported
-    if len(outs) == 1:
-        return outs[0][0], outs[0][1], unsupported
-    return np.concatenate([o[0] for o in outs]), np.concatenate([o[1] for o in outs]), unsupported
+        m = kernel(*arrays, shape_of, A[s:e], B[s:e], pos, R, margin, counters, out_i[n:], out_f[n:])
+        out_i[n:n + m, 0] += s
+        n += m
+    rows_i = out_i[:n]
+    rows_i[:, 0] = order[rows_i[:, 0]]
+    return rows_i, out_f[:n], unsupported
