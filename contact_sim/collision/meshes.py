@@ -97,7 +97,7 @@ def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
                 out_i, out_f):
     """Triangle mesh A against sphere B: the nearest triangle; a centre inside is penetrating by
     the distance to the surface."""
-    V = np.empty((col_max(si, SI_NV), 3))
+    V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
@@ -152,7 +152,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     within the margin of it (depth = distance to the nearest triangle), and for pairs with neither
     an edge of one crossing a face of the other (depth = the shallower endpoint's distance to the
     face plane: an estimate, not an exact penetration depth). At most 4 per pair."""
-    nv, npl = col_max(si, SI_NV), col_max(si, SI_NP)
+    nv, npl = col_max(si, SI_NV, shape_of, a, b), col_max(si, SI_NP, shape_of, a, b)
     VM, VP = np.empty((nv, 3)), np.empty((nv, 3))
     NM, NP = np.empty((npl, 3)), np.empty((npl, 3))
     dM, dP = np.empty(npl), np.empty(npl)

@@ -167,7 +167,7 @@ def segment_closest(p1, q1, p2, q2):
 def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
               out_i, out_f):
     """Convex polyhedra A and B: SAT with Gauss-map pruning, then the edge or face contacts."""
-    nv, npl, ne = col_max(si, SI_NV), col_max(si, SI_NP), col_max(si, SI_NE)
+    nv, npl, ne = col_max(si, SI_NV, shape_of, a, b), col_max(si, SI_NP, shape_of, a, b), col_max(si, SI_NE, shape_of, a, b)
     VA, VB = np.empty((nv, 3)), np.empty((nv, 3))
     NA, NB = np.empty((npl, 3)), np.empty((npl, 3))
     dA, dB = np.empty(npl), np.empty(npl)

@@ -123,7 +123,7 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
                out_i, out_f):
     """Polyhedron or mesh A against plane B: every vertex within the margin is a candidate; a
     resting face keeps at most 4 of them, spanning the patch."""
-    nmax = col_max(si, SI_NV)
+    nmax = col_max(si, SI_NV, shape_of, a, b)
     pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
@@ -155,7 +155,7 @@ def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
                 out_i, out_f):
     """Convex polyhedron A against sphere B: the exact distance from the centre to the nearest
     triangle; a centre inside exits through the nearest face plane."""
-    V = np.empty((col_max(si, SI_NV), 3))
+    V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]

@@ -118,11 +118,12 @@ def rotations(quat, R):
 
 
 @njit
-def col_max(a, col):
-    """Largest entry of column ``col`` of an int table (at least 1: sizes scratch arrays)."""
+def col_max(si, col, shape_of, a, b):
+    """Largest ``si[s, col]`` over the shapes of the pairs ``a, b`` (at least 1): sizes a kernel's
+    scratch arrays (over the pairs, not the whole table: a batch of a few pairs in a big world)."""
     m = 1
     for i in range(a.shape[0]):
-        m = max(m, a[i, col])
+        m = max(m, si[shape_of[a[i]], col], si[shape_of[b[i]], col])
     return m
 
 
