@@ -20,7 +20,9 @@ $(STAMP): setup.py requirements/ros.txt requirements/dev.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip $(QUIET)
 	$(PY) -m pip install --quiet -e '.[test,plot]' -r requirements/dev.txt $(QUIET)
-	$(PY) -c "import contact_sim, rclpy" && touch $(STAMP)
+	$(PY) -c "import contact_sim, rclpy"
+	$(PY) -m contact_sim.warmup   # compile the kernels once (numba's cache), so no test or first run stalls on it
+	touch $(STAMP)
 
 run: $(STAMP)
 	$(VENV)/bin/contact-sim run $(ARGS)

@@ -2,7 +2,11 @@
 import os
 from glob import glob
 
+import subprocess
+import sys
+
 from setuptools import find_packages, setup
+from setuptools.command.install import install
 
 PACKAGE = "contact_sim"
 
@@ -16,8 +20,27 @@ def tree(src, dest):
     return sorted(out.items())
 
 
+class InstallAndCompile(install):
+    """``install``, then compile the installed copy's kernels once (numba caches them beside the
+    installed source: ``contact_sim.warmup``), so the first run after a colcon build does not stall
+    on compilation. Best effort; skipped for staged installs (``--root``: wheels, packaging) and
+    with ``CONTACT_SIM_NO_WARMUP=1``."""
+
+    def run(self):
+        super().run()
+        if self.root or os.environ.get("CONTACT_SIM_NO_WARMUP"):
+            return
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [self.install_lib] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+        try:
+            subprocess.call([sys.executable, "-m", "contact_sim.warmup"], cwd=self.install_lib, env=env, timeout=900)
+        except (OSError, subprocess.SubprocessError) as exc:   # never fail an install over a cache
+            print(f"contact_sim: kernels not precompiled ({exc}); they compile on first use", file=sys.stderr)
+
+
 setup(
     name=PACKAGE,
+    cmdclass={"install": InstallAndCompile},
     version="0.1.0",
     description="Collision detection and contact response for rigid bodies in pure Python, with a ROS 2 node",
     packages=find_packages(include=["contact_sim", "contact_sim.*", "msg_adapters", "msg_adapters.*"]),

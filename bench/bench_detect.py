@@ -1,19 +1,30 @@
-"""All-pairs detection benchmark: time per stage and contacts/s over mixed bodies.
+"""Detection benchmark: contact_sim beside MuJoCo, FCL (primitives and trimesh's mesh manager) and
+pybullet, one process, engines taking turns on the same bodies and poses.
 
-Usage: ``python bench/bench_detect.py [--sizes 100 500 2000 10000] [--repeat 5] [--no-fcl]``
+Usage: ``python bench/bench_detect.py [--repeat 7] [--sizes 100 300 1000 3000 10000] [--quick]``
 
-Bodies are spheres, boxes and 32-vertex convex hulls (a third each, ~1 m across) on a jittered
-grid; about 10% of them are moved against a neighbour so they touch or overlap. One dynamic world
-per size is detected ``repeat`` times with ``contact_sim.collision.detect_world`` (the median is
-reported), then the same poses go to trimesh's FCL-backed ``CollisionManager`` (meshes: an
-icosphere, the box, the hull) and the ratio is printed. Writes ``bench/results/detect.csv``.
+Scenes (seeded): 500 mixed bodies, a third spheres (radius 0.05–0.15 m), a third boxes (edges
+0.1–0.3 m), a third convex hulls of 32 random points (on spheres of radius 0.05–0.15 m), uniform
+random positions and orientations in a 6 m cube (~24 touching pairs) and a 3 m cube (~160).
+
+* **cold**: the first query after building the world (``cs.load_scene`` for contact_sim, so shape
+  preparation is included; the compiled kernels are already loaded in this process: their one-time
+  cost is printed separately); for the peers the first query after building their world.
+* **warm**: the same query repeated on the same poses (median of ``repeat``).
+* peers: MuJoCo ``mj_collision`` on an MJCF of the same bodies (mesh geoms for the hulls),
+  python-fcl's ``DynamicAABBTreeCollisionManager`` on fcl.Sphere/Box/Convex (verdict only, and
+  with contact data), trimesh's ``CollisionManager`` (FCL on meshes: an icosphere for a sphere),
+  pybullet ``performCollisionDetection`` + ``getContactPoints``.
+* scale: the same mix at the 6 m scene's density from 100 to 10,000 bodies, contact_sim against
+  FCL primitives, with the fitted exponent of contact_sim's warm time (``t ∝ n^k``).
+
+Writes ``bench/results/detect.csv`` (scenes) and ``bench/results/detect_scale.csv``.
 """
 import argparse
 import csv
 import os
 import sys
 import time
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -21,117 +32,316 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import contact_sim as cs  # noqa: E402
 from contact_sim import quat as Q  # noqa: E402
-from contact_sim.collision import detect_world  # noqa: E402
-from contact_sim.settings import Settings  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def make_shapes(rng):
-    pts = rng.normal(size=(32, 3))
-    pts = pts / np.linalg.norm(pts, axis=1, keepdims=True) * 0.5
-    hull = cs.Convex(pts)
-    while len(hull.vertices) != 32:   # all points on a sphere are hull vertices; be sure
-        pts = rng.normal(size=(32, 3))
-        hull = cs.Convex(pts / np.linalg.norm(pts, axis=1, keepdims=True) * 0.5)
-    return [cs.Sphere(0.5), cs.Box((0.9, 0.8, 0.7)), hull]
-
-
-def make_scene(n, seed=0):
-    """A world-like structure of ``n`` bodies (what ``detect_world`` reads) and the shape ids."""
+# ------------------------------------------------------------------ the bodies
+def mixed_bodies(n, side, seed=0):
+    """``n`` bodies as dicts (type, geometry, position, orientation), uniform in a cube of ``side`` m."""
     rng = np.random.default_rng(seed)
-    shapes = make_shapes(rng)
-    kinds = rng.integers(0, 3, size=n)
-    side = int(np.ceil(n ** (1 / 3)))
-    g = np.stack(np.meshgrid(*[np.arange(side)] * 3, indexing="ij"), -1).reshape(-1, 3)[:n]
-    spacing = 2.0
-    pos = g * spacing + rng.uniform(-0.2, 0.2, size=(n, 3))
-    # ~10% of bodies touching: 5% of them are moved against their +x neighbour
-    movers = rng.choice(n, size=max(1, n // 20), replace=False)
-    pos[movers, 0] += spacing - 0.95 + rng.uniform(-0.05, 0.02, size=len(movers))
+    out = []
+    kinds = np.arange(n) % 3
+    pos = rng.uniform(0, side, size=(n, 3))
     quat = Q.normalize(rng.normal(size=(n, 4)))
-    s = SimpleNamespace(pos=pos, quat=quat)
-    world = SimpleNamespace(shapes=[shapes[k] for k in kinds], s=s, kind=np.full(n, 2, np.int8),
-                            group=np.ones(n, np.uint32), mask=np.full(n, 0xFFFFFFFF, np.uint32),
-                            settings=Settings())
-    return world, shapes, kinds
+    for i in range(n):
+        b = {"name": f"b{i}", "position": pos[i], "orientation": quat[i]}
+        if kinds[i] == 0:
+            b.update(type="sphere", radius=float(rng.uniform(0.05, 0.15)))
+        elif kinds[i] == 1:
+            b.update(type="box", size=rng.uniform(0.1, 0.3, size=3))
+        else:
+            p = rng.normal(size=(32, 3))
+            b.update(type="convex", points=p / np.linalg.norm(p, axis=1, keepdims=True) * rng.uniform(0.05, 0.15))
+        out.append(b)
+    return out
 
 
-def bench_ours(world, repeat):
-    detect_world(world)   # prepare the per-world tables once
-    runs = []
+def scene_of(bodies):
+    def shape(b):
+        if b["type"] == "sphere":
+            return {"type": "sphere", "radius": b["radius"]}
+        if b["type"] == "box":
+            return {"type": "box", "size": b["size"].tolist()}
+        return {"type": "convex", "points": b["points"].tolist()}
+
+    return {"gravity": [0, 0, 0], "settings": {"contact_margin": 0.0},
+            "bodies": [{"name": b["name"], "shape": shape(b), "mass": 1.0, "position": b["position"].tolist(),
+                        "orientation": b["orientation"].tolist()} for b in bodies]}
+
+
+def hull_geometry(world, bodies):
+    """Vertices and triangles of each hull as the world holds them, in the body's origin frame."""
+    out = {}
+    for i, b in enumerate(bodies):
+        if b["type"] == "convex":
+            s = world.shapes[i]
+            out[i] = (s.vertices + world.com_local[i], s.faces)
+    return out
+
+
+def median_time(fn, repeat):
+    ts = []
     for _ in range(repeat):
         t = time.perf_counter()
-        c, st = detect_world(world)
-        runs.append((time.perf_counter() - t, c, st))
-    runs.sort(key=lambda r: r[0])
-    return runs[len(runs) // 2]
+        fn()
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts))
 
 
-def bench_fcl(world, shapes, kinds, repeat):
+# ------------------------------------------------------------------ the engines
+def run_ours(bodies, repeat):
+    world = cs.load_scene(scene_of(bodies))
+    t = time.perf_counter()
+    c = world.detect()
+    cold = time.perf_counter() - t
+    cold_stats = world.last_detection
+    warm = median_time(world.detect, repeat)
+    c = world.detect()
+    st = world.last_detection
+    pairs = len(set(zip(c.body_a.tolist(), c.body_b.tolist())))
+    return dict(cold=cold, warm=warm, pairs=pairs, contacts=len(c), stats=st, cold_stats=cold_stats), world
+
+
+def run_fcl(bodies, hulls, repeat, contacts):
+    import fcl
+
+    objs = []
+    for i, b in enumerate(bodies):
+        if b["type"] == "sphere":
+            g = fcl.Sphere(b["radius"])
+        elif b["type"] == "box":
+            g = fcl.Box(*b["size"])
+        else:
+            v, f = hulls[i]
+            g = fcl.Convex(np.asarray(v, float), len(f), np.column_stack([np.full(len(f), 3), f]).ravel())
+        objs.append(fcl.CollisionObject(g, fcl.Transform(Q.to_matrix(b["orientation"]), b["position"])))
+    m = fcl.DynamicAABBTreeCollisionManager()
+    m.registerObjects(objs)
+    m.setup()
+    # every colliding pair (the default callback stops once the result holds num_max_contacts)
+    req = fcl.CollisionRequest(num_max_contacts=1_000_000, enable_contact=contacts)
+
+    def query():
+        data = fcl.CollisionData(request=req)
+        m.collide(data, fcl.defaultCollisionCallback)
+        return data
+
+    t = time.perf_counter()
+    query()
+    cold = time.perf_counter() - t
+    warm = median_time(query, repeat)
+    return dict(cold=cold, warm=warm)
+
+
+def run_fcl_pairs(bodies, hulls):
+    """Touching pairs by python-fcl's pair query (a reference count for the scene)."""
+    import fcl
+
+    objs = {}
+    for i, b in enumerate(bodies):
+        if b["type"] == "sphere":
+            g = fcl.Sphere(b["radius"])
+        elif b["type"] == "box":
+            g = fcl.Box(*b["size"])
+        else:
+            v, f = hulls[i]
+            g = fcl.Convex(np.asarray(v, float), len(f), np.column_stack([np.full(len(f), 3), f]).ravel())
+        objs[id(g)] = i
+        b["_fcl"] = fcl.CollisionObject(g, fcl.Transform(Q.to_matrix(b["orientation"]), b["position"]))
+    m = fcl.DynamicAABBTreeCollisionManager()
+    m.registerObjects([b["_fcl"] for b in bodies])
+    m.setup()
+    data = fcl.CollisionData(request=fcl.CollisionRequest(num_max_contacts=100000, enable_contact=True))
+    m.collide(data, fcl.defaultCollisionCallback)
+    found = {tuple(sorted((objs[id(c.o1)], objs[id(c.o2)]))) for c in data.result.contacts}
+    for b in bodies:
+        b.pop("_fcl")
+    return len(found)
+
+
+def run_trimesh(bodies, hulls, repeat):
     import trimesh
 
-    meshes = [trimesh.creation.icosphere(subdivisions=2, radius=0.5), trimesh.creation.box(shapes[1].size),
-              trimesh.Trimesh(shapes[2].vertices, shapes[2].faces)]
     m = trimesh.collision.CollisionManager()
-    R = Q.to_matrix(world.s.quat)
-    t_build = time.perf_counter()
-    for i, k in enumerate(kinds):
+    for i, b in enumerate(bodies):
+        if b["type"] == "sphere":
+            mesh = trimesh.creation.icosphere(subdivisions=2, radius=b["radius"])
+        elif b["type"] == "box":
+            mesh = trimesh.creation.box(b["size"])
+        else:
+            mesh = trimesh.Trimesh(*hulls[i], process=False)
         T = np.eye(4)
-        T[:3, :3] = R[i]
-        T[:3, 3] = world.s.pos[i]
-        m.add_object(str(i), meshes[k], transform=T)
-    t_build = time.perf_counter() - t_build
-    times, times_data = [], []
-    for _ in range(repeat):
+        T[:3, :3], T[:3, 3] = Q.to_matrix(b["orientation"]), b["position"]
+        m.add_object(str(i), mesh, transform=T)
+
+    def query():
+        return m.in_collision_internal(return_names=True, return_data=True)
+
+    t = time.perf_counter()
+    query()
+    cold = time.perf_counter() - t
+    return dict(cold=cold, warm=median_time(query, repeat))
+
+
+def run_mujoco(bodies, hulls, repeat):
+    import mujoco
+
+    assets, geoms = [], []
+    for i, b in enumerate(bodies):
+        p = " ".join(f"{x:.17g}" for x in b["position"])
+        q = b["orientation"]
+        quat = f"{q[3]:.17g} {q[0]:.17g} {q[1]:.17g} {q[2]:.17g}"   # MuJoCo: w x y z
+        if b["type"] == "sphere":
+            g = f'type="sphere" size="{b["radius"]:.17g}"'
+        elif b["type"] == "box":
+            g = 'type="box" size="' + " ".join(f"{0.5 * x:.17g}" for x in b["size"]) + '"'
+        else:
+            v, _ = hulls[i]
+            assets.append(f'<mesh name="m{i}" vertex="' + " ".join(f"{x:.17g}" for x in np.ravel(v)) + '"/>')
+            g = f'type="mesh" mesh="m{i}"'
+        geoms.append(f'<body pos="{p}" quat="{quat}"><freejoint/><geom {g}/></body>')
+    xml = ('<mujoco><option><flag gravity="disable"/></option><asset>' + "".join(assets) + "</asset><worldbody>"
+           + "".join(geoms) + "</worldbody></mujoco>")
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    t = time.perf_counter()
+    mujoco.mj_collision(model, data)
+    cold = time.perf_counter() - t
+    warm = median_time(lambda: mujoco.mj_collision(model, data), repeat)
+    return dict(cold=cold, warm=warm, contacts=int(data.ncon))
+
+
+def run_pybullet(bodies, hulls, repeat):
+    import pybullet as pb
+
+    cid = pb.connect(pb.DIRECT)
+    try:
+        for i, b in enumerate(bodies):
+            if b["type"] == "sphere":
+                s = pb.createCollisionShape(pb.GEOM_SPHERE, radius=b["radius"], physicsClientId=cid)
+            elif b["type"] == "box":
+                s = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=(0.5 * b["size"]).tolist(), physicsClientId=cid)
+            else:
+                s = pb.createCollisionShape(pb.GEOM_MESH, vertices=np.asarray(hulls[i][0]).tolist(),
+                                            physicsClientId=cid)
+            pb.createMultiBody(1.0, s, -1, b["position"].tolist(), b["orientation"].tolist(), physicsClientId=cid)
+
+        def query():
+            pb.performCollisionDetection(physicsClientId=cid)
+            return pb.getContactPoints(physicsClientId=cid)
+
         t = time.perf_counter()
-        hit, names = m.in_collision_internal(return_names=True)
-        times.append(time.perf_counter() - t)
-        # with contact data (points, normals, depths): the work our detection does
-        t = time.perf_counter()
-        m.in_collision_internal(return_names=True, return_data=True)
-        times_data.append(time.perf_counter() - t)
-    return float(np.median(times)), len(names), t_build, float(np.median(times_data))
+        query()
+        cold = time.perf_counter() - t
+        warm = median_time(query, repeat)
+        return dict(cold=cold, warm=warm)
+    finally:
+        pb.disconnect(cid)
+
+
+def guarded(name, fn, *args):
+    try:
+        return fn(*args)
+    except ImportError as exc:
+        print(f"  ({name} unavailable: {exc})")
+    return dict(cold=float("nan"), warm=float("nan"))
+
+
+# ------------------------------------------------------------------ main
+def scenes(args, w):
+    rows = []
+    for side in (6.0, 3.0):
+        bodies = mixed_bodies(500, side, seed=13)
+        ours, world = run_ours(bodies, args.repeat)
+        hulls = hull_geometry(world, bodies)
+        fcl_pairs = guarded("fcl", run_fcl_pairs, bodies, hulls)
+        peers = {
+            "mujoco": guarded("mujoco", run_mujoco, bodies, hulls, args.repeat),
+            "fcl": guarded("fcl", run_fcl, bodies, hulls, args.repeat, False),
+            "fcl+contacts": guarded("fcl", run_fcl, bodies, hulls, args.repeat, True),
+            "pybullet": guarded("pybullet", run_pybullet, bodies, hulls, args.repeat),
+            "trimesh": guarded("trimesh", run_trimesh, bodies, hulls, args.repeat),
+        }
+        st, cst = ours["stats"], ours["cold_stats"]
+        print(f"\n500 bodies in a {side:g} m cube: contact_sim {ours['pairs']} touching pairs "
+              f"({ours['contacts']} contacts), fcl {fcl_pairs} pairs")
+        print(f"  {'engine':<14} {'cold ms':>9} {'warm ms':>9} {'ours/peer warm':>15} {'ours/peer cold':>15}")
+        print(f"  {'contact_sim':<14} {1e3 * ours['cold']:>9.3f} {1e3 * ours['warm']:>9.3f}")
+        for name, r in peers.items():
+            print(f"  {name:<14} {1e3 * r['cold']:>9.3f} {1e3 * r['warm']:>9.3f} {ours['warm'] / r['warm']:>15.2f} "
+                  f"{ours['cold'] / r['cold']:>15.2f}")
+        print("  contact_sim stages, warm ms: " + ", ".join(f"{k} {1e3 * v:.3f}" for k, v in st.seconds.items()))
+        print("  contact_sim stages, cold ms: " + ", ".join(f"{k} {1e3 * v:.3f}" for k, v in cst.seconds.items()))
+        row = dict(scene=f"{side:g} m cube", bodies=500, touching_pairs=ours["pairs"], fcl_touching_pairs=fcl_pairs,
+                   contacts=ours["contacts"], ours_cold_ms=1e3 * ours["cold"], ours_warm_ms=1e3 * ours["warm"])
+        for k, v in st.seconds.items():
+            row[f"ours_warm_{k}_ms"] = 1e3 * v
+        row["ours_cold_prepare_ms"] = 1e3 * cst.seconds.get("prepare", float("nan"))
+        for name, r in peers.items():
+            row[f"{name}_cold_ms"], row[f"{name}_warm_ms"] = 1e3 * r["cold"], 1e3 * r["warm"]
+            row[f"ours_over_{name}_warm"] = ours["warm"] / r["warm"]
+        rows.append(row)
+    w(rows, "detect.csv")
+
+
+def scale(args, w):
+    rows = []
+    print(f"\nscale (6 m scene's density): {'bodies':>7} {'ours ms':>9} {'fcl ms':>9} {'ours/fcl':>9} "
+          f"{'pairs':>6} {'cold ms':>9}")
+    for n in args.sizes:
+        side = 6.0 * (n / 500) ** (1 / 3)
+        bodies = mixed_bodies(n, side, seed=17)
+        ours, world = run_ours(bodies, args.repeat)
+        f = guarded("fcl", run_fcl, bodies, hull_geometry(world, bodies), max(3, args.repeat // 2), False)
+        rows.append(dict(bodies=n, side_m=side, ours_warm_ms=1e3 * ours["warm"], ours_cold_ms=1e3 * ours["cold"],
+                         fcl_warm_ms=1e3 * f["warm"], ours_over_fcl=ours["warm"] / f["warm"],
+                         touching_pairs=ours["pairs"]))
+        r = rows[-1]
+        print(f"{'':>28}{n:>7} {r['ours_warm_ms']:>9.3f} {r['fcl_warm_ms']:>9.3f} {r['ours_over_fcl']:>9.2f} "
+              f"{r['touching_pairs']:>6} {r['ours_cold_ms']:>9.2f}")
+    if len(rows) > 1:
+        n = np.log([r["bodies"] for r in rows])
+        k = np.polyfit(n, np.log([r["ours_warm_ms"] for r in rows]), 1)[0]
+        kf = np.polyfit(n, np.log([r["fcl_warm_ms"] for r in rows]), 1)[0]
+        print(f"fitted exponent of the warm time, t ∝ n^k, {rows[0]['bodies']}..{rows[-1]['bodies']} bodies: "
+              f"contact_sim k = {k:.3f}, fcl k = {kf:.3f} (n log n over this range fits k ≈ 1.1)")
+        for r in rows:
+            r["fitted_exponent"], r["fcl_fitted_exponent"] = k, kf
+    w(rows, "detect_scale.csv")
+
+
+def compile_report():
+    """Seconds to load (or compile) the detection kernels in this process: one small world."""
+    t = time.perf_counter()
+    w = cs.load_scene(scene_of(mixed_bodies(30, 0.6, seed=1)))
+    w.detect()
+    return time.perf_counter() - t
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 500, 2000, 10000])
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--no-fcl", action="store_true")
-    ap.add_argument("--csv", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "detect.csv"))
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000, 3000, 10000])
+    ap.add_argument("--quick", action="store_true", help="only the two 500-body scenes")
+    ap.add_argument("--out", default=os.path.join(HERE, "results"))
     args = ap.parse_args(argv)
-    rows = []
-    print(f"{'bodies':>7} {'cand':>6} {'bvrej':>6} {'vert':>5} {'e-f':>5} {'pairs':>6} {'contacts':>8} "
-          f"{'broad ms':>9} {'bv ms':>7} {'narrow ms':>9} {'total ms':>9} {'contacts/s':>11} {'fcl ms':>8} "
-          f"{'fcl/ours':>8} {'fcl+data ms':>11}")
-    for n in args.sizes:
-        world, shapes, kinds = make_scene(n)
-        total, c, st = bench_ours(world, args.repeat)
-        fcl_ms, fcl_pairs, ratio, fcl_data_ms = float("nan"), -1, float("nan"), float("nan")
-        if not args.no_fcl:
-            try:
-                f, fcl_pairs, _, fd = bench_fcl(world, shapes, kinds, max(1, min(args.repeat, 3)))
-                fcl_ms, fcl_data_ms = 1e3 * f, 1e3 * fd
-                ratio = f / total
-            except Exception as exc:  # fcl missing or failing: report, keep our numbers
-                print(f"  (fcl manager unavailable: {exc})")
-        sec = st.seconds
-        row = dict(bodies=n, candidate_pairs=st.candidate_pairs, rejected_by_bv=st.rejected_by_bounding_volume,
-                   settled_by_vertex=st.settled_by_vertex, needed_edge_face=st.needed_edge_face,
-                   colliding_pairs=st.colliding_pairs, contacts=st.contacts,
-                   broad_ms=1e3 * sec["broad"], bounding_ms=1e3 * sec["bounding"], narrow_ms=1e3 * sec["narrow"],
-                   total_ms=1e3 * total, contacts_per_s=st.contacts / total, fcl_ms=fcl_ms,
-                   fcl_colliding_pairs=fcl_pairs, fcl_over_ours=ratio, fcl_with_data_ms=fcl_data_ms)
-        rows.append(row)
-        print(f"{n:>7} {st.candidate_pairs:>6} {st.rejected_by_bounding_volume:>6} {st.settled_by_vertex:>5} "
-              f"{st.needed_edge_face:>5} {st.colliding_pairs:>6} {st.contacts:>8} {row['broad_ms']:>9.2f} "
-              f"{row['bounding_ms']:>7.2f} {row['narrow_ms']:>9.2f} {row['total_ms']:>9.2f} "
-              f"{row['contacts_per_s']:>11.0f} {fcl_ms:>8.2f} {ratio:>8.2f} {fcl_data_ms:>11.2f}")
-    os.makedirs(os.path.dirname(args.csv), exist_ok=True)
-    with open(args.csv, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print(f"wrote {args.csv}")
+    print(f"kernels loaded (or compiled) in {compile_report():.2f} s (first world in this process)")
+
+    def write(rows, name):
+        os.makedirs(args.out, exist_ok=True)
+        path = os.path.join(args.out, name)
+        keys = list(dict.fromkeys(k for r in rows for k in r))
+        with open(path, "w", newline="") as fh:
+            wr = csv.DictWriter(fh, fieldnames=keys)
+            wr.writeheader()
+            wr.writerows(rows)
+        print(f"wrote {path}")
+
+    scenes(args, write)
+    if not args.quick:
+        scale(args, write)
 
 
 if __name__ == "__main__":

@@ -37,14 +37,27 @@ def detection():
     if not r:
         return []
     out = ["### Detection (`bench/bench_detect.py`)", "",
-           "All-pairs detection of mixed bodies (spheres, boxes, 32-vertex hulls), median of repeats; "
-           "FCL = trimesh's `CollisionManager` (C++ tree) on the same poses, without and with contact data.", "",
-           "| bodies | candidate pairs | contacts | broad ms | narrow ms | total ms | FCL ms | FCL + contact data ms |",
-           "|---|---|---|---|---|---|---|---|"]
+           "500 mixed bodies (a third each spheres, boxes, 32-point hulls), one process, engines taking turns on the "
+           "same poses; warm = the query repeated (median), cold = the first query after building the world "
+           "(contact_sim: after `load_scene`, shape preparation included). FCL = python-fcl's dynamic AABB tree on "
+           "primitives, every colliding pair.", "",
+           "| scene | touching pairs | contact_sim warm ms | MuJoCo | FCL | FCL + contacts | pybullet | trimesh (FCL meshes) "
+           "| contact_sim cold ms | ours / FCL warm |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for x in r:
-        out.append(f"| {x['bodies']} | {x['candidate_pairs']} | {x['contacts']} | {f(x['broad_ms'], '.2f')} | "
-                   f"{f(x['narrow_ms'], '.2f')} | {f(x['total_ms'], '.2f')} | {f(x['fcl_ms'], '.2f')} | "
-                   f"{f(x.get('fcl_with_data_ms'), '.2f')} |")
+        out.append(f"| {x['scene']} | {x['touching_pairs']} | {f(x['ours_warm_ms'], '.3f')} | "
+                   f"{f(x.get('mujoco_warm_ms'), '.3f')} | {f(x.get('fcl_warm_ms'), '.3f')} | "
+                   f"{f(x.get('fcl+contacts_warm_ms'), '.3f')} | {f(x.get('pybullet_warm_ms'), '.3f')} | "
+                   f"{f(x.get('trimesh_warm_ms'), '.3f')} | {f(x['ours_cold_ms'], '.1f')} | "
+                   f"{f(x.get('ours_over_fcl_warm'), '.2f')} |")
+    s = rows("detect_scale.csv")
+    if s:
+        out += ["", f"Scale (the 6 m scene's density), warm ms; fitted exponent t ∝ n^k: contact_sim "
+                    f"{f(s[0].get('fitted_exponent'), '.2f')}, FCL {f(s[0].get('fcl_fitted_exponent'), '.2f')}.", "",
+                "| bodies | touching pairs | contact_sim ms | FCL ms | ours / FCL |", "|---|---|---|---|---|"]
+        for x in s:
+            out.append(f"| {x['bodies']} | {x['touching_pairs']} | {f(x['ours_warm_ms'], '.3f')} | "
+                       f"{f(x['fcl_warm_ms'], '.3f')} | {f(x['ours_over_fcl'], '.2f')} |")
     return out + [""]
 
 

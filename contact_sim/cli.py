@@ -156,6 +156,12 @@ def cmd_bench(args):
     return 0
 
 
+def cmd_warmup(args):
+    from .warmup import main as warm
+
+    return warm()
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="contact-sim", description="Collision detection and contact response for rigid bodies.")
     sub = p.add_subparsers(dest="command")
@@ -176,6 +182,8 @@ def build_parser():
     b.add_argument("name")
     b.add_argument("rest", nargs=argparse.REMAINDER)
     b.set_defaults(func=cmd_bench)
+    w = sub.add_parser("warmup", help="compile the kernels once (first run after an install), so later runs load them")
+    w.set_defaults(func=cmd_warmup)
     return p
 
 

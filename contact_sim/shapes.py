@@ -147,7 +147,8 @@ class Polyhedron(Shape):
         for attr in ("_hull", "_mesh"):
             if hasattr(self, attr):
                 setattr(out, attr, getattr(self, attr).copy().apply_translation(off))
-        out.__dict__.pop("_cs_bounds", None)  # bounding volumes are cached per shape: rebuild for the copy
+        for cached in ("_cs_bounds", "_cs_geom"):   # bounding volumes and prepared geometry are cached per
+            out.__dict__.pop(cached, None)          # shape: the copy builds its own
         return out
 
     def with_slabs(self, normals, name="shape"):

@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import quat as Q
 from ..contacts import Contacts
 from ..errors import ContactSimError
 from ..memo import derived
@@ -39,14 +38,12 @@ from ..settings import Settings
 from ..shapes import Shape
 from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
                         show)
-from . import bounding, broadphase, narrow
-from .geometry import PolyTable, pad_row, poly_geom
+from . import bounding, broadphase, dispatch, single
+from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
+from .vec3 import rotations
 
 __all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
 
-# shape type -> rank; kernels take A with the higher rank (so a plane or sphere is always B)
-RANK = {"plane": 0, "sphere": 1, "box": 2, "convex": 3, "mesh": 4}
-_POLY = (2, 3, 4)
 
 
 @dataclass
@@ -77,55 +74,49 @@ class DetectionStats:
 
 
 class _Bodies:
-    """Shape data of ``N`` bodies as arrays (built once per shape list)."""
+    """Shape data of ``N`` bodies: the geometry table (``geometry.GeomTable``, one row per distinct
+    shape object) and per-body arrays gathered from it; built once per shape list."""
 
     def __init__(self, shapes):
-        n = len(shapes)
-        self.n = n
-        self.rank = np.array([RANK[s.type] for s in shapes], np.int64)
-        self.pair_cache = broadphase.PairCache()   # broad-phase pairs carried across steps
-        self.plane_n = np.zeros((n, 3))
-        self.plane_d = np.zeros(n)
-        self.radius = np.zeros(n)
-        self.half = np.zeros((n, 3))
-        self.closed = np.zeros(n, bool)
-        self.row = np.zeros(n, np.int64)
-        self.tables = {}
-        self.bv_c = np.zeros((n, 3))
-        self.bv_r = np.zeros(n)
-        self.aabb_c = np.zeros((n, 3))
-        self.aabb_h = np.zeros((n, 3))
-        for code in _POLY:
-            idx = [i for i, s in enumerate(shapes) if RANK[s.type] == code]
-            if idx:
-                self.tables[code] = PolyTable([poly_geom(shapes[i]) for i in idx])
-                self.row[idx] = np.arange(len(idx))
-        slabs = []
-        for i, s in enumerate(shapes):
-            if s.type == "plane":
-                self.plane_n[i], self.plane_d[i] = s.normal, s.offset
-                slabs.append(None)
-                continue
-            if s.type == "sphere":
-                self.radius[i] = s.radius
-            if s.type == "box":
-                self.half[i] = s.half
-            if s.type == "mesh":
-                self.closed[i] = s.watertight
-            b = bounding.bounds(s)
-            self.bv_c[i], self.bv_r[i] = b.sphere_c, b.sphere_r
-            self.aabb_c[i], self.aabb_h[i] = 0.5 * (b.lo + b.hi), 0.5 * (b.hi - b.lo)
-            slabs.append(b)
-        k = max([len(b.slab_n) for b in slabs if b is not None] or [1])
-        self.slab_n = np.tile(bounding.DEFAULT_SLAB_NORMALS[:1], (n, k, 1))
-        self.slab_lo = np.full((n, k), -np.inf)
-        self.slab_hi = np.full((n, k), np.inf)
-        for i, b in enumerate(slabs):
-            if b is not None:
-                m = len(b.slab_n)
-                self.slab_n[i, :m], self.slab_lo[i, :m], self.slab_hi[i, :m] = b.slab_n, b.slab_lo, b.slab_hi
-                self.slab_n[i, m:], self.slab_lo[i, m:], self.slab_hi[i, m:] = b.slab_n[0], b.slab_lo[0], b.slab_hi[0]
+        self.n = len(shapes)
+        self.geom = GeomTable(shapes)
+        self.shape_of = self.geom.shape_of
+        sf = self.geom.sf[self.shape_of]
+        self.rank = self.geom.si[self.shape_of, SI_RANK]
         self.is_plane = self.rank == 0
+        self.finite = np.flatnonzero(~self.is_plane)
+        self.aabb_c = sf[:, SF_BOX:SF_BOX + 3]
+        self.aabb_h = sf[:, SF_BOX + 3:SF_BOX + 6]
+        self.plane_n, self.plane_d = sf[:, SF_PLANE:SF_PLANE + 3], sf[:, SF_PLANE + 3]
+        self.pair_cache = broadphase.PairCache()   # broad-phase pairs carried across steps
+        self.shapes = shapes
+
+    def volumes(self):
+        """Slabs and hull planes per body (``bounding_volume`` slabs / hull only), built on first use."""
+        if hasattr(self, "slab_n"):
+            return
+        bs = [bounding.bounds(s) if s.type != "plane" else None for s in self.shapes]
+        n = self.n
+        k = max([len(b.slab_n) for b in bs if b is not None] or [1])
+        self.slab_n = np.tile(bounding.DEFAULT_SLAB_NORMALS[:1], (n, k, 1))
+        self.slab_lo, self.slab_hi = np.full((n, k), -np.inf), np.full((n, k), np.inf)
+        p = max([len(b.hull_n) for b in bs if b is not None] or [1])
+        self.hull_n, self.hull_d = np.zeros((n, max(p, 1), 3)), np.full((n, max(p, 1)), np.inf)
+        for i, b in enumerate(bs):
+            if b is None:
+                continue
+            for arr, val in ((self.slab_n, b.slab_n), (self.slab_lo, b.slab_lo), (self.slab_hi, b.slab_hi)):
+                pad_row(arr, i, val)
+            if len(b.hull_n):
+                pad_row(self.hull_n, i, b.hull_n)
+                pad_row(self.hull_d, i, b.hull_d)
+
+
+def pad_row(table, s, items):
+    """``table[s]`` = ``items`` followed by copies of its first item (padding that repeats a real
+    slab or plane never changes a min/max over the row)."""
+    table[s, :len(items)] = items
+    table[s, len(items):] = items[0]
 
 
 def _bodies_of(world):
@@ -135,35 +126,36 @@ def _bodies_of(world):
     return derived(world, "bodies", (shapes[-1] if shapes else None,), lambda: _Bodies(shapes), key=len(shapes))
 
 
-def _bv_reject(bodies, bv, ia, ib, pos, R, margin):
-    """``(K,)`` bool: the pair's bounding volumes overlap (within margin)."""
-    ok = np.ones(len(ia), bool)
-    if bv in ("auto", "sphere"):
-        ca = pos[ia] + np.einsum("nij,nj->ni", R[ia], bodies.bv_c[ia])
-        cb = pos[ib] + np.einsum("nij,nj->ni", R[ib], bodies.bv_c[ib])
-        ok &= bounding.sphere_overlap(ca, bodies.bv_r[ia], cb, bodies.bv_r[ib], margin)
-    if bv in ("auto", "obb") and ok.any():
-        k = np.flatnonzero(ok)
-        a, b = ia[k], ib[k]
-        ca = pos[a] + np.einsum("nij,nj->ni", R[a], bodies.aabb_c[a])
-        cb = pos[b] + np.einsum("nij,nj->ni", R[b], bodies.aabb_c[b])
-        ok[k] = bounding.obb_overlap(ca, R[a], bodies.aabb_h[a], cb, R[b], bodies.aabb_h[b], margin)
+def _bv_keep(bodies, bv, a, b, pos, R, margin):
+    """``(K,)`` bool: the pairs' bounding volumes overlap (within margin). ``auto`` = bounding
+    sphere then OBB (compiled, one pass); ``aabb`` is the broad phase itself."""
+    keep = np.ones(len(a), bool)
+    if bv in ("auto", "sphere", "obb"):
+        bounding.bv_filter(bv != "obb", bv != "sphere", a, b, bodies.shape_of, bodies.geom.sf, pos, R, margin, keep)
+        return keep
+    finite = ~bodies.is_plane[b] & ~((bodies.rank[a] == 1) & (bodies.rank[b] == 1))
+    fi = np.flatnonzero(finite)
+    if fi.size == 0 or bv == "aabb":
+        return keep
+    bodies.volumes()
+    ia, ib = a[fi], b[fi]
     if bv == "slabs":
         ca = pos[ia] + np.einsum("nij,nj->ni", R[ia], bodies.aabb_c[ia])
         cb = pos[ib] + np.einsum("nij,nj->ni", R[ib], bodies.aabb_c[ib])
-        ok &= bounding.slab_overlap(bodies.slab_n[ia], bodies.slab_lo[ia], bodies.slab_hi[ia], pos[ia], R[ia],
-                                    cb, R[ib], bodies.aabb_h[ib], margin)
+        ok = bounding.slab_overlap(bodies.slab_n[ia], bodies.slab_lo[ia], bodies.slab_hi[ia], pos[ia], R[ia],
+                                   cb, R[ib], bodies.aabb_h[ib], margin)
         ok &= bounding.slab_overlap(bodies.slab_n[ib], bodies.slab_lo[ib], bodies.slab_hi[ib], pos[ib], R[ib],
                                     ca, R[ia], bodies.aabb_h[ia], margin)
-    if bv == "hull":
-        ok &= _hull_overlap(bodies, ia, ib, pos, R, margin) & _hull_overlap(bodies, ib, ia, pos, R, margin)
-    return ok
+    else:
+        ok = _hull_overlap(bodies, ia, ib, pos, R, margin) & _hull_overlap(bodies, ib, ia, pos, R, margin)
+    keep[fi] = ok
+    return keep
 
 
 def _hull_overlap(bodies, ia, ib, pos, R, margin):
     """Face planes of A's convex hull against B's bounding sphere (B a sphere) or OBB corners."""
     ok = np.ones(len(ia), bool)
-    hp = np.flatnonzero(np.isin(bodies.rank[ia], _POLY))
+    hp = np.flatnonzero(bodies.rank[ia] >= 2)
     if hp.size == 0:
         return ok
     a, b = ia[hp], ib[hp]
@@ -177,110 +169,37 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
     return ok
 
 
-def _prepare_hulls(bodies, shapes):
-    if hasattr(bodies, "hull_n"):
-        return
-    bs = [bounding.bounds(s) if s.type != "plane" else None for s in shapes]
-    p = max([len(b.hull_n) for b in bs if b is not None] or [1])
-    p = max(p, 1)
-    bodies.hull_n = np.zeros((bodies.n, p, 3))
-    bodies.hull_d = np.full((bodies.n, p), np.inf)
-    for i, b in enumerate(bs):
-        if b is not None and len(b.hull_n):
-            pad_row(bodies.hull_n, i, b.hull_n)
-            pad_row(bodies.hull_d, i, b.hull_d)
-
-
-def _narrow(bodies, pos, R, a, b, margin, counters):
-    """Contacts of pairs ``a, b (K,)`` already ordered so that ``rank[a] >= rank[b]``;
-    returns kernel outputs with ``pair`` indexing ``a``."""
-    out = []
-    key = bodies.rank[a] * 5 + bodies.rank[b]
-    unsupported = 0
-    present = np.flatnonzero(np.bincount(key, minlength=25)) if len(key) else []
-    for k in present:   # loop over the few shape-type pairs present
-        # one type pair (the usual case): the whole batch, no gather
-        sel = None if len(present) == 1 else np.flatnonzero(key == k)
-        ta, tb = divmod(int(k), 5)
-        A, B = (a, b) if len(present) == 1 else (a[sel], b[sel])
-        pa, pb, Ra, Rb = pos[A], pos[B], R[A], R[B]
-        if tb == 0:
-            if ta == 0:
-                continue
-            nw = np.einsum("nij,nj->ni", Rb, bodies.plane_n[B])
-            dw = bodies.plane_d[B] + np.einsum("ni,ni->n", nw, pb)
-            if ta == 1:
-                res = narrow.sphere_plane(pa, bodies.radius[A], nw, dw, margin)
-            else:
-                res = narrow.poly_plane(bodies.tables[ta], bodies.row[A], pa, Ra, nw, dw, margin)
-        elif tb == 1:
-            if ta == 1:
-                res = narrow.sphere_sphere(pa, bodies.radius[A], pb, bodies.radius[B], margin)
-            elif ta == 2:
-                res = narrow.box_sphere(pa, Ra, bodies.half[A], pb, bodies.radius[B], margin)
-            elif ta == 3:
-                res = narrow.poly_sphere(bodies.tables[3], bodies.row[A], pa, Ra, pb, bodies.radius[B], margin)
-            else:
-                res = narrow.mesh_sphere(bodies.tables[4], bodies.row[A], pa, Ra, pb, bodies.radius[B], margin,
-                                         bodies.closed[A])
-        elif ta == 4:
-            if tb == 4:
-                unsupported += len(A)
-                continue
-            res = narrow.mesh_poly(bodies.tables[4], bodies.row[A], pa, Ra, bodies.closed[A],
-                                   bodies.tables[tb], bodies.row[B], pb, Rb, margin, counters)
-        else:
-            res = narrow.poly_poly(bodies.tables[ta], bodies.row[A], pa, Ra, bodies.tables[tb], bodies.row[B],
-                                   pb, Rb, margin, counters)
-        pi, pt, nrm, dep, ft = res
-        out.append((pi if sel is None else sel[pi], pt, nrm, dep, ft))
-    if not out:
-        return (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64)), \
-            unsupported
-    if len(out) == 1:
-        return out[0], unsupported
-    return tuple(np.concatenate(p) for p in zip(*out)), unsupported
-
-
-def _detect(bodies, shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
-    R = Q.to_matrix(quat) if R is None else R
+def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
+    if R is None:
+        R = np.empty((len(quat), 3, 3))
+        rotations(np.ascontiguousarray(quat, float), R)
     # canonical order: A has the higher rank; remember to flip normals back
     swap = bodies.rank[ia] < bodies.rank[ib]
     a = np.where(swap, ib, ia)
     b = np.where(swap, ia, ib)
     t1 = time.perf_counter()
-    # sphere–sphere pairs skip the bounding volumes: the sphere is its own bounding sphere and the
-    # narrow kernel is the same distance test (an OBB test on top only costs time)
-    finite = ~bodies.is_plane[b] & ~((bodies.rank[a] == 1) & (bodies.rank[b] == 1))
-    if bv == "hull":
-        _prepare_hulls(bodies, shapes)
-    keep = np.ones(len(a), bool)
-    fi = np.flatnonzero(finite)
-    if fi.size:
-        keep[fi] = _bv_reject(bodies, bv, a[fi], b[fi], pos, R, margin)
-    stats.rejected_by_bounding_volume = int((~keep).sum())
+    keep = _bv_keep(bodies, bv, a, b, pos, R, margin)
+    kk = np.flatnonzero(keep)
+    stats.rejected_by_bounding_volume = len(a) - len(kk)
     t2 = time.perf_counter()
     timings["bounding"] = t2 - t1
-    kk = np.flatnonzero(keep)
-    counters = narrow.Counters()
-    (pi, pt, nrm, dep, ft), unsupported = _narrow(bodies, pos, R, a[kk], b[kk], margin, counters)
-    pair = kk[pi]
+    counters = np.zeros(3, np.int64)
+    rows_i, rows_f, unsupported = dispatch.run(bodies.geom, bodies.shape_of, bodies.rank, a[kk], b[kk], pos, R,
+                                               margin, counters)
+    pair = kk[rows_i[:, 0]]
+    nrm = rows_f[:, 3:6]
     flip = swap[pair]
-    nrm = np.where(flip[:, None], -nrm, nrm)
+    if flip.any():
+        nrm = np.where(flip[:, None], -nrm, nrm)
     t3 = time.perf_counter()
     timings["narrow"] = t3 - t2
-    k = len(dep)
-    c = Contacts(body_a=ia[pair].astype(np.int64), body_b=ib[pair].astype(np.int64), point=pt, normal=nrm,
-                 depth=dep, impulse=np.zeros((k, 3)), normal_impulse=np.zeros(k),
-                 friction_impulse=np.zeros((k, 3)), relative_normal_velocity=np.zeros(k),
-                 feature=ft.astype(np.int64))
-    stats.settled_by_vertex = counters.vertex
-    stats.needed_edge_face = counters.edge_face
-    stats.edge_face_hits = counters.edge_hits
+    k = len(pair)
+    c = Contacts(body_a=ia[pair], body_b=ib[pair], point=rows_f[:, 0:3], normal=nrm, depth=rows_f[:, 6],
+                 impulse=np.zeros((k, 3)), normal_impulse=np.zeros(k), friction_impulse=np.zeros((k, 3)),
+                 relative_normal_velocity=np.zeros(k), feature=rows_i[:, 1], feature_id=rows_i[:, 2])
+    stats.settled_by_vertex, stats.needed_edge_face, stats.edge_face_hits = (int(x) for x in counters)
     stats.unsupported_pairs = unsupported
-    hit = np.zeros(len(ia), bool)
-    hit[pair] = True
-    stats.colliding_pairs = int(np.count_nonzero(hit))
+    stats.colliding_pairs = int(np.count_nonzero(np.bincount(pair))) if k else 0
     stats.contacts = k
     timings["total"] = time.perf_counter() - t0
     stats.seconds = timings
@@ -301,15 +220,17 @@ def detect_world(world, margin=None):
     bv = world.settings.bounding_volume
     stats = DetectionStats(bodies=len(world.shapes), bounding_volume=bv, margin=margin)
     bodies = _bodies_of(world)
+    timings = {"prepare": time.perf_counter() - t0}   # shape preparation: the first detection only
     pos, quat = world.s.pos, world.s.quat
-    timings = {}
     R = None
     if bodies.n < 2:
         ia = ib = np.zeros(0, np.int64)
     else:
-        R = Q.to_matrix(quat)
-        fin = np.flatnonzero(~bodies.is_plane)
-        c, h = broadphase.world_aabbs(pos[fin], R[fin], bodies.aabb_c[fin], bodies.aabb_h[fin])
+        R = np.empty((bodies.n, 3, 3))
+        rotations(quat, R)
+        fin = bodies.finite
+        c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
+        broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
         i, j = bodies.pair_cache.pairs(c, h, margin)
         i, j = fin[i], fin[j]
         pl = np.flatnonzero(bodies.is_plane)
@@ -318,14 +239,14 @@ def detect_world(world, margin=None):
             dw = bodies.plane_d[pl] + np.einsum("ni,ni->n", nw, pos[pl])
             p, f = broadphase.plane_pairs(pl, nw, dw, fin, c, h, margin)
             i, j = np.concatenate([i, np.minimum(p, f)]), np.concatenate([j, np.maximum(p, f)])
-        kind, group, mask = world.kind, world.group, world.mask
-        keep = ~((kind[i] == 0) & (kind[j] == 0))
-        keep &= ((group[i] & mask[j]) != 0) & ((group[j] & mask[i]) != 0)
-        order = np.lexsort((j[keep], i[keep]))
-        ia, ib = i[keep][order], j[keep][order]
-    timings["broad"] = time.perf_counter() - t0
+            order = np.lexsort((j, i))
+            i, j = i[order], j[order]
+        ia, ib = np.empty_like(i), np.empty_like(j)
+        n = broadphase.body_filter(i, j, world.kind, world.group, world.mask, ia, ib)
+        ia, ib = ia[:n], ib[:n]
+    timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
-    return _detect(bodies, world.shapes, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)
+    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)
 
 
 def _check_query(call, settings, margin, bounding_volume):
@@ -368,6 +289,14 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     its world bounds (positions, shape sizes, margin), as a world would check them.
     """
     t0 = time.perf_counter()
+    if (settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin)
+            and isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
+            and shape_b.type in RANK and not (shape_a.type == "mesh" and shape_b.type == "mesh")):
+        fa, fb = single.fast_pose(pose_a), single.fast_pose(pose_b)
+        if fa is not None and fb is not None:
+            bodies = _bodies_cached((shape_a, shape_b))
+            plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
+            return single.collide_fast(plan, fa[0], fa[1], fb[0], fb[1], margin)
     st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
     _check_shape(shape_a, "collide: shape_a", st)
     _check_shape(shape_b, "collide: shape_b", st)
@@ -378,7 +307,7 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
         raise ContactSimError("collide: mesh-mesh pairs are not supported; make one of them convex")
     bodies = _bodies_cached((shape_a, shape_b))
     st = DetectionStats(bodies=2, candidate_pairs=1, bounding_volume=bounding_volume, margin=margin)
-    c, st = _detect(bodies, [shape_a, shape_b], np.array([pa, pb]), np.array([qa, qb]), np.array([0]),
+    c, st = _detect(bodies, np.array([pa, pb]), np.array([qa, qb]), np.array([0]),
                     np.array([1]), margin, bounding_volume, st, t0, {"broad": 0.0})
     return (c, st) if stats else c
 
@@ -423,7 +352,7 @@ def collide_pairs(shapes, positions, orientations, pairs, margin=0.0, bounding_v
     pairs = _check_pairs(pairs, n)
     bodies = _Bodies(list(shapes))
     stats = DetectionStats(bodies=n, candidate_pairs=len(pairs), bounding_volume=bounding_volume, margin=margin)
-    return _detect(bodies, list(shapes), pos, q, pairs[:, 0], pairs[:, 1], margin, bounding_volume, stats, t0,
+    return _detect(bodies, pos, q, pairs[:, 0], pairs[:, 1], margin, bounding_volume, stats, t0,
                    {"broad": 0.0})
 
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import quat
+from ..jit import njit
+from .geometry import SF_BOX, SF_RADIUS, SF_SPHERE
 
 # 14-DOP: the three axes and the four cube diagonals
 DEFAULT_SLAB_NORMALS = np.array(
@@ -171,3 +173,57 @@ def slab_overlap(sn_a, lo_a, hi_a, pa, Ra, cb, Rb, hb, margin):
     centre = np.einsum("nki,ni->nk", nw, cb)
     ext = np.einsum("nkj,nj->nk", np.abs(np.einsum("nki,nij->nkj", nw, Rb)), hb)
     return np.all((centre + ext >= lo_a + off - margin) & (centre - ext <= hi_a + off + margin), axis=1)
+
+
+# ---------------------------------------------------------------- compiled pair filter (auto/sphere/obb)
+@njit
+def bv_filter(use_sphere, use_obb, a, b, shape_of, sf, pos, R, margin, keep):
+    """``keep (K,)``: pairs ``a, b`` whose bounding spheres (``use_sphere``) and OBBs (``use_obb``)
+    overlap within ``margin``; the same tests as ``sphere_overlap`` and ``obb_overlap``, one pass.
+    Planes and sphere–sphere pairs are always kept (a sphere is its own bounding sphere)."""
+    for k in range(a.shape[0]):
+        sa, sb = shape_of[a[k]], shape_of[b[k]]
+        ok = True
+        if sf[sb, SF_SPHERE + 3] == 0.0 or (sf[sa, SF_RADIUS] > 0 and sf[sb, SF_RADIUS] > 0):
+            keep[k] = True   # a plane (no bounding volume), or two spheres
+            continue
+        Ra, Rb = R[a[k]], R[b[k]]
+        if use_sphere:
+            d2 = 0.0
+            for i in range(3):
+                ca = pos[a[k], i] + Ra[i, 0] * sf[sa, SF_SPHERE] + Ra[i, 1] * sf[sa, SF_SPHERE + 1] \
+                    + Ra[i, 2] * sf[sa, SF_SPHERE + 2]
+                cb = pos[b[k], i] + Rb[i, 0] * sf[sb, SF_SPHERE] + Rb[i, 1] * sf[sb, SF_SPHERE + 1] \
+                    + Rb[i, 2] * sf[sb, SF_SPHERE + 2]
+                d2 += (ca - cb) ** 2
+            ok = d2 <= (sf[sa, SF_SPHERE + 3] + sf[sb, SF_SPHERE + 3] + margin) ** 2
+        if ok and use_obb:
+            ha, hb = sf[sa, SF_BOX + 3:SF_BOX + 6], sf[sb, SF_BOX + 3:SF_BOX + 6]
+            dc = np.empty(3)
+            for i in range(3):
+                dc[i] = (pos[b[k], i] + Rb[i, 0] * sf[sb, SF_BOX] + Rb[i, 1] * sf[sb, SF_BOX + 1]
+                         + Rb[i, 2] * sf[sb, SF_BOX + 2]) - (pos[a[k], i] + Ra[i, 0] * sf[sa, SF_BOX]
+                                                             + Ra[i, 1] * sf[sa, SF_BOX + 1] + Ra[i, 2] * sf[sa, SF_BOX + 2])
+            t = np.empty(3)
+            for i in range(3):
+                t[i] = Ra[0, i] * dc[0] + Ra[1, i] * dc[1] + Ra[2, i] * dc[2]
+            C = np.empty((3, 3))
+            absC = np.empty((3, 3))
+            for i in range(3):
+                for j in range(3):
+                    C[i, j] = Ra[0, i] * Rb[0, j] + Ra[1, i] * Rb[1, j] + Ra[2, i] * Rb[2, j]
+                    absC[i, j] = abs(C[i, j]) + 1e-12
+            for i in range(3):
+                ok = ok and abs(t[i]) <= ha[i] + (absC[i, 0] * hb[0] + absC[i, 1] * hb[1] + absC[i, 2] * hb[2]) + margin
+            for j in range(3):
+                tb = C[0, j] * t[0] + C[1, j] * t[1] + C[2, j] * t[2]
+                ok = ok and abs(tb) <= hb[j] + (absC[0, j] * ha[0] + absC[1, j] * ha[1] + absC[2, j] * ha[2]) + margin
+            for i in range(3):
+                i1, i2 = (i + 1) % 3, (i + 2) % 3
+                for j in range(3):
+                    j1, j2 = (j + 1) % 3, (j + 2) % 3
+                    ra = ha[i1] * absC[i2, j] + ha[i2] * absC[i1, j]
+                    rb = hb[j1] * absC[i, j2] + hb[j2] * absC[i, j1]
+                    dist = abs(t[i2] * C[i1, j] - t[i1] * C[i2, j])
+                    ok = ok and dist <= ra + rb + margin * np.sqrt(max(1.0 - C[i, j] ** 2, 0.0))
+        keep[k] = ok

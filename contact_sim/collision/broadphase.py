@@ -4,16 +4,20 @@ pairs (few bodies), sweep-and-prune (few overlaps on the sweep axis), or a unifo
 directly. Every method returns exactly the pairs whose AABBs overlap within the margin."""
 import numpy as np
 
+from ..jit import njit
+
 BRUTE_MAX = 32      # up to this many boxes, testing all N(N-1)/2 pairs at once is fastest
 SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64), else the grid (measured
                     # crossover: ~20 candidates per box)
 _TRIU = {}          # n -> cached np.triu_indices(n, 1)
 
 
-def _overlap(c, h, i, j, margin):
-    """``(K,) bool``: boxes ``i`` and ``j (K,)`` overlap within ``margin`` on all three axes (the one
-    exact test every method ends with, so they all return the same pairs)."""
-    return np.all(np.abs(c[i] - c[j]) <= h[i] + h[j] + margin, axis=1)
+def _filter(c, h, i, j, margin):
+    """The pairs ``i, j (K,)`` whose boxes overlap within ``margin`` (compiled ``overlap_filter``)."""
+    i, j = np.ascontiguousarray(i, np.int64), np.ascontiguousarray(j, np.int64)
+    oi, oj = np.empty_like(i), np.empty_like(j)
+    n = overlap_filter(c, h, i, j, margin, oi, oj)
+    return oi[:n], oj[:n]
 
 
 def candidate_pairs(c, h, margin):
@@ -49,9 +53,9 @@ class PairCache:
         self.reuses = 0
 
     def pairs(self, c, h, margin):
-        """Same contract as ``candidate_pairs`` for boxes ``c, h (N, 3)``."""
+        """Same contract as ``candidate_pairs`` for boxes ``c, h (N, 3)``, pairs sorted by ``(i, j)``."""
         if (self.fat_c is not None and len(self.fat_c) == len(c) and margin <= self.margin
-                and np.all(np.abs(c - self.fat_c) + h <= self.fat_h)):
+                and inside_fat(c, h, self.fat_c, self.fat_h)):
             self.reuses += 1
         else:
             self.fat_c = c.copy()
@@ -60,11 +64,13 @@ class PairCache:
             # of the coordinates so that the superset argument holds in floating point
             scale = float(np.abs(c).max() + h.max()) if len(c) else 0.0
             self.margin = 2.0 * margin + 1e-9 * (1.0 + scale)
-            self.i, self.j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
+            i, j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
+            order = np.lexsort((j, i))
+            self.i, self.j = np.ascontiguousarray(i[order]), np.ascontiguousarray(j[order])
             self.rebuilds += 1
-        i, j = self.i, self.j
-        keep = _overlap(c, h, i, j, margin)
-        return i[keep], j[keep]
+        oi, oj = np.empty_like(self.i), np.empty_like(self.j)
+        n = overlap_filter(c, h, self.i, self.j, margin, oi, oj)
+        return oi[:n], oj[:n]
 
 
 def all_pairs(c, h, margin):
@@ -73,9 +79,7 @@ def all_pairs(c, h, margin):
     tri = _TRIU.get(n)
     if tri is None:
         tri = _TRIU[n] = np.triu_indices(n, 1)
-    i, j = tri
-    keep = _overlap(c, h, i, j, margin)
-    return i[keep], j[keep]
+    return _filter(c, h, tri[0], tri[1], margin)
 
 
 def world_aabbs(pos, R, centre_local, half_local):
@@ -110,9 +114,7 @@ def sweep_and_prune(c, h, margin, budget=None):
     i_s = np.repeat(np.arange(n), counts)
     offs = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
     j_s = i_s + 1 + offs
-    i, j = order[i_s], order[j_s]
-    keep = _overlap(c, h, i, j, margin)
-    i, j = i[keep], j[keep]
+    i, j = _filter(c, h, order[i_s], order[j_s], margin)
     return np.minimum(i, j), np.maximum(i, j)
 
 
@@ -177,7 +179,54 @@ def grid_pairs(c, h, margin):
         out_j.append(bj[keep])
     if not out_i:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i, j = np.concatenate(out_i), np.concatenate(out_j)
-    keep = _overlap(c, h, i, j, margin)
-    i, j = i[keep], j[keep]
+    i, j = _filter(c, h, np.concatenate(out_i), np.concatenate(out_j), margin)
     return np.minimum(i, j), np.maximum(i, j)
+
+
+# ---------------------------------------------------------------- compiled warm path
+@njit
+def world_boxes(pos, R, idx, centre, half, c, h):
+    """World AABBs ``c, h (M, 3)`` of bodies ``idx (M,)``: object boxes ``centre, half (N, 3)``
+    carried by ``pos (N, 3)``, ``R (N, 3, 3)`` (as ``world_aabbs``, one pass)."""
+    for m in range(idx.shape[0]):
+        k = idx[m]
+        for i in range(3):
+            c[m, i] = pos[k, i] + R[k, i, 0] * centre[k, 0] + R[k, i, 1] * centre[k, 1] + R[k, i, 2] * centre[k, 2]
+            h[m, i] = abs(R[k, i, 0]) * half[k, 0] + abs(R[k, i, 1]) * half[k, 1] + abs(R[k, i, 2]) * half[k, 2]
+
+
+@njit
+def inside_fat(c, h, fat_c, fat_h):
+    """Every tight box ``c, h`` inside its fat box."""
+    for m in range(c.shape[0]):
+        for i in range(3):
+            if not abs(c[m, i] - fat_c[m, i]) + h[m, i] <= fat_h[m, i]:
+                return False
+    return True
+
+
+@njit
+def overlap_filter(c, h, i, j, margin, oi, oj):
+    """The pairs ``i, j`` whose boxes overlap within ``margin`` into ``oi, oj``; returns their count
+    (the one exact test every method ends with, so they all return the same pairs; order kept)."""
+    n = 0
+    for k in range(i.shape[0]):
+        a, b = i[k], j[k]
+        if (abs(c[a, 0] - c[b, 0]) <= h[a, 0] + h[b, 0] + margin and abs(c[a, 1] - c[b, 1]) <= h[a, 1] + h[b, 1] + margin
+                and abs(c[a, 2] - c[b, 2]) <= h[a, 2] + h[b, 2] + margin):
+            oi[n], oj[n] = a, b
+            n += 1
+    return n
+
+
+@njit
+def body_filter(i, j, kind, group, mask, oi, oj):
+    """Pairs that may touch: not both static (kind 0), and each one's group in the other's mask;
+    returns their count, order kept."""
+    n = 0
+    for k in range(i.shape[0]):
+        a, b = i[k], j[k]
+        if (kind[a] != 0 or kind[b] != 0) and (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0:
+            oi[n], oj[n] = a, b
+            n += 1
+    return n

@@ -1,0 +1,71 @@
+"""The narrow phase's table: one compiled kernel per shape-type pair, one signature for all.
+
+As MJX's ``_COLLISION_FUNC`` and its ``collider`` decorator: ``@collider((BOX, SPHERE), ...)``
+registers a kernel under the (A rank, B rank) pairs it handles (A of the higher rank, see
+``geometry.RANK``). Every kernel is a compiled loop over its pairs with the arguments
+``KERNEL_ARGS`` and returns the number of contact rows written (at most 4 per pair):
+
+    kernel(sf, si, verts, planes, faces, loops, edges, tris,   # geometry.GeomTable.arrays()
+           shape_of (N,), a (K,), b (K,),                       # body -> table row; the pairs' bodies
+           pos (N, 3), R (N, 3, 3), margin, counters (3,),      # poses; [vertex, edge_face, edge_hits]
+           out_i (4K, 3), out_f (4K, 7)) -> rows               # (pair, feature, feature id), (point, normal, depth)
+
+``run`` calls the kernel of each type pair present in a batch (a handful of calls per detection).
+"""
+import numpy as np
+
+KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
+               "margin", "counters", "out_i", "out_f")
+TABLE = {}   # (rank A, rank B) -> kernel
+
+
+def collider(*keys):
+    """Register the decorated kernel for the shape-type pairs ``keys`` ((rank A, rank B) tuples)."""
+    def register(kernel):
+        for key in keys:
+            TABLE[key] = kernel
+        return kernel
+    return register
+
+
+def _load():
+    # the modules that register kernels (imported here, not above: they import ``collider``)
+    from . import meshes, polyhedra, primitives  # noqa: F401
+
+
+def kernel_for(ra, rb):
+    """The kernel of ranks ``ra >= rb``, or None (plane–plane, mesh–mesh: no kernel)."""
+    if not TABLE:
+        _load()
+    return TABLE.get((ra, rb))
+
+
+def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
+    """Contacts of pairs ``a, b (K,)`` (``ranks[a] >= ranks[b]``): ``(rows_i (M, 3), rows_f (M, 7),
+    unsupported)``: the kernels' rows (``pair`` indexing the batch) and the number of pairs no kernel
+    handles (mesh–mesh; plane–plane pairs are not contacts)."""
+    if not TABLE:
+        _load()
+    arrays = geom.arrays()
+    K = len(a)
+    out_i, out_f = np.empty((4 * K, 3), np.int64), np.empty((4 * K, 7))
+    if K == 0:
+        return out_i, out_f, 0
+    # group the pairs by type pair (one stable sort), each group one kernel call writing after the last
+    key = ranks[a] * 5 + ranks[b]
+    order = np.argsort(key, kind="stable")
+    ks, A, B = key[order], a[order], b[order]
+    cuts = np.flatnonzero(ks[1:] != ks[:-1]) + 1
+    starts, ends = np.r_[0, cuts], np.r_[cuts, K]
+    n, unsupported = 0, 0
+    for s, e in zip(starts.tolist(), ends.tolist()):
+        kernel = TABLE.get(divmod(int(ks[s]), 5))
+        if kernel is None:
+            unsupported += (e - s) if ks[s] != 0 else 0   # plane–plane pairs are no contacts
+            continue
+        m = kernel(*arrays, shape_of, A[s:e], B[s:e], pos, R, margin, counters, out_i[n:], out_f[n:])
+        out_i[n:n + m, 0] += s
+        n += m
+    rows_i = out_i[:n]
+    rows_i[:, 0] = order[rows_i[:, 0]]
+    return rows_i, out_f[:n], unsupported

@@ -1,0 +1,233 @@
+"""Contact manifolds: at most four points per pair, and the face–face patch of two polyhedra.
+
+``reduce4`` keeps the deepest point, the farthest from it, the one making the largest triangle
+with those two and the one farthest on the other side (a flat patch keeps its corners: among points
+equally deep to round-off the one farthest from the patch centre is the first pick).
+``face_patch`` is the intersection of a reference face and the most anti-parallel face of the other
+body, which is what Sutherland–Hodgman clipping of the incident face against the reference face's
+side planes produces: incident vertices inside the reference face's prism, reference vertices
+inside the incident face (taken onto it along the normal) and the crossings of their edges.
+
+Kernel helpers write rows into the output arrays of a narrow-phase kernel: ``out_i (K, 3)``
+(pair, feature, feature id) and ``out_f (K, 7)`` (point (3), normal B→A (3), depth).
+"""
+import numpy as np
+
+from ..contacts import FEATURES, FID_FACE_A, fid
+from ..jit import njit
+from .vec3 import dot, dotr, set_row
+
+F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
+    "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
+TOUCH_TOLERANCE = 1e-9   # × the smaller body's size: a distance this short is touching, its direction noise
+# point codes of a face patch (the feature id's last field): what the point is on
+CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18, 3 << 18
+
+
+@njit
+def reduce4(pts, depth, valid, normal, keep):
+    """``keep (C,)`` bool: at most 4 of the ``valid (C,)`` candidates ``pts (C, 3)`` with ``depth (C,)``;
+    returns how many. (Scalar arithmetic throughout: a temporary array costs more than the math.)"""
+    C = pts.shape[0]
+    dmax, cnt = -np.inf, 0
+    cx, cy, cz = 0.0, 0.0, 0.0
+    for i in range(C):
+        keep[i] = False
+        if valid[i]:
+            dmax = max(dmax, depth[i])
+            cnt += 1
+            cx, cy, cz = cx + pts[i, 0], cy + pts[i, 1], cz + pts[i, 2]
+    if cnt == 0:
+        return 0
+    cx, cy, cz = cx / cnt, cy / cnt, cz / cnt
+    smax = 0.0
+    for i in range(C):
+        if valid[i]:
+            smax = max(smax, (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2)
+    tol = TOUCH_TOLERANCE * np.sqrt(smax) + 1e-300
+    # the deepest point; among points equally deep to round-off (a face resting flat on a face), the
+    # one farthest from the patch's centre, so that a flat patch keeps its corners
+    i0, best = 0, -1.0
+    for i in range(C):
+        if valid[i] and depth[i] >= dmax - tol:
+            sp = (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2
+            if sp > best:
+                i0, best = i, sp
+    keep[i0] = True
+    x0, y0, z0 = pts[i0, 0], pts[i0, 1], pts[i0, 2]
+    i1, far = 0, -1.0
+    for i in range(C):
+        if valid[i]:
+            d2 = (pts[i, 0] - x0) ** 2 + (pts[i, 1] - y0) ** 2 + (pts[i, 2] - z0) ** 2
+            if d2 > far:
+                i1, far = i, d2
+    if far > 1e-20 + 1e-18 * far:
+        keep[i1] = True
+    ax, ay, az = pts[i1, 0] - x0, pts[i1, 1] - y0, pts[i1, 2] - z0
+    i2, big, a2 = 0, -1.0, 0.0
+    for i in range(C):
+        if valid[i]:
+            rx, ry, rz = pts[i, 0] - x0, pts[i, 1] - y0, pts[i, 2] - z0
+            ar = (ay * rz - az * ry) * normal[0] + (az * rx - ax * rz) * normal[1] + (ax * ry - ay * rx) * normal[2]
+            if abs(ar) > big:
+                i2, big, a2 = i, abs(ar), ar
+    if big > np.sqrt(far) * 1e-9 * np.sqrt(far) + 1e-20:
+        keep[i2] = True
+    side = np.sign(a2)
+    i3, opp = 0, -1.0
+    for i in range(C):
+        if valid[i]:
+            rx, ry, rz = pts[i, 0] - x0, pts[i, 1] - y0, pts[i, 2] - z0
+            ar = (ay * rz - az * ry) * normal[0] + (az * rx - ax * rz) * normal[1] + (ax * ry - ay * rx) * normal[2]
+            if -side * ar > opp:
+                i3, opp = i, -side * ar
+    if opp > far * 1e-9 + 1e-20:
+        keep[i3] = True
+    n = 0
+    for i in range(C):
+        n += keep[i]
+    return n
+
+
+@njit
+def put(out_i, out_f, k, pair, point, normal, depth, feature, feature_id):
+    """Write contact row ``k``; returns ``k + 1``."""
+    out_i[k, 0], out_i[k, 1], out_i[k, 2] = pair, feature, feature_id
+    for j in range(3):
+        out_f[k, j] = point[j]
+        out_f[k, 3 + j] = normal[j]
+    out_f[k, 6] = depth
+    return k + 1
+
+
+@njit
+def _cross_dot(a, b, n):
+    """``(a × b)·n``."""
+    return (a[1] * b[2] - a[2] * b[1]) * n[0] + (a[2] * b[0] - a[0] * b[2]) * n[1] + (a[0] * b[1] - a[1] * b[0]) * n[2]
+
+
+@njit
+def _edges(P, n, e, s, length):
+    """Loop edges ``e[m] = P[m+1] - P[m]``, their outward side normals ``s = e × n`` and lengths."""
+    M = P.shape[0]
+    for m in range(M):
+        for j in range(3):
+            e[m, j] = P[(m + 1) % M, j] - P[m, j]
+        s[m, 0] = e[m, 1] * n[2] - e[m, 2] * n[1]
+        s[m, 1] = e[m, 2] * n[0] - e[m, 0] * n[2]
+        s[m, 2] = e[m, 0] * n[1] - e[m, 1] * n[0]
+        length[m] = np.sqrt(e[m, 0] ** 2 + e[m, 1] ** 2 + e[m, 2] ** 2)
+
+
+@njit
+def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin, sup_u, sup_sep, sup_v,
+               ref_is_a, pair, out_i, out_f, k):
+    """Contacts of a face–face patch; returns the new row count.
+
+    Reference body R: world vertices ``VR (Vr, 3)``, planes ``NR (Pr, 3)``, ``dR (Pr,)``, reference
+    face ``fr`` with vertex loop ``loopR (M1,)``; incident body I: ``VI``, ``NI``, ``dI``, its face
+    rows ``facesI (Pi, 2)`` into ``loopsI``. ``sup_u (3,)``, ``sup_sep``, ``sup_v``: I's deepest
+    vertex below the reference plane (a candidate whenever the patch misses the deepest
+    penetration, so the pair's deepest contact has exactly the SAT depth). Normals point B→A:
+    ``-n_ref`` when the reference body is the kernel's A."""
+    nref, dref = NR[fr], dR[fr]
+    fi, low = 0, np.inf
+    for p in range(NI.shape[0]):
+        x = NI[p, 0] * nref[0] + NI[p, 1] * nref[1] + NI[p, 2] * nref[2]
+        if x < low:
+            fi, low = p, x
+    ni, di = NI[fi], dI[fi]
+    l0, M2 = facesI[fi, 0], facesI[fi, 1]
+    M1 = loopR.shape[0]
+    P = np.empty((M1, 3))
+    Q = np.empty((M2, 3))
+    for m in range(M1):
+        set_row(P, m, VR[loopR[m]])
+    for q in range(M2):
+        set_row(Q, q, VI[loopsI[l0 + q]])
+    tol = 1e-9 * scale
+    eP, sP, lenP = np.empty((M1, 3)), np.empty((M1, 3)), np.empty(M1)
+    _edges(P, nref, eP, sP, lenP)
+    eQ, sQ, lenQ = np.empty((M2, 3)), np.empty((M2, 3)), np.empty(M2)
+    _edges(Q, ni, eQ, sQ, lenQ)
+    C = 1 + M2 + M1 + M1 * M2
+    U = np.empty((C, 3))
+    SEP = np.empty(C)
+    VAL = np.zeros(C, np.bool_)
+    CODE = np.empty(C, np.int64)
+    set_row(U, 0, sup_u)
+    SEP[0], CODE[0] = sup_sep, CODE_SUPPORT + sup_v
+    c = 1
+    for q in range(M2):      # 1. incident vertices inside the reference face's prism
+        inside = True
+        for m in range(M1):
+            if dotr(sP, m, Q, q) - dotr(sP, m, P, m) > tol * lenP[m]:
+                inside = False
+                break
+        set_row(U, c, Q[q])
+        SEP[c] = Q[q, 0] * nref[0] + Q[q, 1] * nref[1] + Q[q, 2] * nref[2] - dref
+        CODE[c] = CODE_INCIDENT + loopsI[l0 + q]
+        VAL[c] = inside
+        c += 1
+    den = dot(ni, nref)
+    if not abs(den) > 1e-12:
+        den = -1e-12
+    for m in range(M1):      # 2. reference vertices, along the normal onto the incident face, inside it
+        t = (di - dot(P[m], ni)) / den
+        for j in range(3):
+            U[c, j] = P[m, j] + t * nref[j]
+        inside = True
+        for q in range(M2):
+            if dotr(sQ, q, U, c) - dotr(sQ, q, Q, q) > tol * lenQ[q]:
+                inside = False
+                break
+        SEP[c], CODE[c] = t + dot(P[m], nref) - dref, CODE_REFERENCE + loopR[m]
+        VAL[c] = inside
+        c += 1
+    Qp = np.empty((M2, 3))
+    for q in range(M2):
+        h = dot(Q[q], nref) - dref
+        for j in range(3):
+            Qp[q, j] = Q[q, j] - h * nref[j]
+    eQp = np.empty((M2, 3))
+    for q in range(M2):
+        for j in range(3):
+            eQp[q, j] = Qp[(q + 1) % M2, j] - Qp[q, j]
+    for m in range(M1):      # 3. edge crossings, in the reference plane
+        for q in range(M2):
+            den3 = _cross_dot(eP[m], eQp[q], nref)
+            wx, wy, wz = Qp[q, 0] - P[m, 0], Qp[q, 1] - P[m, 1], Qp[q, 2] - P[m, 2]
+            ok = abs(den3) > 1e-12 * (lenP[m] * lenQ[q]) + 1e-300
+            dd = den3 if ok else 1.0
+            e, f = eQp[q], eP[m]
+            alpha = ((wy * e[2] - wz * e[1]) * nref[0] + (wz * e[0] - wx * e[2]) * nref[1]
+                     + (wx * e[1] - wy * e[0]) * nref[2]) / dd
+            beta = ((wy * f[2] - wz * f[1]) * nref[0] + (wz * f[0] - wx * f[2]) * nref[1]
+                    + (wx * f[1] - wy * f[0]) * nref[2]) / dd
+            for j in range(3):
+                U[c, j] = Q[q, j] + beta * eQ[q, j]
+            SEP[c] = U[c, 0] * nref[0] + U[c, 1] * nref[1] + U[c, 2] * nref[2] - dref
+            CODE[c] = CODE_CROSSING + (m << 9) + q
+            VAL[c] = ok and 0 <= alpha <= 1 and 0 <= beta <= 1
+            c += 1
+    best = np.inf
+    for i in range(1, C):
+        VAL[i] = VAL[i] and SEP[i] <= margin
+        if VAL[i]:
+            best = min(best, SEP[i])
+    VAL[0] = best > sup_sep + tol
+    pts, DEP = np.empty((C, 3)), np.empty(C)
+    for i in range(C):
+        DEP[i] = -SEP[i]
+        for j in range(3):
+            pts[i, j] = U[i, j] - 0.5 * SEP[i] * nref[j]
+    keep = np.empty(C, np.bool_)
+    n = reduce4(pts, DEP, VAL, nref, keep)
+    feat = F_FACE if n >= 3 else (F_EDGE if n == 2 else F_VERTEX)
+    normal = -nref if ref_is_a else nref
+    kind = FID_FACE_A if ref_is_a else FID_FACE_A + 1
+    for i in range(C):
+        if keep[i]:
+            k = put(out_i, out_f, k, pair, pts[i], normal, DEP[i], feat, fid(kind, fr, fi, CODE[i]))
+    return k
+

@@ -1,0 +1,231 @@
+"""Triangle-mesh pairs (concave allowed): mesh–sphere and mesh–polyhedron kernels, and the
+inside tests they share.
+
+A closed mesh is a solid: a point is inside by odd ray-crossing parity over three generic rays
+(a ray that grazes an edge or vertex is discarded for the next). An open mesh (a terrain tile, a
+flat floor) has no inside; it is a one-sided surface whose back is below it: a point is inside
+when it lies behind the nearest triangle, so a body pressed through a terrain is pushed back out
+the way it came. A distance below ``TOUCH_TOLERANCE`` × the smaller body's size is touching, and
+its direction round-off noise: the triangle's normal is the answer there.
+"""
+import numpy as np
+
+from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POINT, FID_POLY_VERTEX, fid
+from ..jit import njit
+from .dispatch import collider
+from .geometry import BOX, CONVEX, MESH, SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
+    SI_T0, SPHERE
+from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, put, reduce4
+from .polyhedra import world_poly
+from .primitives import nearest_triangle, world_verts
+from .vec3 import col_max, dotr, inside_loop, set_row, cross, dot, norm
+
+# rays for the parity test: generic directions, so a ray through an edge or vertex is rare; when
+# one is (a barycentric coordinate or the distance within a tolerance of 0) the next ray decides
+_R = np.array([[0.5773, 0.3141, 0.7537], [-0.2718, 0.8414, -0.4667], [0.6931, -0.6180, 0.3711]])
+RAYS = _R / np.linalg.norm(_R, axis=1, keepdims=True)
+
+
+@njit
+def parity_inside(p, V, tris, t0, nt, eps=1e-9):
+    """Odd ray-crossing parity of point ``p (3,)`` against triangles ``tris[t0:t0+nt]`` of world
+    vertices ``V``; rays that graze an edge or vertex are discarded in favour of the next (when all
+    three graze, the majority vote of their parities)."""
+    votes = 0
+    px, py, pz = p[0], p[1], p[2]
+    for r in range(RAYS.shape[0]):
+        rx, ry, rz = RAYS[r, 0], RAYS[r, 1], RAYS[r, 2]
+        hits, bad = 0, False
+        for t in range(nt):
+            T0, T1, T2 = V[tris[t0 + t, 0]], V[tris[t0 + t, 1]], V[tris[t0 + t, 2]]
+            e1x, e1y, e1z = T1[0] - T0[0], T1[1] - T0[1], T1[2] - T0[2]
+            e2x, e2y, e2z = T2[0] - T0[0], T2[1] - T0[1], T2[2] - T0[2]
+            hx, hy, hz = ry * e2z - rz * e2y, rz * e2x - rx * e2z, rx * e2y - ry * e2x
+            det = e1x * hx + e1y * hy + e1z * hz
+            if not abs(det) > 1e-14:
+                continue
+            inv = 1.0 / det
+            sx, sy, sz = px - T0[0], py - T0[1], pz - T0[2]
+            u = (sx * hx + sy * hy + sz * hz) * inv
+            qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
+            v = (qx * rx + qy * ry + qz * rz) * inv
+            tt = (e2x * qx + e2y * qy + e2z * qz) * inv
+            w = 1.0 - u - v
+            hit = tt > 0 and u >= 0 and v >= 0 and w >= 0
+            if (tt > -eps and (abs(u) < eps or abs(v) < eps or abs(w) < eps) and u > -eps and v > -eps
+                    and w > -eps) or (hit and abs(tt) < eps * (np.sqrt(abs(det)) + 1e-300)):
+                bad = True
+            hits += hit
+        odd = hits % 2 == 1
+        if not bad:
+            return odd
+        votes += odd
+    return votes >= 2
+
+
+@njit
+def tri_normal(V, tris, t):
+    """Unnormalised normal of triangle ``t`` (global row) of world vertices ``V``."""
+    T0 = V[tris[t, 0]]
+    return cross(V[tris[t, 1]] - T0, V[tris[t, 2]] - T0)
+
+
+@njit
+def inside_mesh(p, V, tris, t0, nt, closed, q, j):
+    """Point ``p`` inside the mesh: parity for a closed mesh; behind the nearest triangle ``j``
+    (nearest point ``q``) for an open one."""
+    if closed:
+        return parity_inside(p, V, tris, t0, nt)
+    return dot(p - q, tri_normal(V, tris, t0 + j)) < 0
+
+
+def points_in_meshes(p, T, valid_t, eps=1e-9):
+    """``(n,)`` bool: point ``p[i] (3,)`` inside the closed mesh of world triangles ``T[i] (F, 3, 3)``
+    (``valid_t (n, F)`` masks padding), by ray-crossing parity (numpy front end of the kernel)."""
+    out = np.zeros(len(p), bool)
+    for i in range(len(p)):
+        tri = T[i][np.asarray(valid_t[i], bool)]
+        V = np.ascontiguousarray(tri.reshape(-1, 3))
+        idx = np.arange(len(V), dtype=np.int64).reshape(-1, 3)
+        out[i] = parity_inside(np.asarray(p[i], float), V, idx, 0, len(idx), eps)
+    return out
+
+
+@collider((MESH, SPHERE))
+@njit
+def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                out_i, out_f):
+    """Triangle mesh A against sphere B: the nearest triangle; a centre inside is penetrating by
+    the distance to the surface."""
+    V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        sa, sb = shape_of[a[i]], shape_of[b[i]]
+        cb, rb = pos[b[i]], sf[sb, SF_RADIUS]
+        world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pos[a[i]], R[a[i]], V)
+        t0, nt = si[sa, SI_T0], si[sa, SI_NT]
+        j, qb, dist = nearest_triangle(V, tris, t0, nt, cb)
+        sgn = -1.0 if inside_mesh(cb, V, tris, t0, nt, si[sa, SI_CLOSED] != 0, qb, j) else 1.0
+        sep = sgn * dist - rb
+        if sep > margin:
+            continue
+        if dist > TOUCH_TOLERANCE * min(sf[sa, SF_SCALE], rb):
+            normal = sgn * (qb - cb) / dist
+        else:
+            tn = tri_normal(V, tris, t0 + j)
+            normal = -tn / norm(tn)
+        depth = -sep
+        k = put(out_i, out_f, k, i, cb + normal * (rb - 0.5 * depth), normal, depth, F_SPHERE,
+                fid(FID_POINT, 0, 0, 0))
+    return k
+
+
+@njit
+def _crossings(VX, EX, NY, dY, npl, facesY, loops, VY, sgn, tag, P, Nn, D, F, I, c, eps=1e-12):
+    """Every crossing of an edge of X through a face polygon of Y as a candidate (point, the face
+    normal times ``sgn``, depth = the shallower endpoint's distance to the face plane)."""
+    for e in range(EX.shape[0]):
+        i0, i1 = EX[e, 0], EX[e, 1]
+        for p in range(npl):
+            s0, s1 = dotr(NY, p, VX, i0) - dY[p], dotr(NY, p, VX, i1) - dY[p]
+            if not s0 * s1 < 0:
+                continue
+            t = s0 / (s0 - s1)
+            x = VX[i0, 0] + t * (VX[i1, 0] - VX[i0, 0])
+            y = VX[i0, 1] + t * (VX[i1, 1] - VX[i0, 1])
+            z = VX[i0, 2] + t * (VX[i1, 2] - VX[i0, 2])
+            if c < P.shape[0] and inside_loop(NY, p, VY, loops, facesY[p, 0], facesY[p, 1], x, y, z, eps):
+                P[c, 0], P[c, 1], P[c, 2] = x, y, z
+                for j in range(3):
+                    Nn[c, j] = sgn * NY[p, j]
+                D[c], F[c], I[c] = min(abs(s0), abs(s1)), F_EDGE, fid(FID_CROSSING, e, p, tag)
+                c += 1
+    return c
+
+
+@collider((MESH, BOX), (MESH, CONVEX))
+@njit
+def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+              out_i, out_f):
+    """Triangle mesh A against convex polyhedron B, in the lecture's order: mesh vertices inside B
+    (inside every face plane; depth from the nearest face plane), B's vertices inside the mesh or
+    within the margin of it (depth = distance to the nearest triangle), and for pairs with neither
+    an edge of one crossing a face of the other (depth = the shallower endpoint's distance to the
+    face plane: an estimate, not an exact penetration depth). At most 4 per pair."""
+    nv, npl = col_max(si, SI_NV, shape_of, a, b), col_max(si, SI_NP, shape_of, a, b)
+    VM, VP = np.empty((nv, 3)), np.empty((nv, 3))
+    NM, NP = np.empty((npl, 3)), np.empty((npl, 3))
+    dM, dP = np.empty(npl), np.empty(npl)
+    # candidates of a pair: every vertex of both, and up to 4096 edge-face crossings (more are
+    # dropped: reduced to 4 anyway, and a pair only gets there when no vertex settled it)
+    cap = 2 * nv + 4096
+    P, Nn, D = np.empty((cap, 3)), np.empty((cap, 3)), np.empty(cap)
+    F, I = np.empty(cap, np.int64), np.empty(cap, np.int64)
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        sm, sp = shape_of[a[i]], shape_of[b[i]]
+        world_poly(verts, planes, si, sm, pos[a[i]], R[a[i]], VM, NM, dM)
+        world_poly(verts, planes, si, sp, pos[b[i]], R[b[i]], VP, NP, dP)
+        nvm, nvp, npm, npp = si[sm, SI_NV], si[sp, SI_NV], si[sm, SI_NP], si[sp, SI_NP]
+        t0, nt, closed = si[sm, SI_T0], si[sm, SI_NT], si[sm, SI_CLOSED] != 0
+        touch_tol = TOUCH_TOLERANCE * min(sf[sm, SF_SCALE], sf[sp, SF_SCALE])
+        c = np.int64(0)
+        for v in range(nvm):       # (b) mesh vertices against the polyhedron's planes
+            m, pm = -np.inf, 0
+            for p in range(npp):
+                x = dot(NP[p], VM[v]) - dP[p]
+                if x > m:
+                    m, pm = x, p
+            if m <= margin:
+                for j in range(3):
+                    P[c, j], Nn[c, j] = VM[v, j] - 0.5 * m * NP[pm, j], NP[pm, j]
+                D[c], F[c], I[c] = -m, F_VERTEX, fid(FID_POLY_VERTEX, v, pm, 0)
+                c += 1
+        for u in range(nvp):       # (a) polyhedron vertices against the mesh triangles
+            j, qb, dist = nearest_triangle(VM, tris, t0, nt, VP[u])
+            inside = inside_mesh(VP[u], VM, tris, t0, nt, closed, qb, j)
+            sep = -dist if inside else dist
+            if sep > margin:
+                continue
+            if dist > touch_tol:
+                dirn = (VP[u] - qb) / (dist if dist > 0 else 1.0)
+                na = dirn if inside else -dirn
+            else:
+                tn = tri_normal(VM, tris, t0 + j)
+                na = -tn / norm(tn)
+            for jj in range(3):
+                P[c, jj], Nn[c, jj] = VP[u, jj] - 0.5 * sep * na[jj], na[jj]
+            D[c], F[c], I[c] = -sep, F_VERTEX, fid(FID_MESH_VERTEX, u, j, 0)
+            c += 1
+        if c:
+            counters[0] += 1
+        else:                      # (c) edge-face for the pairs no vertex settled
+            counters[1] += 1
+            fM = faces[si[sm, SI_P0]:si[sm, SI_P0] + npm]
+            fP = faces[si[sp, SI_P0]:si[sp, SI_P0] + npp]
+            EM = edges[si[sm, SI_E0]:si[sm, SI_E0] + si[sm, SI_NE]]
+            EP = edges[si[sp, SI_E0]:si[sp, SI_E0] + si[sp, SI_NE]]
+            # an edge of B through a face of A: push A along its face normal; and the reverse
+            c = _crossings(VP, EP, NM, dM, npm, fM, loops, VM, 1.0, 0, P, Nn, D, F, I, c)
+            c = _crossings(VM, EM, NP, dP, npp, fP, loops, VP, -1.0, 1, P, Nn, D, F, I, c)
+            counters[2] += c > 0
+        if c <= 4:
+            for r in range(c):
+                k = put(out_i, out_f, k, i, P[r], Nn[r], D[r], F[r], I[r])
+            continue
+        # at most 4: the deepest points, spread as reduce4 does (in order of depth)
+        order = np.arange(c)
+        for r in range(1, c):     # stable insertion sort, deepest first
+            o, j = order[r], r - 1
+            while j >= 0 and D[order[j]] < D[o]:
+                order[j + 1] = order[j]
+                j -= 1
+            order[j + 1] = o
+        ps, ds = P[order], D[order]
+        keep = np.empty(c, np.bool_)
+        reduce4(ps, ds, np.ones(c, np.bool_), Nn[order[0]], keep)
+        for r in range(c):
+            if keep[r]:
+                o = order[r]
+                k = put(out_i, out_f, k, i, P[o], Nn[o], D[o], F[o], I[o])
+    return k

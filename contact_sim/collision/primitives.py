@@ -1,0 +1,179 @@
+"""Narrow-phase kernels of pairs with a sphere or a plane: exact closest points.
+
+Every kernel has the one signature of ``dispatch.KERNEL_ARGS``: the geometry table's arrays, the
+pairs ``a, b (K,)`` (body indices, kernel A of the higher rank), body poses ``pos (N, 3)``,
+``R (N, 3, 3)``, the margin, ``counters (3,)``, and the output rows ``out_i (4K, 3)``,
+``out_f (4K, 7)`` (``manifold.put``); it returns the number of rows written. A pair is reported
+when its separation is <= margin, with ``depth = -separation`` and the point half-way between the
+two surfaces along the normal (so swapping A and B keeps it).
+"""
+import numpy as np
+
+from ..contacts import FID_PLANE, FID_POINT, fid
+from ..jit import njit
+from .dispatch import collider
+from .geometry import BOX, CONVEX, MESH, PLANE, SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
+    SI_V0, SPHERE
+from .manifold import F_PLANE, F_SPHERE, put, reduce4
+from .vec3 import col_max, closest_on_triangle, dot, mtv, mv, transform_rows
+
+
+@njit
+def plane_world(sf, s, p, R):
+    """World normal ``(3,)`` and offset of plane shape ``s`` carried by ``p (3,)``, ``R (3, 3)``."""
+    n = mv(R, sf[s, SF_PLANE:SF_PLANE + 3])
+    return n, sf[s, SF_PLANE + 3] + dot(n, p)
+
+
+@njit
+def sphere_row(out_i, out_f, k, pair, sep, normal, cb, rb, margin):
+    """The one contact of a pair with a sphere B (centre ``cb``, radius ``rb``) at ``sep``."""
+    if sep > margin:
+        return k
+    depth = -sep
+    return put(out_i, out_f, k, pair, cb + normal * (rb - 0.5 * depth), normal, depth, F_SPHERE, fid(FID_POINT, 0, 0, 0))
+
+
+@collider((SPHERE, PLANE))
+@njit
+def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                 out_i, out_f):
+    """Sphere A against plane B: the true signed distance, one contact."""
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        sa = shape_of[a[i]]
+        nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
+        ra = sf[sa, SF_RADIUS]
+        ca = pos[a[i]]
+        sep = dot(nb, ca) - ra - db
+        if sep <= margin:
+            depth = -sep
+            k = put(out_i, out_f, k, i, ca - nb * (ra - 0.5 * depth), nb, depth, F_PLANE, fid(FID_POINT, 0, 0, 0))
+    return k
+
+
+@collider((SPHERE, SPHERE))
+@njit
+def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                  out_i, out_f):
+    """Sphere A against sphere B (concentric: the normal is +z, any direction being right)."""
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
+        d = pos[a[i]] - pos[b[i]]
+        dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        n = d / dist if dist > 1e-300 else np.array([0.0, 0.0, 1.0])
+        k = sphere_row(out_i, out_f, k, i, dist - ra - rb, n, pos[b[i]], rb, margin)
+    return k
+
+
+@collider((BOX, SPHERE))
+@njit
+def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+               out_i, out_f):
+    """Box A against sphere B: clamp the centre into the box; a centre inside exits by the nearest face."""
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        sa, sb = shape_of[a[i]], shape_of[b[i]]
+        h = sf[sa, SF_HALF:SF_HALF + 3]
+        Ra, cb, rb = R[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
+        q = mtv(Ra, cb - pos[a[i]])
+        d = np.empty(3)
+        for j in range(3):
+            d[j] = q[j] - min(max(q[j], -h[j]), h[j])
+        dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if dist <= 0.0:
+            ax, gap = 0, h[0] - abs(q[0])
+            for j in range(1, 3):
+                g = h[j] - abs(q[j])
+                if g < gap:
+                    ax, gap = j, g
+            out = np.zeros(3)
+            out[ax] = 1.0 if q[ax] >= 0 else -1.0
+            sep = -gap - rb
+        else:
+            out = d / dist
+            sep = dist - rb
+        k = sphere_row(out_i, out_f, k, i, sep, -mv(Ra, out), cb, rb, margin)
+    return k
+
+
+@njit
+def world_verts(verts, v0, nv, p, R, out):
+    """``out[:nv]`` = vertices ``v0 .. v0 + nv`` carried by ``p (3,)``, ``R (3, 3)``."""
+    transform_rows(verts[v0:v0 + nv], p, R, out, nv)
+
+
+@njit
+def nearest_triangle(V, tris, t0, nt, c):
+    """``(index, closest point (3,), distance)`` of the triangle nearest ``c`` (world vertices ``V``)."""
+    best, j, bx, by, bz = np.inf, 0, 0.0, 0.0, 0.0
+    cx, cy, cz = c[0], c[1], c[2]
+    for t in range(nt):
+        qx, qy, qz = closest_on_triangle(cx, cy, cz, V, tris[t0 + t, 0], tris[t0 + t, 1], tris[t0 + t, 2])
+        dd = np.sqrt((qx - cx) ** 2 + (qy - cy) ** 2 + (qz - cz) ** 2)
+        if dd < best:
+            best, j, bx, by, bz = dd, t, qx, qy, qz
+    return j, np.array([bx, by, bz]), best
+
+
+@collider((BOX, PLANE), (CONVEX, PLANE), (MESH, PLANE))
+@njit
+def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+               out_i, out_f):
+    """Polyhedron or mesh A against plane B: every vertex within the margin is a candidate; a
+    resting face keeps at most 4 of them, spanning the patch."""
+    nmax = col_max(si, SI_NV, shape_of, a, b)
+    pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        sa = shape_of[a[i]]
+        nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
+        v0, nv = si[sa, SI_V0], si[sa, SI_NV]
+        Ra, pa = R[a[i]], pos[a[i]]
+        hit = False
+        transform_rows(verts[v0:v0 + nv], pa, Ra, pts, nv)
+        for v in range(nv):
+            sep = dot(pts[v], nb) - db
+            val[v] = sep <= margin
+            hit |= val[v]
+            for j in range(3):
+                pts[v, j] -= 0.5 * sep * nb[j]
+            dep[v] = -sep
+        if not hit:
+            continue
+        reduce4(pts[:nv], dep[:nv], val[:nv], nb, keep[:nv])
+        for v in range(nv):
+            if keep[v]:
+                k = put(out_i, out_f, k, i, pts[v], nb, dep[v], F_PLANE, fid(FID_PLANE, v, 0, 0))
+    return k
+
+
+@collider((CONVEX, SPHERE))
+@njit
+def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+                out_i, out_f):
+    """Convex polyhedron A against sphere B: the exact distance from the centre to the nearest
+    triangle; a centre inside exits through the nearest face plane."""
+    V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
+    k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    for i in range(a.shape[0]):
+        sa, sb = shape_of[a[i]], shape_of[b[i]]
+        Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
+        world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pa, Ra, V)
+        j, qb, dist = nearest_triangle(V, tris, si[sa, SI_T0], si[sa, SI_NT], cb)
+        p0, m, fp = si[sa, SI_P0], -np.inf, 0
+        for p in range(si[sa, SI_NP]):
+            n = planes[p0 + p]
+            nx = Ra[0, 0] * n[0] + Ra[0, 1] * n[1] + Ra[0, 2] * n[2]
+            ny = Ra[1, 0] * n[0] + Ra[1, 1] * n[1] + Ra[1, 2] * n[2]
+            nz = Ra[2, 0] * n[0] + Ra[2, 1] * n[1] + Ra[2, 2] * n[2]
+            s = nx * cb[0] + ny * cb[1] + nz * cb[2] - (n[3] + (nx * pa[0] + ny * pa[1] + nz * pa[2]))
+            if s > m:
+                m, fp = s, p
+        fn = mv(Ra, planes[p0 + fp, :3])
+        inside = m <= 0
+        sep = (m if inside else dist) - rb
+        normal = -fn if (inside or dist <= 1e-300) else (qb - cb) / dist
+        k = sphere_row(out_i, out_f, k, i, sep, normal, cb, rb, margin)
+    return k
