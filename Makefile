@@ -42,10 +42,10 @@ stability: $(STAMP)
 fuzz: $(STAMP)
 	$(PY) -m pytest -q -m fuzz -p no:cacheprovider $(ARGS)
 
-# every benchmark in bench/ (tables on stdout, CSV/PNG in bench/results/; pybullet is the
-# reference), the hard cases' measured figures, then the README's "Measured results" block
+# every benchmark in bench/ (tables on stdout, CSV/PNG in bench/results/; pybullet and MuJoCo are
+# the references), the hard cases' measured figures, then the README's "Measured results" block
 bench: $(STAMP)
-	$(PY) -m pip install --quiet pybullet $(QUIET)
+	$(PY) -m pip install --quiet pybullet mujoco $(QUIET)
 	$(PY) bench/bench_detect.py
 	$(PY) bench/bench_response.py
 	$(PY) bench/bench_accuracy.py

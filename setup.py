@@ -54,7 +54,7 @@ setup(
         # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
         "plot": ["matplotlib>=3.6"],
         "test": ["pytest>=7", "pytest-timeout>=2.1", "hypothesis>=6.100", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
-        "bench": ["matplotlib>=3.6", "python-fcl>=0.7", "pybullet>=3.2"],
+        "bench": ["matplotlib>=3.6", "python-fcl>=0.7", "pybullet>=3.2", "mujoco>=3.0"],
     },
     zip_safe=True,
     maintainer="contact_sim developers",

@@ -62,16 +62,31 @@ def detection():
 
 
 def response():
-    r = rows("response.csv")
+    r = rows("response_peers.csv")
     if not r:
         return []
-    out = ["### Contact response (`bench/bench_response.py`)", "",
-           "| scene | bodies | wall s per simulated s | contacts per step | solver iterations | max penetration mm |",
-           "|---|---|---|---|---|---|"]
+    out = ["### Contact response against pybullet and MuJoCo (`bench/bench_response.py`)", "",
+           "Each scene built from one description in every engine, stepped in one process with the engines "
+           "taking turns (chunks of the same simulated interval, order rotated); ratio = contact_sim's time ÷ the "
+           "peer's (> 1: contact_sim slower). Penetration, escapes and drift are computed from each engine's "
+           "final poses in numpy, the same way for all. Scene specifications: the docstring of "
+           "`bench/bench_response.py`.", "",
+           "| scene | engine | wall s per simulated s | step ms (median) | ratio | final max penetration mm | "
+           "escaped | top drift mm | contact_sim detection / rest of step ms |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for x in r:
-        out.append(f"| {x['scene']} | {x['bodies']} | {f(x['wall_s_per_sim_s'], '.2f')} | "
-                   f"{f(x['contacts_per_step'], '.0f')} | {f(x['solver_iterations_mean'], '.1f')} | "
-                   f"{f(x['max_penetration_mm'], '.3g')} |")
+        ratio = f"{f(x['ratio'], '.3g')} ({x['ratio_meaning']})" if x.get("ratio") else ""
+        split = (f"{f(x['detect_ms'], '.3f')} / {f(x['rest_ms'], '.3f')}" if x.get("detect_ms") else "")
+        out.append(f"| {x['scene']} | {x['engine']} | {f(x['wall_s_per_sim_s'], '.3g')} | {f(x['step_ms'], '.3g')} | "
+                   f"{ratio} | {f(x['max_penetration_mm'], '.3g')} | {x['escaped'] or '–'} | "
+                   f"{f(x['top_drift_mm'], '.3g')} | {split or '–'} |")
+    out += ["", "Settings each engine ran with:", ""]
+    scenes = {}
+    for x in r:   # one line per engine and settings, naming the scenes that ran with them
+        scenes.setdefault((x["engine"], x["settings"]), []).append(x["scene"])
+    out += [f"- {e} ({', '.join(dict.fromkeys(sc))}): {st}" for (e, st), sc in scenes.items()]
+    if os.path.isfile(os.path.join(RESULTS, "response_peers.png")):
+        out += ["", "![response ratios](bench/results/response_peers.png)"]
     return out + [""]
 
 

@@ -1,0 +1,44 @@
+"""Smoke test of the response benchmark (``bench/bench_response.py --quick``): the engines are
+built from one scene description, stepped in turns, measured, and the CSV and chart written.
+It checks the instrument, not the speed (speed is never a test here)."""
+import csv
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def test_quick_run_writes_every_row_for_every_engine(tmp_path):
+    for module in ("pybullet", "mujoco"):
+        pytest.importorskip(module, reason=f"{module} is not installed: the benchmark compares with it "
+                                           f"(pip install '.[bench]', or make bench installs it)")
+    proc = subprocess.run([sys.executable, os.path.join(REPO, "bench", "bench_response.py"), "--quick",
+                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-4000:]
+    with open(tmp_path / "response_peers_quick.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert (tmp_path / "response_peers_quick.png").stat().st_size > 0
+    got = {(r["scene"], r["engine"]) for r in rows}
+    for scene in ("pile_64", "stack_10", "resting_10", "resting_100"):
+        for engine in ("contact_sim", "pybullet", "MuJoCo"):
+            assert (scene, engine) in got
+    assert {("rotation_rod", "contact_sim"), ("rotation_cube", "contact_sim")} <= got
+    for r in rows:
+        time_value = r["wall_s_per_sim_s"] or r["step_ms"]
+        assert float(time_value) > 0, r
+        if r["engine"] != "contact_sim" or r["scene"] == "rotation_rod":
+            assert float(r["ratio"]) > 0 and r["ratio_meaning"], r
+        if not r["scene"].startswith("rotation"):
+            assert math.isfinite(float(r["max_penetration_mm"])), r
+        assert r["settings"], r
+    cs_rest = [r for r in rows if r["scene"] == "resting_10" and r["engine"] == "contact_sim"][0]
+    assert 0 < float(cs_rest["detect_ms"]) and 0 < float(cs_rest["rest_ms"])
+    pile = [r for r in rows if r["scene"] == "pile_64"]
+    assert all(r["escaped"] != "" for r in pile)
+    assert "contact_sim ÷ pybullet" in proc.stdout and "rod ÷ cube" in proc.stdout
