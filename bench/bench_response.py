@@ -270,28 +270,14 @@ def row_rotation(rounds, block):
 
 
 def row_variant(spec, side, seconds, chunk):
-    """contact_sim alone on the pile with the large-set solver forced (``METHOD:ITERATIONS[:COLORING]``,
-    e.g. ``gs:20:luby``, ``jacobi:20``): the speed/penetration trade-off. It sets today's module
-    switches (``stepper.SOLVER_METHOD``, ``solver.COLORING``, ``stepper.IMPACT_COLORING``)."""
-    from contact_sim import stepper
-    from contact_sim.response import solver
-
-    method, iters, *col = spec.split(":")
-    coloring = col[0] if col else "hybrid"
-    if not all(hasattr(m, a) for m, a in ((stepper, "SOLVER_METHOD"), (solver, "COLORING"),
-                                           (stepper, "IMPACT_COLORING"))):
-        raise SystemExit(f"--variants {spec}: this engine version has no module solver switches")
-    old = stepper.SOLVER_METHOD, solver.COLORING, stepper.IMPACT_COLORING
-    stepper.SOLVER_METHOD = method
-    solver.COLORING = "greedy" if coloring == "greedy" else "luby"
-    stepper.IMPACT_COLORING = {"hybrid": "greedy", "luby": None, "greedy": None}[coloring]
-    try:
-        scene = pile_scene(side)
-        scene.contact_sim_settings = {"solver_iterations": int(iters)}
-        scene.name = f"{scene.name}_{method}{iters}_{coloring}"
-        return _variant(scene, seconds, chunk)
-    finally:
-        stepper.SOLVER_METHOD, solver.COLORING, stepper.IMPACT_COLORING = old
+    """contact_sim alone on the pile with the solver forced (``METHOD:ITERATIONS``, e.g. ``gs:20``,
+    ``jacobi:20``): the speed/penetration trade-off, through ``settings.solver_method`` and
+    ``settings.solver_iterations``."""
+    method, iters = spec.split(":")[:2]
+    scene = pile_scene(side)
+    scene.contact_sim_settings = {"solver_iterations": int(iters), "solver_method": method}
+    scene.name = f"{scene.name}_{method}{iters}"
+    return _variant(scene, seconds, chunk)
 
 
 def _variant(scene, seconds, chunk):
@@ -388,7 +374,7 @@ def main(argv=None):
     ap.add_argument("--seconds", type=float, default=None,
                     help="simulated seconds of the pile and the stack (default 2 and 5, as specified)")
     ap.add_argument("--out", default=os.path.join(HERE, "results"), help="folder for the CSV and PNG")
-    ap.add_argument("--variants", nargs="*", default=[], metavar="METHOD:ITERATIONS[:COLORING]",
+    ap.add_argument("--variants", nargs="*", default=[], metavar="METHOD:ITERATIONS",
                     help="extra contact_sim-only runs of the pile with the solver forced, e.g. gs:10 gs:20:luby "
                          "jacobi:20 (colouring hybrid (default), luby or greedy)")
     args = ap.parse_args(argv)

@@ -2,7 +2,8 @@
 import os
 
 from .errors import ContactSimError, SceneError
-from .settings import check_keys, parse_material, parse_settings
+from .settings import parse_material, parse_settings
+from .validate import check_keys
 from .shapes import Box, Convex, Plane, Sphere, TriMesh
 from .validate import POINTS, SCALE
 from .world import World

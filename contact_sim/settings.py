@@ -10,13 +10,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .validate import (LENGTH_LIMIT, Choice, Declared, Nested, Number, Tristate, build, check_keys,  # noqa: F401
-                       declare)
+from .validate import LENGTH_LIMIT, Choice, Declared, Flag, Nested, Number, Tristate, build, declare
 
 TOI_MODES = ("auto", "next_step", "fractional", "swept")
 RESPONSES = ("auto", "kinematic", "penalty", "impulse")
 BOUNDING_VOLUMES = ("auto", "sphere", "aabb", "obb", "slabs", "hull")
 COMBINE_RULES = ("average", "min", "max", "multiply", "geometric")
+SOLVER_METHODS = ("auto", "direct", "gs", "jacobi")
 #: upper bound of the numerical knobs whose exact size does not matter beyond a point: it only
 #: keeps their products finite (a stiffness times a step, a ratio of masses)
 _HUGE = 1e15
@@ -47,6 +47,14 @@ class Settings(Declared):
     solver_iterations: int = declare(100, Number(ge=1, le=100_000, integer=True))
     solver_tolerance: float = declare(1e-9, Number(ge=0, le="max_speed", unit="m/s"),
                                       "m/s: residual at which the solver stops")
+    solver_method: str = declare("auto", Choice(SOLVER_METHODS),
+                                 "auto (exact active set up to 200 contacts, compiled Gauss–Seidel above) | "
+                                 "direct | gs | jacobi (mass splitting)")
+    speculative: bool = declare(True, Flag(), "next_step: speculative contacts (pairs closing within the step "
+                                "are stopped exactly at touching)")
+    split_slop: float = declare(1e-7, Number(ge=0, le="max_size", unit="m"),
+                                "m: penetrations up to this are left to the resting solve (round-off of resting "
+                                "contacts; correcting them costs a whole solve per step)")
     max_impacts_per_step: int = declare(8, Number(ge=1, le=10_000, integer=True),
                                         "fractional time of impact: impacts handled per step")
     contact_margin: float = declare(1e-4, Number(ge=0, le="max_size", unit="m"),

@@ -41,12 +41,6 @@ SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact 
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
-SOLVER_METHOD = "auto"    # direct (small) / jacobi (large); "gs" or "jacobi" force one (benchmarks)
-SPECULATIVE = True        # next_step: speculative contacts (detect ahead by speed × dt, arrive exactly touching)
-SPLIT_SLOP = 1e-7         # m: penetrations up to this are left alone by the split impulse (round-off of
-                          # resting contacts; correcting them costs a whole solve per step)
-IMPACT_COLORING = "greedy"  # colouring of large impact solves (None: solver.COLORING; "greedy": one colour per
-                          # chain link, sweeps that carry an impact down a column within one iteration)
 SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
 
 
@@ -317,7 +311,7 @@ def _impulse_step(world, dt, m):
     drift = 0.0
     rest_bound = 0.0
     world._cs_kick_error = 0.0
-    spec = SPECULATIVE and not exact_toi
+    spec = st.speculative and not exact_toi
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
         c = _detect(world, det_margin)
@@ -378,14 +372,12 @@ def _impulse_step(world, dt, m):
                 bodies0 = np.unique(np.concatenate([c.body_a[ti], c.body_b[ti]]))
                 bodies0 = bodies0[dyn[bodies0]]
                 kinetic0 = _kinetic_energy(world, bodies0)
-                if IMPACT_COLORING is not None and len(ti) > solver.DIRECT_MAX_CONTACTS:
-                    r1._colors = solver.color_contacts(r1.a, r1.b, r1.movable, method=IMPACT_COLORING)
                 # compression: the pairs are stopped (touching) or slowed to arrive touching
                 # (speculative), with friction; inelastic, so it can only take energy away
                 target = np.where(touching[ti], 0.0, spec_target[ti] if spec else 0.0)
                 res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
                                         mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
-                                        tolerance=st.solver_tolerance, method=SOLVER_METHOD)
+                                        tolerance=st.solver_tolerance, method=st.solver_method)
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
@@ -399,7 +391,7 @@ def _impulse_step(world, dt, m):
                     hi = np.flatnonzero(hit)
                     res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],
                                             iterations=st.solver_iterations, tolerance=st.solver_tolerance,
-                                            method=SOLVER_METHOD)
+                                            method=st.solver_method)
                     lam[hi, 0] += res.impulse[:, 0] * _energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
                     iters = max(iters, res.iterations)
                 vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
@@ -431,7 +423,7 @@ def _impulse_step(world, dt, m):
                                      mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
                                         mu_d=mu_d[ri] if fr else None, iterations=st.solver_iterations,
-                                        tolerance=st.solver_tolerance, warm=warm, method=SOLVER_METHOD)
+                                        tolerance=st.solver_tolerance, warm=warm, method=st.solver_method)
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
                 lam2 = np.zeros((k, 3))
@@ -634,9 +626,9 @@ def _move(world, dx, dtheta):
 def _split_impulse(world, c, rows, dt):
     """Pseudo-velocities ``(vp, wp) (N,3)`` removing ``settings.split_beta`` of each penetration over
     ``dt`` (normal rows only, non-negative), or ``None`` when nothing penetrates deeper than
-    ``SPLIT_SLOP``. ``rows`` are the
+    ``settings.split_slop``. ``rows`` are the
     constraint rows of all contacts ``c``; only the penetrating ones take part."""
-    if len(c) == 0 or c.depth.max() <= SPLIT_SLOP:
+    if len(c) == 0 or c.depth.max() <= world.settings.split_slop:
         return None
     pen = np.flatnonzero(c.depth > 0)
     if pen.size == 0:
@@ -645,7 +637,7 @@ def _split_impulse(world, c, rows, dt):
     wp = np.zeros_like(world.s.omega)
     st = world.settings
     solver.solve_auto(rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / dt,
-                      iterations=st.solver_iterations, tolerance=st.solver_tolerance, method=SOLVER_METHOD)
+                      iterations=st.solver_iterations, tolerance=st.solver_tolerance, method=st.solver_method)
     return vp, wp
 
 

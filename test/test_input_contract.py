@@ -15,7 +15,7 @@ from contact_sim.collision import collide_pairs
 from contact_sim.response.models import ContactModelWarning
 from contact_sim.settings import Penalty
 from contact_sim.shapes import Shape
-from contact_sim.validate import Declared, Tristate
+from contact_sim.validate import Declared, Flag, Tristate
 
 pytestmark = pytest.mark.timeout(20)
 
@@ -118,7 +118,7 @@ def _ok(*kinds):
     return frozenset(kinds)
 
 
-ZERO_OK_SETTINGS = {"solver_tolerance", "contact_margin", "split_beta"}
+ZERO_OK_SETTINGS = {"solver_tolerance", "contact_margin", "split_beta", "split_slop"}
 
 
 def _shape_then_add(make, kind="dynamic"):
@@ -132,7 +132,7 @@ def _table():
     t = []
     # --- Settings, Penalty, Material: constructor and later assignment, every declared field
     for name, rule in cs.Settings.rules().items():
-        ok = _ok("0") if name in ZERO_OK_SETTINGS else _ok("bool") if isinstance(rule, Tristate) else _ok()
+        ok = _ok("0") if name in ZERO_OK_SETTINGS else _ok("bool") if isinstance(rule, (Tristate, Flag)) else _ok()
         t.append(Arg(f"Settings({name}=)", scalar_junk(), lambda w, v, n=name: cs.Settings(**{n: v}),
                      (f"settings.{name}",), ok, world=False))
         t.append(Arg(f"world.settings.{name} =", scalar_junk(), lambda w, v, n=name: setattr(w.settings, n, v),

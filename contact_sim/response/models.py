@@ -108,8 +108,6 @@ def choose(world, dt=None):
     time of impact, on whether a body is thin-and-fast this step; it is cached on the world and
     recomputed when any of these changes (the velocity test runs every call). Treat the returned
     ``Models`` as read-only."""
-    from .. import stepper
-
     st = world.settings
     dt = st.dt if dt is None else dt
     fast = thin_and_fast(world, dt) if st.toi == "auto" else []
@@ -117,7 +115,7 @@ def choose(world, dt=None):
         return _choose(world, dt, fast)
     return derived(world, "models", _body_deps(world) + (world.friction, world.restitution, world.particle),
                    lambda: _choose(world, dt, fast),
-                   key=(dt, st.toi, st.response, st.friction, st.resting, stepper.SPECULATIVE,
+                   key=(dt, st.toi, st.response, st.friction, st.resting, st.speculative,
                         world.kind.tobytes()))
 
 
@@ -178,9 +176,7 @@ def _choose(world, dt, fast):
         reasons.append("penalty forces act on penetration: time of impact is handled at the next step")
         toi = "next_step"
     if toi == "next_step" and response != "penalty":
-        from .. import stepper
-
-        if stepper.SPECULATIVE:
+        if st.speculative:
             reasons.append("speculative contacts on (next_step): pairs that can close within a step (look-ahead "
                            "2·speed·dt, at most half the thinnest body) are slowed to arrive exactly touching")
     # resting

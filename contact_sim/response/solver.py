@@ -1,9 +1,10 @@
 """Contact impulse solver: a pure function of body arrays and contact arrays.
 
-Everything here is vectorised over contacts. The only Python loops are over solver iterations and
-over the colours of a graph colouring of the contacts: contacts of one colour share no movable
-(dynamic) body, so they are updated together in one batched step and the sweep is exactly a
-projected Gauss–Seidel sweep (each colour sees the velocities the previous colours produced).
+Rows are built vectorised over contacts; the exact active-set solve (up to ``DIRECT_MAX_CONTACTS``
+contacts) is dense or sparse linear algebra; projected Gauss–Seidel, for larger systems and as the
+active set's fallback, is a compiled sequential loop over the contacts (``pgs.sweeps``). It
+replaced a graph-coloured, vectorised sweep: compiled and sequential, each contact sees every
+impulse before it, and the 1000-sphere pile's step went from 1.3 s to 0.12 s.
 
 Notation (shapes): ``N`` bodies, ``K`` contacts. Body arrays: ``vel (N,3)``, ``omega (N,3)``,
 ``inv_mass (N,)``, ``inv_inertia (N,3,3)`` world frame (zero for particles/static/kinematic).
@@ -27,6 +28,7 @@ import numpy as np
 
 from ..vec import cross
 from ..vec import dot as _dot
+from . import pgs
 
 _TINY = 1e-300
 
@@ -47,77 +49,6 @@ def tangent_basis(normal, hint=None):
     t1 /= np.sqrt(_dot(t1, t1))[:, None]
     t2 = cross(normal, t1)
     return t1, t2
-
-
-COLOR_SEED = 0x9E3779B1   # multiplicative hash of the contact index: a fixed pseudo-random priority
-COLORING = "luby"         # "luby": maximal independent sets (few colours); "greedy": one contact per body per
-                          # round in index order (a column gets one colour per link: slower sweeps that
-                          # propagate along chains within one sweep)
-
-
-def color_contacts_greedy(a, b, movable):
-    """The index-ordered colouring: each round keeps, for every movable body, its lowest-numbered
-    uncoloured contact; a contact joins when it is the one kept by each of its movable bodies."""
-    remaining = np.arange(len(a))
-    colors = []
-    n = len(movable)
-    while remaining.size:
-        ra, rb = a[remaining], b[remaining]
-        pos = np.arange(remaining.size)
-        best = np.full(n, remaining.size)
-        ma, mb = movable[ra], movable[rb]
-        np.minimum.at(best, ra[ma], pos[ma])
-        np.minimum.at(best, rb[mb], pos[mb])
-        ok = (~ma | (best[ra] == pos)) & (~mb | (best[rb] == pos))
-        colors.append(remaining[ok])
-        remaining = remaining[~ok]
-    return colors
-
-
-def color_contacts(a, b, movable, method=None):
-    """Partition contacts into colours no two of which share a movable body.
-
-    ``a, b (K,) int``; ``movable (N,) bool``. Returns a list of index arrays covering ``range(K)``.
-    Each colour is a maximal independent set built by vectorised Luby rounds: a candidate joins when
-    it has the smallest priority (a fixed hash of its index) among the candidates at each of its
-    movable bodies; its bodies are then taken and the candidates touching them leave the round.
-    Chains (columns, stacks) get 2–3 colours instead of one colour per link, which is what an
-    index-ordered greedy rule gives them.
-    """
-    if (method or COLORING) == "greedy":
-        return color_contacts_greedy(a, b, movable)
-    k = len(a)
-    n = len(movable)
-    prio = (np.arange(k, dtype=np.uint64) * np.uint64(COLOR_SEED)) % np.uint64(2 ** 32)
-    order = np.argsort(prio, kind="stable")
-    rank = np.empty(k, np.int64)
-    rank[order] = np.arange(k)
-    ma_all, mb_all = movable[a], movable[b]
-    remaining = np.arange(k)
-    colors = []
-    while remaining.size:
-        color = []
-        cand = remaining
-        taken = np.zeros(n, bool)
-        while cand.size:
-            ra, rb, rk = a[cand], b[cand], rank[cand]
-            ma, mb = ma_all[cand], mb_all[cand]
-            best = np.full(n, k)
-            np.minimum.at(best, ra[ma], rk[ma])
-            np.minimum.at(best, rb[mb], rk[mb])
-            ok = (~ma | (best[ra] == rk)) & (~mb | (best[rb] == rk))
-            pick = cand[ok]
-            color.append(pick)
-            taken[a[pick][ma_all[pick]]] = True
-            taken[b[pick][mb_all[pick]]] = True
-            rest = cand[~ok]
-            cand = rest[~((ma_all[rest] & taken[a[rest]]) | (mb_all[rest] & taken[b[rest]]))]
-        color = np.sort(np.concatenate(color))
-        colors.append(color)
-        used = np.zeros(k, bool)
-        used[color] = True
-        remaining = remaining[~used[remaining]]
-    return colors
 
 
 @dataclass
@@ -141,14 +72,6 @@ class Rows:
     K: np.ndarray       # (K, 3, 3) effective inverse mass in the (n, t1, t2) basis
     dirs: np.ndarray    # (K, 3, 3) the directions n, t1, t2 as rows
     movable: np.ndarray  # (N,) bool: bodies whose velocity the solver changes
-    _colors: list = None
-
-    @property
-    def colors(self):
-        """Graph colouring of the contacts (list of index arrays), computed on first use."""
-        if self._colors is None:
-            self._colors = color_contacts(self.a, self.b, self.movable)
-        return self._colors
 
     def __len__(self):
         return len(self.a)
@@ -212,7 +135,7 @@ def row_velocity(rows, vel, omega, idx=slice(None)):
 
 def apply(rows, vel, omega, lam, idx=slice(None), unique=False):
     """Apply impulses ``lam (k,3)`` (n, t1, t2 components, on A; −on B) to the velocity arrays in
-    place. Within one colour (an index array ``idx``), or when ``unique`` says so, no movable body
+    place. When ``unique`` says so (or for an index array ``idx``), no movable body
     repeats, so plain fancy indexing is exact (a repeated static or kinematic body gets zero from
     every contact); otherwise the contributions are accumulated."""
     a, b = rows.a[idx], rows.b[idx]
@@ -240,64 +163,43 @@ class SolveResult:
 
 def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
           compliance=None):
-    """Projected Gauss–Seidel over coloured contacts, updating ``vel, omega (N,3)`` in place.
+    """Projected Gauss–Seidel, sequential over the contacts in a compiled loop (``pgs.sweeps``),
+    updating ``vel, omega (N,3)`` in place.
 
     Normal row: ``n·v_rel ≥ target_n`` with a non-negative impulse (complementarity: zero impulse
     where the row is satisfied, i.e. separating).
     Friction rows (when ``mu_s``/``mu_d (K,)`` are given): tangential relative velocity driven to
     zero by a 2-D impulse kept in the cone: if the sticking impulse is within ``mu_s·λn`` it is
-    taken, otherwise it is scaled to ``mu_d·λn`` (kinetic friction). ``warm (K,3)`` starting
-    impulses (applied first). ``compliance (K,)`` softens the normal rows to
-    ``n·v_rel + compliance·λn ≥ target_n`` (the implicit spring–damper of the penalty response).
-    Returns ``SolveResult``.
+    taken, otherwise the impulse on the kinetic disc ``mu_d·λn`` nearest to it in the contact's
+    metric (kinetic friction, maximal dissipation). ``warm (K,3)`` starting impulses (applied
+    first). ``compliance (K,)`` softens the normal rows to ``n·v_rel + compliance·λn ≥ target_n``
+    (the implicit spring–damper of the penalty response). Sweeps stop when no impulse changed by
+    more than ``tolerance`` (N·s) or after ``iterations``. Returns ``SolveResult``.
     """
     k = len(rows.a)
-    lam = np.zeros((k, 3)) if warm is None else warm.copy()
+    lam = np.zeros((k, 3)) if warm is None else np.array(warm, dtype=float)
     if k == 0:
         return SolveResult(lam, 0, 0.0)
     if warm is not None and np.any(warm):
         apply(rows, vel, omega, lam)
-    friction = mu_s is not None and np.any(mu_s > 0)
-    comp = np.zeros(k) if compliance is None else compliance
-    kn = rows.K[:, 0, 0] + comp
-    inv_kn = np.where(kn > 0, 1.0 / np.maximum(kn, _TINY), 0.0)
-    inv_kt = _inv2(rows.K[:, 1:, 1:]) if friction else None
-    # gather each colour's rows once (the sweep below then only does small dense products on the
-    # stacked body velocities vw = [v, ω] (N,6): one gather and one scatter per side)
-    dirs = rows.dirs
-    ja = np.concatenate([dirs, rows.ang_a], axis=2)                       # (K,3,6)
-    jb = np.concatenate([dirs, rows.ang_b], axis=2)
-    dt_ = dirs.transpose(0, 2, 1)
-    wa = np.concatenate([rows.ima[:, None, None] * dt_, rows.iang_a.transpose(0, 2, 1)], axis=1)   # (K,6,3)
-    wb = np.concatenate([rows.imb[:, None, None] * dt_, rows.iang_b.transpose(0, 2, 1)], axis=1)
-    cols = []
-    for idx in rows.colors:   # a few colours
-        cols.append((idx, rows.a[idx], rows.b[idx], ja[idx], jb[idx], wa[idx], wb[idx],
-                     target_n[idx], inv_kn[idx], rows.K[idx],
-                     inv_kt[idx] if friction else None, mu_s[idx] if friction else None,
-                     mu_d[idx] if friction else None, comp[idx], lam[idx]))
-    vw = np.concatenate([vel, omega], axis=1)
-    residual = 0.0
-    it = 0
-    for it in range(1, iterations + 1):
-        residual = 0.0
-        for (idx, a, b, jca, jcb, wca, wcb, tn, ikn, kk, ikt, mus, mud, cp, old) in cols:
-            rv = (jca @ vw[a][:, :, None] - jcb @ vw[b][:, :, None])[:, :, 0]
-            new = _project_row(old, rv, tn - cp * old[:, 0], ikn, kk, ikt, mus, mud)
-            delta = new - old
-            old[...] = new
-            dl = delta[:, :, None]
-            vw[a] += (wca @ dl)[:, :, 0]
-            vw[b] -= (wcb @ dl)[:, :, 0]
-            if delta.size:
-                residual = max(residual, float(np.abs(delta).max()))
-        if residual <= tolerance:
-            break
-    for c in cols:
-        lam[c[0]] = c[-1]
-    vel[...] = vw[:, :3]
-    omega[...] = vw[:, 3:]
-    return SolveResult(lam, it, residual)
+    friction = mu_s is not None and bool(np.any(mu_s > 0))
+    zeros = np.zeros(k)
+    comp = zeros if compliance is None else np.ascontiguousarray(compliance, dtype=float)
+    mus = np.ascontiguousarray(mu_s, dtype=float) if friction else zeros
+    mud = np.ascontiguousarray(mu_d, dtype=float) if friction else zeros
+    # the kernel writes the velocity arrays in place: contiguous float64 views of the caller's
+    v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
+    w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
+    c = np.ascontiguousarray
+    it, residual = pgs.sweeps(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs), c(rows.ang_a),
+                              c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
+                              c(rows.imb, dtype=float), c(rows.K), c(target_n, dtype=float), comp, mus, mud,
+                              friction, lam, v, w, int(iterations), float(tolerance))
+    if v is not vel:
+        vel[...] = v
+    if w is not omega:
+        omega[...] = w
+    return SolveResult(lam, int(it), float(residual))
 
 
 # ---------------------------------------------------------------------------- shared row algebra
@@ -719,7 +621,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
                method="auto"):
     """Contact impulses by the best method for the size: ``direct`` (active set, exact) up to
     ``DIRECT_MAX_CONTACTS`` contacts, finished by Gauss–Seidel when friction slides; ``jacobi``
-    (mass splitting) or ``gs`` (coloured Gauss–Seidel) above. Same result type as ``solve``.
+    (mass splitting) or ``gs`` (compiled sequential Gauss–Seidel) above. Same result type as ``solve``.
 
     Contacts between two bodies that cannot move (a kinematic robot link pressed into a static
     floor) are reported by detection but carry no impulse: nothing can respond, and their rows
@@ -770,7 +672,7 @@ def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, toleran
     """Frictionless contacts with compliant normal rows, updating ``vel, omega (N,3)`` in place:
     ``n·v_rel + compliance·λn ≥ target_n ⟂ λn ≥ 0`` (``compliance, target_n (K,)``). This is the
     implicit (backward Euler) spring–damper of the penalty response, stable at any stiffness.
-    Exact active set on ``A + diag(compliance)`` up to ``DIRECT_MAX_CONTACTS`` contacts, coloured
+    Exact active set on ``A + diag(compliance)`` up to ``DIRECT_MAX_CONTACTS`` contacts, compiled
     Gauss–Seidel above (the compliance only improves its conditioning)."""
     k = len(rows.a)
     live = rows.movable[rows.a] | rows.movable[rows.b]

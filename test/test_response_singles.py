@@ -1,52 +1,8 @@
-"""Graph colouring of contacts for the coloured Gauss–Seidel sweep, and the batched single-contact
-path of the direct solver."""
+"""The batched single-contact path of the direct solver."""
 import numpy as np
 import pytest
 
 from contact_sim.response import solver
-
-
-def _check_valid(a, b, movable, colors):
-    assert sorted(np.concatenate(colors).tolist()) == list(range(len(a)))
-    for c in colors:
-        bodies = np.concatenate([a[c][movable[a[c]]], b[c][movable[b[c]]]])
-        assert len(np.unique(bodies)) == len(bodies)     # no movable body twice in a colour
-
-
-def test_columns_get_few_colours():
-    """100 columns of 10 spheres on the ground: every link shares a body with its neighbours, so
-    two colours would do; the colouring stays at most three (not one per link)."""
-    cols, height = 100, 10
-    a, b = [], []
-    n = 1 + cols * height           # body 0 the ground (static)
-    for c in range(cols):
-        base = 1 + c * height
-        a.append(base), b.append(0)
-        for k in range(height - 1):
-            a.append(base + k + 1), b.append(base + k)
-    a, b = np.array(a), np.array(b)
-    movable = np.ones(n, bool)
-    movable[0] = False
-    colors = solver.color_contacts(a, b, movable)
-    _check_valid(a, b, movable, colors)
-    assert len(colors) <= 3
-
-
-def test_random_graph_colouring_is_valid_and_maximal():
-    rng = np.random.default_rng(3)
-    n, k = 200, 1500
-    a, b = rng.integers(0, n, k), rng.integers(0, n, k)
-    b = np.where(a == b, (b + 1) % n, b)
-    movable = rng.random(n) > 0.1
-    colors = solver.color_contacts(a, b, movable)
-    _check_valid(a, b, movable, colors)
-    # maximal: every contact of a later colour conflicts with some contact of each earlier colour
-    for i, c in enumerate(colors[:-1]):
-        used = np.zeros(n, bool)
-        used[a[c][movable[a[c]]]] = True
-        used[b[c][movable[b[c]]]] = True
-        later = np.concatenate(colors[i + 1:])
-        assert np.all((movable[a[later]] & used[a[later]]) | (movable[b[later]] & used[b[later]]))
 
 
 @pytest.mark.parametrize("spin, converged", [(0.01, True), (1.0, False)])

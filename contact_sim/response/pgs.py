@@ -1,0 +1,139 @@
+"""Compiled projected Gauss–Seidel: one loop over contacts per sweep, the way Box2D's solver reads.
+
+The contact rows (``solver.Rows``: directions ``n, t1, t2``, angular Jacobians ``r×d`` and their
+images under the inverse inertia, effective inverse masses ``K``) are built by numpy once per
+solve; the sweeps, where the time goes, are a kernel over them. Contacts are visited in their
+order (detection's, which is deterministic), each sees every impulse applied before it in the same
+sweep (sequential Gauss–Seidel, which converges in fewer sweeps than the coloured, vectorised
+variant it replaces: a colour's contacts could not see each other), and the result is
+bit-identical run to run.
+
+One contact's update (normal, then friction):
+
+* normal: ``λn ← max(λn + (target − v_n − c·λn) / (K_nn + c), 0)`` (``c`` the compliance of a soft
+  row, 0 for a rigid one);
+* friction: the sticking impulse ``λt − K_tt⁻¹ v_t`` (``v_t`` the tangential velocity after the
+  normal update) is taken when it lies in the static cone ``|λt| ≤ μ_s λn``; otherwise the impulse
+  on the kinetic disc ``|λt| ≤ μ_d λn`` nearest to it in the metric of ``K_tt`` (``disc``), where
+  friction opposes the resulting sliding velocity (maximal dissipation) and the contact's energy
+  can only go down.
+"""
+import math
+
+import numpy as np
+
+from ..jit import njit
+
+_TINY = 1e-300
+
+
+@njit
+def disc(k00, k01, k11, f0, f1, radius, newton):
+    """The friction impulse ``(x0, x1)`` on the disc ``|x| ≤ radius`` nearest, in the metric of the
+    tangential block ``[[k00, k01], [k01, k11]]``, to the sticking impulse ``−K⁻¹ f`` (``f`` the
+    sliding velocity without this contact's friction), for a sticking impulse outside the disc:
+    ``x = −(K + νI)⁻¹ f`` with ``ν ≥ 0`` such that ``|x| = radius`` (the secular equation of a trust
+    region, Newton on ``1/|x(ν)| − 1/radius``, monotone from ``ν = 0``)."""
+    vmag = math.sqrt(f0 * f0 + f1 * f1)
+    if not (radius > 0.0) or not (vmag > 0.0):
+        return 0.0, 0.0
+    if radius * (k00 + k11) <= 1e-14 * vmag:
+        # a disc far smaller than the sticking impulse: ν is so large that x = −radius f/|f| to
+        # round-off (and Newton would overflow on 1/radius)
+        return -radius / vmag * f0, -radius / vmag * f1
+    nu = 0.0
+    for _ in range(newton):
+        p = k00 + nu
+        q = k11 + nu
+        det = p * q - k01 * k01
+        x0 = -(q * f0 - k01 * f1) / det
+        x1 = -(p * f1 - k01 * f0) / det
+        y0 = (q * x0 - k01 * x1) / det
+        y1 = (p * x1 - k01 * x0) / det
+        n2 = x0 * x0 + x1 * x1
+        norm = math.sqrt(n2)
+        step = (1.0 / norm - 1.0 / radius) * norm * n2 / (x0 * y0 + x1 * y1)
+        nu = max(nu - step, 0.0)
+    p = k00 + nu
+    q = k11 + nu
+    det = p * q - k01 * k01
+    x0 = -(q * f0 - k01 * f1) / det
+    x1 = -(p * f1 - k01 * f0) / det
+    # the last Newton step leaves |x| = radius to round-off; scale onto the disc exactly
+    s = radius / max(math.sqrt(x0 * x0 + x1 * x1), _TINY)
+    return x0 * s, x1 * s
+
+
+@njit
+def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, compliance, mu_s, mu_d, friction,
+           lam, vel, omega, iterations, tolerance):
+    """Projected Gauss–Seidel sweeps over ``K`` contacts, in place.
+
+    ``a, b (K,) int64`` bodies; ``dirs, ang_a, ang_b, iang_a, iang_b (K,3,3)`` rows of ``Rows``;
+    ``ima, imb (K,)``; ``K (K,3,3)`` effective inverse masses; ``target_n, compliance, mu_s, mu_d
+    (K,)``; ``friction`` bool; ``lam (K,3)`` accumulated (n, t1, t2) impulses on A, holding the
+    warm start on entry (already applied to the velocities) and the result on return; ``vel, omega
+    (N,3)`` updated in place. Returns ``(sweeps done, largest impulse change of the last sweep)``."""
+    k = a.shape[0]
+    inv_kn = np.zeros(k)
+    ikt = np.zeros((k, 4))
+    for c in range(k):
+        kn = K[c, 0, 0] + compliance[c]
+        if kn > 0.0:
+            inv_kn[c] = 1.0 / max(kn, _TINY)
+        det = K[c, 1, 1] * K[c, 2, 2] - K[c, 1, 2] * K[c, 2, 1]
+        if det > 1e-300:
+            ikt[c, 0] = K[c, 2, 2] / det
+            ikt[c, 1] = -K[c, 1, 2] / det
+            ikt[c, 2] = -K[c, 2, 1] / det
+            ikt[c, 3] = K[c, 1, 1] / det
+    done = 0
+    residual = 0.0
+    rv = np.zeros(3)
+    for it in range(iterations):
+        residual = 0.0
+        for c in range(k):
+            ia = a[c]
+            ib = b[c]
+            for d in range(3):
+                s = 0.0
+                for x in range(3):
+                    s += (dirs[c, d, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, d, x] * omega[ia, x]
+                          - ang_b[c, d, x] * omega[ib, x])
+                rv[d] = s
+            old0 = lam[c, 0]
+            old1 = lam[c, 1]
+            old2 = lam[c, 2]
+            new0 = max(old0 + (target_n[c] - compliance[c] * old0 - rv[0]) * inv_kn[c], 0.0)
+            new1 = old1
+            new2 = old2
+            if friction:
+                dn = new0 - old0
+                vt0 = rv[1] + K[c, 1, 0] * dn
+                vt1 = rv[2] + K[c, 2, 0] * dn
+                tr0 = old1 - (ikt[c, 0] * vt0 + ikt[c, 1] * vt1)
+                tr1 = old2 - (ikt[c, 2] * vt0 + ikt[c, 3] * vt1)
+                if math.sqrt(tr0 * tr0 + tr1 * tr1) <= mu_s[c] * new0:
+                    new1 = tr0
+                    new2 = tr1
+                else:
+                    free0 = vt0 - (K[c, 1, 1] * old1 + K[c, 1, 2] * old2)
+                    free1 = vt1 - (K[c, 2, 1] * old1 + K[c, 2, 2] * old2)
+                    new1, new2 = disc(K[c, 1, 1], K[c, 1, 2], K[c, 2, 2], free0, free1, mu_d[c] * new0, 12)
+            d0 = new0 - old0
+            d1 = new1 - old1
+            d2 = new2 - old2
+            lam[c, 0] = new0
+            lam[c, 1] = new1
+            lam[c, 2] = new2
+            for x in range(3):
+                p = d0 * dirs[c, 0, x] + d1 * dirs[c, 1, x] + d2 * dirs[c, 2, x]
+                vel[ia, x] += ima[c] * p
+                vel[ib, x] -= imb[c] * p
+                omega[ia, x] += d0 * iang_a[c, 0, x] + d1 * iang_a[c, 1, x] + d2 * iang_a[c, 2, x]
+                omega[ib, x] -= d0 * iang_b[c, 0, x] + d1 * iang_b[c, 1, x] + d2 * iang_b[c, 2, x]
+            residual = max(residual, abs(d0), abs(d1), abs(d2))
+        done = it + 1
+        if residual <= tolerance:
+            break
+    return done, residual
