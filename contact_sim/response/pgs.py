@@ -53,7 +53,13 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
         n2 = x0 * x0 + x1 * x1
         norm = math.sqrt(n2)
         step = (1.0 / norm - 1.0 / radius) * norm * n2 / (x0 * y0 + x1 * y1)
-        nu = max(nu - step, 0.0)
+        nu_next = max(nu - step, 0.0)
+        # converged to round-off: further steps change ν by less than its last bits (Newton from
+        # ν = 0 is monotone on this convex secular function: typically 3-5 steps, not 12)
+        if abs(nu_next - nu) <= 1e-15 * nu_next:
+            nu = nu_next
+            break
+        nu = nu_next
     p = k00 + nu
     q = k11 + nu
     det = p * q - k01 * k01
