@@ -1,0 +1,145 @@
+"""Compiled torque-free rotation: ``dynamics.rotate_free``'s splitting as one loop over bodies.
+
+The method (``dynamics`` module docstring): the torque-free Hamiltonian splits into an exact turn
+about the world angular momentum ``L`` (which commutes with the rest) and turns about principal
+axes 1 and 3 (Strang: ½ axis 1, axis 3, ½ axis 1 per sub-step). Sub-steps only where the two axis
+flows both act and the body tumbles (``dynamics.tumbling_cone``); a spin about a principal axis,
+or an axisymmetric body (a rod end over end), takes one exact sub-step.
+
+Written per body in scalars (quaternions x, y, z, w), so a step of one body costs a few hundred
+nanoseconds instead of ~25 numpy calls: a rod now costs what a cube does.
+"""
+import math
+
+import numpy as np
+
+from .jit import njit
+
+
+@njit
+def _qmul(ax, ay, az, aw, bx, by, bz, bw):
+    """Hamilton product a ⊗ b (apply b first)."""
+    return (aw * bx + bw * ax + ay * bz - az * by,
+            aw * by + bw * ay + az * bx - ax * bz,
+            aw * bz + bw * az + ax * by - ay * bx,
+            aw * bw - (ax * bx + ay * by + az * bz))
+
+
+@njit
+def _qrot(qx, qy, qz, qw, vx, vy, vz):
+    """Rotate v by the unit quaternion q: v + w t + u × t with t = 2 u × v."""
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (vx + qw * tx + (qy * tz - qz * ty),
+            vy + qw * ty + (qz * tx - qx * tz),
+            vz + qw * tz + (qx * ty - qy * tx))
+
+
+@njit
+def _rotvec_quat(rx, ry, rz):
+    """Quaternion of a rotation vector (series of sin(θ/2)/θ near zero: tiny turns keep precision)."""
+    theta = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if theta < 1e-4:
+        th2 = theta * theta
+        s = 0.5 - th2 / 48.0 + th2 * th2 / 3840.0
+    else:
+        s = math.sin(0.5 * theta) / theta
+    return rx * s, ry * s, rz * s, math.cos(0.5 * theta)
+
+
+@njit
+def _cone(p0, p1, p2, m0, m1, m2):
+    """Sine of the half-angle of the tumbling cone (``dynamics.tumbling_cone`` for one body): the
+    polhode's end points (where one ``Πᵢ² = 0``) give the least ``Π₁²`` and ``Π₃²`` on it."""
+    l2 = p0 + p1 + p2
+    e2 = p0 / m0 + p1 / m1 + p2 / m2
+    low1 = p0
+    low3 = p2
+    for z in range(3):
+        # the other two axes, a < b
+        a = 1 if z == 0 else 0
+        b = 1 if z == 2 else 2
+        ma = m0 if a == 0 else m1
+        mb = m2 if b == 2 else m1
+        det = 1.0 / mb - 1.0 / ma
+        if not abs(det) > 1e-12 / ma:
+            continue
+        pb = (e2 - l2 / ma) / det
+        pa = l2 - pb
+        if pa >= -1e-12 * l2 and pb >= -1e-12 * l2:
+            low1 = min(low1, 0.0 if z == 0 else max(pa, 0.0))   # a = 0 unless z = 0
+            low3 = min(low3, 0.0 if z == 2 else max(pb, 0.0))   # b = 2 unless z = 2
+    l2s = max(l2, 1e-300)
+    off = min(l2s - low1, l2s - low3)
+    return math.sqrt(min(max(off / l2s, 0.0), 1.0))
+
+
+@njit
+def rotate_free(q, omega, principal_q, moments, dt, max_split_angle, max_substeps, q_out, omega_out):
+    """Torque-free rotation over ``dt`` of ``N`` bodies, written to ``q_out (N,4)`` and
+    ``omega_out (N,3)``. ``q (N,4)`` orientations (x, y, z, w), ``omega (N,3)`` world angular
+    velocities, ``principal_q (N,4)`` principal-to-body rotations, ``moments (N,3)`` principal
+    moments ascending. Same method and sub-step rule as ``dynamics.rotate_free``. Returns the
+    change (J) of rotational kinetic energy the splitting made, ``½ L·Δω`` summed (a bounded
+    oscillation; 0 where the step is exact)."""
+    drift = 0.0
+    for i in range(q.shape[0]):
+        # principal frame orientation qp = q ⊗ principal_q
+        px, py, pz, pw = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3],
+                               principal_q[i, 0], principal_q[i, 1], principal_q[i, 2], principal_q[i, 3])
+        m0, m1, m2 = moments[i, 0], moments[i, 1], moments[i, 2]
+        i0, i1, i2 = 1.0 / m0, 1.0 / m1, 1.0 / m2
+        bx, by, bz = _qrot(-px, -py, -pz, pw, omega[i, 0], omega[i, 1], omega[i, 2])
+        pi0, pi1, pi2 = m0 * bx, m1 * by, m2 * bz
+        lx, ly, lz = _qrot(px, py, pz, pw, pi0, pi1, pi2)       # world L, fixed in free flight
+        r0, r2 = i0 - i1, i2 - i1
+        s0, s1, s2 = pi0 * pi0, pi1 * pi1, pi2 * pi2
+        theta1 = math.sqrt(s0 + s1) * abs(r0) * dt
+        theta3 = math.sqrt(s1 + s2) * abs(r2) * dt
+        big_theta = max(theta1, theta3)
+        if big_theta > 0.0:
+            alone = min(theta1, theta3) <= 1e-12 * big_theta
+            if alone:
+                n_sub = 1
+            else:
+                norm_l = math.sqrt(lx * lx + ly * ly + lz * lz)
+                big = norm_l * max(abs(r0), 0.0, abs(r2)) * dt
+                cone = _cone(s0, s1, s2, m0, m1, m2)
+                need = big / max_split_angle * min(1.0, cone / max_split_angle)
+                n_sub = int(min(max(math.ceil(need), 1.0), max_substeps))
+            h = dt / n_sub
+            for _ in range(n_sub):
+                for axis, frac in ((0, 0.5), (2, 1.0), (0, 0.5)):
+                    bl = _qrot(-px, -py, -pz, pw, lx, ly, lz)
+                    if axis == 0:
+                        angle = bl[0] * r0 * frac * h
+                        sx, sw = math.sin(0.5 * angle), math.cos(0.5 * angle)
+                        px, py, pz, pw = _qmul(px, py, pz, pw, sx, 0.0, 0.0, sw)
+                    else:
+                        angle = bl[2] * r2 * frac * h
+                        sz, sw = math.sin(0.5 * angle), math.cos(0.5 * angle)
+                        px, py, pz, pw = _qmul(px, py, pz, pw, 0.0, 0.0, sz, sw)
+        # the |L| turn commutes: one exact turn for the whole step
+        tx, ty, tz, tw = _rotvec_quat(lx * (i1 * dt), ly * (i1 * dt), lz * (i1 * dt))
+        px, py, pz, pw = _qmul(tx, ty, tz, tw, px, py, pz, pw)
+        n = math.sqrt(px * px + py * py + pz * pz + pw * pw)   # round-off only: every factor is unit
+        px, py, pz, pw = px / n, py / n, pz / n, pw / n
+        bl = _qrot(-px, -py, -pz, pw, lx, ly, lz)
+        wx, wy, wz = _qrot(px, py, pz, pw, bl[0] * i0, bl[1] * i1, bl[2] * i2)
+        drift += 0.5 * (lx * (wx - omega[i, 0]) + ly * (wy - omega[i, 1]) + lz * (wz - omega[i, 2]))
+        omega_out[i, 0], omega_out[i, 1], omega_out[i, 2] = wx, wy, wz
+        qx, qy, qz, qw = _qmul(px, py, pz, pw, -principal_q[i, 0], -principal_q[i, 1], -principal_q[i, 2],
+                               principal_q[i, 3])
+        q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = qx, qy, qz, qw
+    return drift
+
+
+def rotate(q, omega, principal_q, moments, dt, max_split_angle, max_substeps):
+    """Array front of the kernel: ``(q (N,4), omega (N,3), drift J)`` after ``dt``."""
+    c = np.ascontiguousarray
+    q_out = np.empty((len(q), 4))
+    w_out = np.empty((len(q), 3))
+    drift = rotate_free(c(q, dtype=float), c(omega, dtype=float), c(principal_q, dtype=float),
+                        c(moments, dtype=float), float(dt), float(max_split_angle), int(max_substeps), q_out, w_out)
+    return q_out, w_out, float(drift)
