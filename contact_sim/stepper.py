@@ -369,9 +369,12 @@ def _impulse_step(world, dt, m):
                 ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
                 r1 = rows.select(ti)
                 # the kinetic energy the impact starts from, for the restitution stage's cap below
-                bodies0 = np.unique(np.concatenate([c.body_a[ti], c.body_b[ti]]))
-                bodies0 = bodies0[dyn[bodies0]]
-                kinetic0 = _kinetic_energy(world, bodies0)
+                # (only where something bounces: with e = 0 there is no restitution stage)
+                bounces = bool(np.any(e[ti] * bounced[ti] > 0))
+                if bounces:
+                    bodies0 = np.unique(np.concatenate([c.body_a[ti], c.body_b[ti]]))
+                    bodies0 = bodies0[dyn[bodies0]]
+                    kinetic0 = _kinetic_energy(world, bodies0)
                 # compression: the pairs are stopped (touching) or slowed to arrive touching
                 # (speculative), with friction; inelastic, so it can only take energy away
                 target = np.where(touching[ti], 0.0, spec_target[ti] if spec else 0.0)
@@ -381,12 +384,13 @@ def _impulse_step(world, dt, m):
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
-                vel_c, omega_c = s.vel[bodies0].copy(), s.omega[bodies0].copy()   # after compression
+                if bounces:   # the velocities after compression
+                    vel_c, omega_c = s.vel[bodies0].copy(), s.omega[bodies0].copy()
                 # restitution, its own stage (Box2D's restitution pass): the pairs that were hit and
                 # bounce get normal impulses only, up to −e × the approach speed recorded before the
                 # step. Friction stays in the compression, so a sticking impact cannot gain energy
                 # (Newton's rule with friction in one solve can: Kane's paradox); e = 1 keeps it
-                hit = bounced & (lam[:, 0] > 0)
+                hit = bounced & (lam[:, 0] > 0) & (e > 0)   # e = 0: the compression was the whole impact
                 if hit.any():
                     hi = np.flatnonzero(hit)
                     res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],

@@ -143,3 +143,77 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
         if residual <= tolerance:
             break
     return done, residual
+
+
+@njit
+def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, hint, movable, dynamic_levers,
+               t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, dirs):
+    """Constraint rows of ``K`` contacts (``solver.build_rows``' arithmetic, one contact at a time),
+    written to the preallocated outputs. ``hint (K,3)`` the contact points' relative velocity (``t1``
+    follows its tangential part where it is above 1e-12; else ``t1 = n × e``, ``e`` the coordinate
+    axis least aligned with ``n``); ``dynamic_levers`` False puts a movable body's contact at its
+    centre (the kinematic response)."""
+    for c in range(a.shape[0]):
+        ia = a[c]
+        ib = b[c]
+        nx, ny, nz = normal[c, 0], normal[c, 1], normal[c, 2]
+        for x in range(3):
+            ra[c, x] = point[c, x] - pos[ia, x]
+            rb[c, x] = point[c, x] - pos[ib, x]
+        if not dynamic_levers:
+            if movable[ia]:
+                ra[c, 0] = ra[c, 1] = ra[c, 2] = 0.0
+            if movable[ib]:
+                rb[c, 0] = rb[c, 1] = rb[c, 2] = 0.0
+        # first tangent: along the sliding direction when there is one
+        ax, ay, az = abs(nx), abs(ny), abs(nz)
+        if ax <= ay and ax <= az:
+            ux, uy, uz = 0.0, nz, -ny            # n × e_x
+        elif ay <= az:
+            ux, uy, uz = -nz, 0.0, nx            # n × e_y
+        else:
+            ux, uy, uz = ny, -nx, 0.0            # n × e_z
+        hn_dot = hint[c, 0] * nx + hint[c, 1] * ny + hint[c, 2] * nz
+        hx = hint[c, 0] - hn_dot * nx
+        hy = hint[c, 1] - hn_dot * ny
+        hz = hint[c, 2] - hn_dot * nz
+        hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+        if hn > 1e-12:
+            ux, uy, uz = hx / hn, hy / hn, hz / hn
+        un = math.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / un, uy / un, uz / un
+        vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+        t1[c, 0], t1[c, 1], t1[c, 2] = ux, uy, uz
+        t2[c, 0], t2[c, 1], t2[c, 2] = vx, vy, vz
+        dirs[c, 0, 0], dirs[c, 0, 1], dirs[c, 0, 2] = nx, ny, nz
+        dirs[c, 1, 0], dirs[c, 1, 1], dirs[c, 1, 2] = ux, uy, uz
+        dirs[c, 2, 0], dirs[c, 2, 1], dirs[c, 2, 2] = vx, vy, vz
+        ima[c] = inv_mass[ia]
+        imb[c] = inv_mass[ib]
+        for d in range(3):
+            for e in range(3):
+                s = 0.0
+                for x in range(3):
+                    s += dirs[c, d, x] * dirs[c, e, x]
+                K[c, d, e] = (ima[c] + imb[c]) * s
+        for side in range(2):
+            body = ia if side == 0 else ib
+            r = ra if side == 0 else rb
+            ang = ang_a if side == 0 else ang_b
+            iang = iang_a if side == 0 else iang_b
+            for d in range(3):
+                ang[c, d, 0] = r[c, 1] * dirs[c, d, 2] - r[c, 2] * dirs[c, d, 1]
+                ang[c, d, 1] = r[c, 2] * dirs[c, d, 0] - r[c, 0] * dirs[c, d, 2]
+                ang[c, d, 2] = r[c, 0] * dirs[c, d, 1] - r[c, 1] * dirs[c, d, 0]
+            for d in range(3):
+                for x in range(3):
+                    s = 0.0
+                    for y in range(3):
+                        s += ang[c, d, y] * inv_inertia[body, x, y]
+                    iang[c, d, x] = s
+            for d in range(3):
+                for e in range(3):
+                    s = 0.0
+                    for x in range(3):
+                        s += ang[c, d, x] * iang[c, e, x]
+                    K[c, d, e] += s

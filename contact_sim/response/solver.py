@@ -27,28 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..vec import cross
-from ..vec import dot as _dot
 from . import pgs
 
 _TINY = 1e-300
-
-
-_AXES = np.eye(3)
-
-
-def tangent_basis(normal, hint=None):
-    """Two unit tangents ``(K,3), (K,3)`` orthogonal to ``normal (K,3)``; ``t1`` along the
-    tangential part of ``hint (K,3)`` where it is non-zero (the sliding direction)."""
-    axis = _AXES[np.argmin(np.abs(normal), axis=1)]   # the coordinate axis least aligned with the normal
-    t1 = cross(normal, axis)
-    if hint is not None and hint.any():   # (an all-zero hint, e.g. everything at rest, changes nothing)
-        ht = hint - _dot(hint, normal)[:, None] * normal
-        hn = np.sqrt(_dot(ht, ht))
-        use = hn > 1e-12
-        t1 = np.where(use[:, None], ht / np.where(use, hn, 1.0)[:, None], t1)
-    t1 /= np.sqrt(_dot(t1, t1))[:, None]
-    t2 = cross(normal, t1)
-    return t1, t2
 
 
 @dataclass
@@ -96,31 +77,25 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
     response) puts each movable body's contact at its centre: it acts as a particle. Returns ``Rows``."""
     if movable is None:
         movable = inv_mass > 0
-    ra = point - pos[a]
-    rb = point - pos[b]
-    if not dynamic_levers:
-        ra = np.where(movable[a][:, None], 0.0, ra)
-        rb = np.where(movable[b][:, None], 0.0, rb)
+    k = len(a)
     hint = rel_vel
-    if hint is None and vel is not None:
-        hint = (vel[a] + cross(omega[a], ra)) - (vel[b] + cross(omega[b], rb))
-    t1, t2 = tangent_basis(normal, hint)
-    d = np.stack([normal, t1, t2], axis=1)                    # (K,3,3)
-    ang_a = cross(ra[:, None, :], d)                       # (K,3,3)
-    ang_b = cross(rb[:, None, :], d)
-    ima, imb = inv_mass[a], inv_mass[b]
-    lin = d @ d.transpose(0, 2, 1)                            # identity in exact arithmetic
-    K = (ima + imb)[:, None, None] * lin
-    iangs = []
-    for ang, ii in ((ang_a, inv_inertia[a]), (ang_b, inv_inertia[b])):
-        if ii.any():
-            # stacked 3×3 products as matmul (2–3× faster than the equivalent einsum on (K,3,3))
-            iang = ang @ ii.transpose(0, 2, 1)                # (K,3,3): I⁻¹ (r×d) per direction d
-            K = K + ang @ iang.transpose(0, 2, 1)
-        else:   # that side never turns (static, kinematic, particles): no angular terms
-            iang = np.zeros_like(ang)
-        iangs.append(iang)
-    iang_a, iang_b = iangs
+    if hint is None and vel is not None and k:
+        ra0 = point - pos[a]
+        rb0 = point - pos[b]
+        if not dynamic_levers:
+            ra0 = np.where(movable[a][:, None], 0.0, ra0)
+            rb0 = np.where(movable[b][:, None], 0.0, rb0)
+        hint = (vel[a] + cross(omega[a], ra0)) - (vel[b] + cross(omega[b], rb0))
+    if hint is None:
+        hint = np.zeros((k, 3))
+    c = np.ascontiguousarray
+    t1, t2, ra, rb = (np.empty((k, 3)) for _ in range(4))
+    ang_a, ang_b, iang_a, iang_b, K, d = (np.empty((k, 3, 3)) for _ in range(6))
+    ima, imb = np.empty(k), np.empty(k)
+    pgs.build_rows(c(a, dtype=np.int64), c(b, dtype=np.int64), c(point, dtype=float), c(normal, dtype=float),
+                   c(pos, dtype=float), c(inv_mass, dtype=float), c(inv_inertia, dtype=float), c(hint, dtype=float),
+                   c(movable, dtype=np.bool_), bool(dynamic_levers), t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b,
+                   ima, imb, K, d)
     return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable)
 
 
