@@ -143,3 +143,18 @@ def rotate(q, omega, principal_q, moments, dt, max_split_angle, max_substeps):
     drift = rotate_free(c(q, dtype=float), c(omega, dtype=float), c(principal_q, dtype=float),
                         c(moments, dtype=float), float(dt), float(max_split_angle), int(max_substeps), q_out, w_out)
     return q_out, w_out, float(drift)
+
+
+@njit
+def rotational_energies(q, inertia_body, omega, idx, out):
+    """``out[k] = ½ ωᵀ R I Rᵀ ω`` (J) for the bodies ``idx (k,)``: ``q (N,4)`` orientations,
+    ``inertia_body (N,3,3)``, ``omega (N,3)`` world angular velocities. The body-frame ``ω`` is
+    ``Rᵀ ω`` (the conjugate turn), so no matrix is formed."""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        bx, by, bz = _qrot(-q[i, 0], -q[i, 1], -q[i, 2], q[i, 3], omega[i, 0], omega[i, 1], omega[i, 2])
+        e = 0.0
+        for r in range(3):
+            wr = bx if r == 0 else (by if r == 1 else bz)
+            e += wr * (inertia_body[i, r, 0] * bx + inertia_body[i, r, 1] * by + inertia_body[i, r, 2] * bz)
+        out[k] = 0.5 * e

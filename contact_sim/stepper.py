@@ -26,7 +26,7 @@ penetration at the start of the step, contact and impact counts, and the models 
 """
 import numpy as np
 
-from . import dynamics, quat
+from . import dynamics, free_motion, quat
 from .contacts import Contacts
 from .memo import derived
 from .settings import combine
@@ -609,8 +609,9 @@ def _energetic_cap(world, idx, kinetic0, vel_c, omega_c):
 def _rotational_energy(world, idx):
     """Rotational kinetic energy ``(k,)`` (J) of the bodies ``idx``."""
     s = world.s
-    iw = dynamics.rotate_inertia(quat.to_matrix(s.quat[idx]), world.inertia_body[idx])
-    return 0.5 * np.einsum("ni,nij,nj->n", s.omega[idx], iw, s.omega[idx])
+    out = np.empty(len(idx))
+    free_motion.rotational_energies(s.quat, world.inertia_body, s.omega, np.asarray(idx, dtype=np.int64), out)
+    return out
 
 
 def _move(world, dx, dtheta):
