@@ -37,7 +37,13 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
     vmag = math.sqrt(f0 * f0 + f1 * f1)
     if not (radius > 0.0) or not (vmag > 0.0):
         return 0.0, 0.0
-    if radius * (k00 + k11) <= 1e-14 * vmag:
+    trace = k00 + k11
+    if abs(k01) <= 1e-15 * trace and abs(k00 - k11) <= 1e-15 * trace:
+        # an isotropic block (a sphere's contact, any pair of point masses): K + νI is a multiple
+        # of I, so the nearest point is the radial one, x = −radius f/|f| (what Newton converges
+        # to, to round-off, in 3–5 steps)
+        return -radius / vmag * f0, -radius / vmag * f1
+    if radius * trace <= 1e-14 * vmag:
         # a disc far smaller than the sticking impulse: ν is so large that x = −radius f/|f| to
         # round-off (and Newton would overflow on 1/radius)
         return -radius / vmag * f0, -radius / vmag * f1
