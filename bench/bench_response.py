@@ -375,8 +375,10 @@ def main(argv=None):
                     help="simulated seconds of the pile and the stack (default 2 and 5, as specified)")
     ap.add_argument("--out", default=os.path.join(HERE, "results"), help="folder for the CSV and PNG")
     ap.add_argument("--variants", nargs="*", default=[], metavar="METHOD:ITERATIONS",
-                    help="extra contact_sim-only runs of the pile with the solver forced, e.g. gs:10 gs:20:luby "
-                         "jacobi:20 (colouring hybrid (default), luby or greedy)")
+                    help="extra contact_sim-only runs of the pile with the solver forced, e.g. gs:10 jacobi:20")
+    ap.add_argument("--peers", default=None,
+                    help="comma-separated subset of the peers (pybullet, MuJoCo); default every one installed "
+                         "(MuJoCo's dense Newton solve takes ~15 minutes on the 1000-sphere pile)")
     args = ap.parse_args(argv)
     q = args.quick
     side = 4 if q else 10
@@ -387,6 +389,9 @@ def main(argv=None):
     peers, missing = re_.available_peers()
     for name, why in missing.items():
         print(f"{name} left out: {why}")
+    if args.peers is not None:
+        keep = {p.strip().lower() for p in args.peers.split(",") if p.strip()}
+        peers = [p for p in peers if p.lower() in keep]
     names = ["contact_sim"] + peers
     print(f"engines: {', '.join(names)} ({versions()}); load average {load()}", flush=True)
     rows = []

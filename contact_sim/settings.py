@@ -48,8 +48,11 @@ class Settings(Declared):
     solver_tolerance: float = declare(1e-9, Number(ge=0, le="max_speed", unit="m/s"),
                                       "m/s: residual at which the solver stops")
     solver_method: str = declare("auto", Choice(SOLVER_METHODS),
-                                 "auto (exact active set up to 200 contacts, compiled Gauss–Seidel above) | "
+                                 "auto (exact active set up to direct_max_contacts, compiled Gauss–Seidel above) | "
                                  "direct | gs | jacobi (mass splitting)")
+    direct_max_contacts: int = declare(500, Number(ge=0, le=100_000, integer=True),
+                                       "the exact active-set solve up to this many contacts (stacks, pyramids), "
+                                       "Gauss–Seidel above")
     speculative: bool = declare(True, Flag(), "next_step: speculative contacts (pairs closing within the step "
                                 "are stopped exactly at touching)")
     split_slop: float = declare(1e-7, Number(ge=0, le="max_size", unit="m"),

@@ -380,7 +380,7 @@ def _impulse_step(world, dt, m):
                 target = np.where(touching[ti], 0.0, spec_target[ti] if spec else 0.0)
                 res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
                                         mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
-                                        tolerance=st.solver_tolerance, method=st.solver_method)
+                                        tolerance=st.solver_tolerance, method=st.solver_method, direct_max=st.direct_max_contacts)
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
@@ -395,7 +395,7 @@ def _impulse_step(world, dt, m):
                     hi = np.flatnonzero(hit)
                     res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],
                                             iterations=st.solver_iterations, tolerance=st.solver_tolerance,
-                                            method=st.solver_method)
+                                            method=st.solver_method, direct_max=st.direct_max_contacts)
                     lam[hi, 0] += res.impulse[:, 0] * _energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
                     iters = max(iters, res.iterations)
                 vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
@@ -427,7 +427,7 @@ def _impulse_step(world, dt, m):
                                      mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
                                         mu_d=mu_d[ri] if fr else None, iterations=st.solver_iterations,
-                                        tolerance=st.solver_tolerance, warm=warm, method=st.solver_method)
+                                        tolerance=st.solver_tolerance, warm=warm, method=st.solver_method, direct_max=st.direct_max_contacts)
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
                 lam2 = np.zeros((k, 3))
@@ -642,7 +642,7 @@ def _split_impulse(world, c, rows, dt):
     wp = np.zeros_like(world.s.omega)
     st = world.settings
     solver.solve_auto(rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / dt,
-                      iterations=st.solver_iterations, tolerance=st.solver_tolerance, method=st.solver_method)
+                      iterations=st.solver_iterations, tolerance=st.solver_tolerance, method=st.solver_method, direct_max=st.direct_max_contacts)
     return vp, wp
 
 
@@ -672,7 +672,8 @@ def _penalty_step(world, dt, m):
         v_end = s.vel + g * dt          # the velocity the step would end with without contact
         w_end = s.omega.copy()
         res = solver.solve_soft(rows, v_end, w_end, target_n=target, compliance=gamma,
-                                iterations=st.solver_iterations, tolerance=st.solver_tolerance)
+                                iterations=st.solver_iterations, tolerance=st.solver_tolerance,
+                                direct_max=st.direct_max_contacts)
         world.contacts = _record(c, rows, res.impulse, vn0)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step

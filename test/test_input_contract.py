@@ -118,7 +118,7 @@ def _ok(*kinds):
     return frozenset(kinds)
 
 
-ZERO_OK_SETTINGS = {"solver_tolerance", "contact_margin", "split_beta", "split_slop"}
+ZERO_OK_SETTINGS = {"solver_tolerance", "contact_margin", "split_beta", "split_slop", "direct_max_contacts"}
 
 
 def _shape_then_add(make, kind="dynamic"):

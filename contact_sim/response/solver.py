@@ -317,7 +317,7 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
 
 
 # ---------------------------------------------------------------------------- direct (active set)
-DIRECT_MAX_CONTACTS = 200       # dense Delassus matrix (3K)² up to this many contacts
+DIRECT_MAX_CONTACTS = 500       # default of settings.direct_max_contacts: the active set up to this many contacts
 DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
 DIRECT_CONSISTENCY = 1e-7       # active rows must hold to this × the largest right-hand side, else the set is inconsistent
 DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
@@ -593,9 +593,10 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
 
 
 def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
-               method="auto"):
+               method="auto", direct_max=None):
     """Contact impulses by the best method for the size: ``direct`` (active set, exact) up to
-    ``DIRECT_MAX_CONTACTS`` contacts, finished by Gauss–Seidel when friction slides; ``jacobi``
+    ``direct_max`` contacts (default ``DIRECT_MAX_CONTACTS``; ``settings.direct_max_contacts``),
+    finished by Gauss–Seidel when friction slides; ``jacobi``
     (mass splitting) or ``gs`` (compiled sequential Gauss–Seidel) above. Same result type as ``solve``.
 
     Contacts between two bodies that cannot move (a kinematic robot link pressed into a static
@@ -610,12 +611,12 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
             res = solve_auto(rows.select(li), vel, omega, target_n=target_n[li],
                              mu_s=None if mu_s is None else mu_s[li], mu_d=None if mu_d is None else mu_d[li],
                              iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[li],
-                             method=method)
+                             method=method, direct_max=direct_max)
             lam[li] = res.impulse
             return SolveResult(lam, res.iterations, res.residual)
         return SolveResult(lam, 0, 0.0)
     if method == "auto":
-        method = "direct" if k <= DIRECT_MAX_CONTACTS else "gs"
+        method = "direct" if k <= (DIRECT_MAX_CONTACTS if direct_max is None else direct_max) else "gs"
     if method == "direct":
         res, ok = solve_direct(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm)
         if ok:
@@ -643,11 +644,11 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
                  tolerance=tolerance, warm=warm)
 
 
-def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, tolerance=1e-9):
+def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, tolerance=1e-9, direct_max=None):
     """Frictionless contacts with compliant normal rows, updating ``vel, omega (N,3)`` in place:
     ``n·v_rel + compliance·λn ≥ target_n ⟂ λn ≥ 0`` (``compliance, target_n (K,)``). This is the
     implicit (backward Euler) spring–damper of the penalty response, stable at any stiffness.
-    Exact active set on ``A + diag(compliance)`` up to ``DIRECT_MAX_CONTACTS`` contacts, compiled
+    Exact active set on ``A + diag(compliance)`` up to ``direct_max`` contacts, compiled
     Gauss–Seidel above (the compliance only improves its conditioning)."""
     k = len(rows.a)
     live = rows.movable[rows.a] | rows.movable[rows.b]
@@ -656,11 +657,11 @@ def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, toleran
         li = np.flatnonzero(live)
         if li.size:
             res = solve_soft(rows.select(li), vel, omega, target_n=target_n[li], compliance=compliance[li],
-                             iterations=iterations, tolerance=tolerance)
+                             iterations=iterations, tolerance=tolerance, direct_max=direct_max)
             lam[li] = res.impulse
             return SolveResult(lam, res.iterations, res.residual)
         return SolveResult(lam, 0, 0.0)
-    if 0 < k <= DIRECT_MAX_CONTACTS:
+    if 0 < k <= (DIRECT_MAX_CONTACTS if direct_max is None else direct_max):
         dense = k <= DIRECT_DENSE_MAX
         A = delassus(rows, dense)
         if dense:
