@@ -50,7 +50,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_response.py
 	$(PY) bench/bench_accuracy.py
 	$(PY) bench/bench_node.py
-	$(PY) -m pytest -q -m hard -s -p no:cacheprovider | grep -o "HARD .*" | sed "s/^HARD //" > bench/results/hard_cases.txt
+	$(PY) -m pytest -q -m "hard or stability" -s -p no:cacheprovider | grep -o "HARD .*" | sed "s/^HARD //" > bench/results/hard_cases.txt
 	$(PY) bench/report.py
 
 clean:
