@@ -3,7 +3,7 @@ import os
 
 from .errors import ContactSimError, SceneError
 from .settings import check_keys, parse_material, parse_settings
-from .shapes import Box, Convex, Plane, Sphere, TriMesh
+from .shapes import Box, Convex, Cylinder, Plane, Sphere, TriMesh
 from .validate import POINTS, SCALE
 from .world import World
 
@@ -14,6 +14,7 @@ SHAPE_KEYS = {
     "plane": {"type", "normal", "offset"},
     "sphere": {"type", "radius"},
     "box": {"type", "size", "slab_normals"},
+    "cylinder": {"type", "radius", "length", "slab_normals"},
     "convex": {"type", "points", "file", "scale", "slab_normals"},
     "mesh": {"type", "vertices", "faces", "file", "scale", "slab_normals"},
 }
@@ -192,6 +193,11 @@ def _parse_shape(d, path, base_dir):
             if "size" not in d:
                 raise SceneError(f"{path}.size", "required")
             return Box(d["size"], name=path)
+        if t == "cylinder":
+            for key in ("radius", "length"):
+                if key not in d:
+                    raise SceneError(f"{path}.{key}", "required")
+            return Cylinder(d["radius"], d["length"], name=path)
         scale = SCALE.check(d.get("scale", 1.0), f"{path}.scale")
         if "file" in d:
             other = {"points"} if t == "convex" else {"vertices", "faces"}

@@ -14,6 +14,8 @@ registers a kernel under the (A rank, B rank) pairs it handles (A of the higher 
 """
 import numpy as np
 
+from .geometry import NRANK
+
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
                "margin", "counters", "out_i", "out_f")
 TABLE = {}   # (rank A, rank B) -> kernel
@@ -30,7 +32,7 @@ def collider(*keys):
 
 def _load():
     # the modules that register kernels (imported here, not above: they import ``collider``)
-    from . import meshes, polyhedra, primitives  # noqa: F401
+    from . import cylinders, meshes, polyhedra, primitives  # noqa: F401
 
 
 def kernel_for(ra, rb):
@@ -52,14 +54,14 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     if K == 0:
         return out_i, out_f, 0
     # group the pairs by type pair (one stable sort), each group one kernel call writing after the last
-    key = ranks[a] * 5 + ranks[b]
+    key = ranks[a] * NRANK + ranks[b]
     order = np.argsort(key, kind="stable")
     ks, A, B = key[order], a[order], b[order]
     cuts = np.flatnonzero(ks[1:] != ks[:-1]) + 1
     starts, ends = np.r_[0, cuts], np.r_[cuts, K]
     n, unsupported = 0, 0
     for s, e in zip(starts.tolist(), ends.tolist()):
-        kernel = TABLE.get(divmod(int(ks[s]), 5))
+        kernel = TABLE.get(divmod(int(ks[s]), NRANK))
         if kernel is None:
             unsupported += (e - s) if ks[s] != 0 else 0   # plane–plane pairs are no contacts
             continue
