@@ -112,7 +112,7 @@ def resolve_uri(uri, base_dir, package_paths=None):
             return None, looked + ["(ament index: ament_index_python not installed)"]
         try:
             p = os.path.join(get_package_share_directory(pkg), rest)
-        except (PackageNotFoundError, LookupError, ValueError):
+        except (PackageNotFoundError, LookupError, ValueError, OSError):   # OSError: no AMENT_PREFIX_PATH
             return None, looked + [f"(ament index: no package {pkg!r})"]
         looked.append(p)
         return (p if os.path.isfile(p) else None), looked
@@ -390,9 +390,8 @@ def check_request(known, names, positions, call):
 
 # ---------------------------------------------------------------- world operations
 def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None, convex_meshes=False,
-             material=None):
-    """See ``World.add_urdf``."""
-    where = "add_urdf"
+             material=None, where="add_urdf"):
+    """See ``World.add_urdf``; ``where`` starts error messages (a scene path)."""
     model, shapes, pairs = parse(urdf, prefix, base_pose, package_paths, convex_meshes, where)
     q = initial_positions(model, joint_positions, where)
     model.q, model.q_initial = dict(q), dict(q)
@@ -408,7 +407,7 @@ def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, packa
     specs = [dict(name=b, shape=s, kind="kinematic", position=p, orientation=o, where=f"{where}: body {b!r}", **extra)
              for b, s, p, o in zip(model.bodies, shapes, pos, quat)]
     world.add_bodies(specs)   # all or nothing
-    world.robots.append(model)
+    world.robots = world.robots + [model]   # a new list: a caller holding the old one can roll back
     world.disable_collisions(sorted(pairs))
     return list(model.bodies)
 
