@@ -46,6 +46,7 @@ def frames(world):
     return {n: (pos[i], R[i]) for i, n in enumerate(world.body_names)}
 
 
+@pytest.mark.exact
 def test_link_poses_match_hand_computed_forward_kinematics(mesh):
     P0 = np.array([0.3, -0.2, 0.5])
     q0 = Rotation.from_rotvec([0.1, -0.2, 0.7]).as_quat()
@@ -64,6 +65,7 @@ def test_link_poses_match_hand_computed_forward_kinematics(mesh):
     assert w.joint_positions() == {"shoulder": theta, "slide": d}
 
 
+@pytest.mark.exact
 def test_link_velocities_are_finite_differences_of_consecutive_stamps(mesh):
     w, _ = arm_world(mesh)
     w.set_joint_positions(["shoulder", "slide"], [0.2, 0.02], stamp=1.0)
@@ -116,6 +118,7 @@ def same(a, b):
             and ja == jb and na == nb and da == db and ra == rb)
 
 
+@pytest.mark.exact
 @pytest.mark.parametrize("names, positions, stamp, message", [
     (["elbow"], [0.1], 5.0, "unknown joint 'elbow'"),
     (["shoulder"], [float("nan")], 5.0, "joint 'shoulder' position must be finite"),
@@ -140,6 +143,7 @@ def test_bad_joint_positions_are_refused_by_name_and_change_nothing(mesh, names,
     assert same(before, snapshot(w))
 
 
+@pytest.mark.exact
 def test_limit_tolerance_is_1e_9(mesh):
     w, _ = arm_world(mesh)
     w.set_joint_positions(["slide"], [SLIDE_LIMITS[1] + 0.5e-9], stamp=1.0)
