@@ -227,7 +227,7 @@ def _joint_dict(j, prefix, where):
             "origin": origin, "axis": axis, "limits": (lo, hi), "mimic": mimic}
 
 
-def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=False, where="add_urdf"):
+def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=False, where="add_urdf", srdf=None):
     """Parse ``urdf`` (a path, or the XML text) into ``(RobotModel without q, shapes (B,), adjacent
     body-name pairs)``. Errors name the link, joint or mesh URI."""
     import yourdfpy
@@ -342,6 +342,8 @@ def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=Fal
             pairs |= {tuple(sorted((a, b))) for a in of_link[lname] for b in of_link[up.parent]}
     rm = RobotModel(prefix + robot.name, prefix, roots[0], joints, base, bodies, body_link,
                     np.array(origins).reshape(-1, 4, 4), {})
+    if srdf is not None:
+        pairs |= srdf_pairs(srdf, links, of_link, prefix, where)
     return rm, shapes, pairs
 
 
@@ -388,11 +390,32 @@ def check_request(known, names, positions, call):
     return names, pos
 
 
+def srdf_pairs(srdf, links, of_link, prefix, where):
+    """Body-name pairs of an SRDF's ``<disable_collisions link1= link2=/>`` (MoveIt's allowed
+    collisions; ``srdf`` a path or the XML text). Links without geometry have no bodies (no pair);
+    a link the URDF does not have is refused by name."""
+    import xml.etree.ElementTree as ET
+
+    text = str(srdf)
+    try:
+        root = ET.fromstring(text) if text.lstrip().startswith("<") else ET.parse(text).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise ContactSimError(f"{where}.srdf: cannot read {text[:60]!r}: {exc}") from None
+    pairs = set()
+    for k, e in enumerate(root.iter("disable_collisions")):
+        a, b = e.get("link1"), e.get("link2")
+        for n in (a, b):
+            if n not in links:
+                raise ContactSimError(f"{where}.srdf: disable_collisions {k} names an unknown link {n!r}")
+        pairs |= {tuple(sorted((x, y))) for x in of_link.get(a, []) for y in of_link.get(b, []) if x != y}
+    return pairs
+
+
 # ---------------------------------------------------------------- world operations
 def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None, convex_meshes=False,
-             material=None, where="add_urdf"):
+             material=None, where="add_urdf", srdf=None):
     """See ``World.add_urdf``; ``where`` starts error messages (a scene path)."""
-    model, shapes, pairs = parse(urdf, prefix, base_pose, package_paths, convex_meshes, where)
+    model, shapes, pairs = parse(urdf, prefix, base_pose, package_paths, convex_meshes, where, srdf)
     q = initial_positions(model, joint_positions, where)
     model.q, model.q_initial = dict(q), dict(q)
     taken = [b for b in model.bodies if b in world._index]

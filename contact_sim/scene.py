@@ -9,7 +9,7 @@ from .world import World
 
 TOP_KEYS = {"name", "description", "gravity", "settings", "materials", "bodies", "robots"}
 ROBOT_KEYS = {"urdf", "prefix", "base_pose", "joint_positions", "package_paths", "convex_meshes", "material",
-              "disable_collisions"}
+              "disable_collisions", "srdf"}
 BODY_KEYS = {"name", "kind", "model", "shape", "mass", "density", "position", "orientation", "velocity",
              "angular_velocity", "material", "collision"}
 SHAPE_KEYS = {
@@ -147,6 +147,13 @@ def add_scene_robot(world, r, path, base_dir):
         urdf = urdf if os.path.isabs(urdf) else os.path.join(base_dir, urdf)
         if not os.path.isfile(urdf):
             raise SceneError(f"{path}.urdf", f"no such file {r['urdf']!r} (looked in {base_dir})")
+    srdf = r.get("srdf")
+    if srdf is not None:
+        if not isinstance(srdf, str) or not srdf:
+            raise SceneError(f"{path}.srdf", f"must be a file path, got {srdf!r}")
+        srdf = srdf if os.path.isabs(srdf) else os.path.join(base_dir, srdf)
+        if not os.path.isfile(srdf):
+            raise SceneError(f"{path}.srdf", f"no such file {r['srdf']!r} (looked in {base_dir})")
     pose = r.get("base_pose")
     if pose is not None:
         check_keys(pose, f"{path}.base_pose", {"position", "orientation"})
@@ -165,7 +172,7 @@ def add_scene_robot(world, r, path, base_dir):
     saved = world._snapshot(), world.robots, world.disabled_pairs
     try:
         names = robot.add_urdf(world, urdf, prefix, pose, r.get("joint_positions"), pkg, r.get("convex_meshes", False),
-                               r.get("material"), where=path)
+                               r.get("material"), where=path, srdf=srdf)
         world.disable_collisions([[prefix + str(a), prefix + str(b)] for a, b in pairs])
     except SceneError:
         raise

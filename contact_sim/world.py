@@ -379,7 +379,7 @@ class World:
 
     # ------------------------------------------------------------------ robots and allowed collisions
     def add_urdf(self, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None,
-                 convex_meshes=False, material=None):
+                 convex_meshes=False, material=None, srdf=None):
         """Add a robot from a URDF (a file path, or the XML text) and return its body names.
 
         One kinematic body per ``<collision>`` element, named by its link with ``prefix`` prepended
@@ -391,12 +391,14 @@ class World:
         packages; ``$CONTACT_SIM_PACKAGE_PATH``; the ament index), ``file://``, relative to the URDF
         file. ``base_pose``: ``(position (3,), orientation (4,))`` of the root link (default the
         origin); ``joint_positions``: a mapping joint → position (others 0, or their nearest
-        limit). Links joined by a joint never collide with each other (``disabled_pairs``). All or
+        limit). Links joined by a joint never collide with each other (``disabled_pairs``), nor the
+        pairs an ``srdf`` (MoveIt's semantic description: a path or the XML text) lists in its
+        ``disable_collisions``. All or
         nothing: a refused robot (an error naming the link, joint or URI) leaves the world unchanged."""
         from . import robot
 
         return robot.add_urdf(self, urdf, prefix, base_pose, joint_positions, package_paths, convex_meshes,
-                              material)
+                              material, srdf=srdf)
 
     def set_joint_positions(self, names, positions, stamp=None):
         """Move robots: ``names (M,)`` joints (with their robot's prefix), ``positions (M,)`` (rad or m)

@@ -299,3 +299,15 @@ def test_a_robot_link_pushes_a_dynamic_ball(mesh):
     b = w.body("ball")
     assert b.velocity[1] > 0.05 and np.hypot(*b.position[:2]) > 0.45 - 1e-3
     assert os.path.basename(__file__) == "test_robot_urdf.py"
+
+
+def test_srdf_disable_collisions(mesh, tmp_path):
+    srdf = '<robot name="arm"><disable_collisions link1="finger" link2="upper" reason="Never"/>' \
+           '<disable_collisions link1="tool_frame" link2="base" reason="Never"/></robot>'
+    w, _ = arm_world(mesh, srdf=srdf, prefix="p_")
+    assert ("p_finger", "p_upper") in w.disabled_pairs       # tool_frame has no geometry: no pair
+    w.set_joint_positions(["p_slide"], [0.0], stamp=1.0)       # finger against the upper arm's end
+    assert robot_pairs(w) == set()
+    (tmp_path / "arm.srdf").write_text(srdf.replace('link2="upper"', 'link2="elbow"'))
+    with pytest.raises(cs.ContactSimError, match=r"add_urdf.srdf: disable_collisions 0 names an unknown link 'elbow'"):
+        cs.World().add_urdf(arm_urdf(mesh), srdf=str(tmp_path / "arm.srdf"))
