@@ -73,14 +73,19 @@ class RobotInput:
     def _install_robot(self, urdf):
         """Replace the robot (if any) by the one ``urdf`` describes; all or nothing."""
         world = self.world
-        saved = world._snapshot(), world.robots, world.disabled_pairs, world.contacts
+        # a description the engine refuses on its own is refused before the old robot goes
+        contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=self.cfg["robot_prefix"])
+        carried = ("_cs_warm", "_cs_spec")     # what the stepper carries between steps (remapped by removal)
+        saved = (world._snapshot(), world.robots, world.disabled_pairs, world.contacts,
+                 {k: world.__dict__.get(k) for k in carried})
         try:
             if self._robot is not None and self._robot in world.robots:
                 world.remove_bodies(self._robot.bodies)
             world.add_urdf(urdf, prefix=self.cfg["robot_prefix"])
-        except BaseException:
+        except BaseException:   # e.g. a link named like a scene body
             world._restore(saved[0])
-            world.robots, world.disabled_pairs, world.contacts = saved[1:]
+            world.robots, world.disabled_pairs, world.contacts = saved[1:4]
+            world.__dict__.update(saved[4])
             world.__dict__.pop("_cs_memo", None)
             raise
         self._robot = world.robots[-1]

@@ -230,6 +230,12 @@ def test_mesh_uris_package_file_and_relative(mesh, tmp_path, monkeypatch):
     w = cs.World()
     w.add_urdf(str(urdf))
     assert np.allclose(np.ptp(w.body("gripper").shape.vertices, axis=0), [2 * GRIP, GRIP, 0.5 * GRIP], atol=1e-12)
+    # COLLADA (pycollada comes with yourdfpy's trimesh[easy])
+    trimesh.creation.box([GRIP] * 3).export(str(pkg / "meshes" / "grip.dae"))
+    urdf.write_text(arm_urdf("meshes/grip.dae"))
+    w = cs.World()
+    w.add_urdf(str(urdf))
+    assert np.allclose(np.ptp(w.body("gripper").shape.vertices, axis=0), GRIP, atol=1e-12)
 
 
 def test_concave_mesh_is_a_trimesh_unless_hulls_are_asked_for(tmp_path):
