@@ -30,14 +30,19 @@ def collider(*keys):
     return register
 
 
+_LOADED = []   # non-empty once every kernel module is imported
+
+
 def _load():
-    # the modules that register kernels (imported here, not above: they import ``collider``)
+    # the modules that register kernels (imported here, not above: they import ``collider``). Not
+    # "while TABLE is empty": a test importing one kernel module first would leave the others out
     from . import cylinders, meshes, polyhedra, primitives  # noqa: F401
+    _LOADED.append(True)
 
 
 def kernel_for(ra, rb):
     """The kernel of ranks ``ra >= rb``, or None (plane–plane, mesh–mesh: no kernel)."""
-    if not TABLE:
+    if not _LOADED:
         _load()
     return TABLE.get((ra, rb))
 
@@ -46,7 +51,7 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     """Contacts of pairs ``a, b (K,)`` (``ranks[a] >= ranks[b]``): ``(rows_i (M, 3), rows_f (M, 7),
     unsupported)``: the kernels' rows (``pair`` indexing the batch) and the number of pairs no kernel
     handles (mesh–mesh; plane–plane pairs are not contacts)."""
-    if not TABLE:
+    if not _LOADED:
         _load()
     arrays = geom.arrays()
     K = len(a)
