@@ -203,3 +203,16 @@ def test_bad_cylinder_in_code_names_the_argument():
         cs.Cylinder(0.1, -1)
     with pytest.raises(cs.ContactSimError, match=r"cylinder\.radius"):
         cs.Cylinder("a", 1)
+
+
+def test_cylinder_kernels_are_there_whatever_kernel_module_was_imported_first(repo):
+    # the dispatch table loads all kernel modules on first use, even when one was imported before
+    import subprocess
+    import sys
+
+    code = ("import contact_sim as cs\nfrom contact_sim.collision import primitives\n"
+            "c = cs.collide(cs.Cylinder(0.1, 0.4), ([0, 0, 0.19], [0, 0, 0, 1]), cs.Plane(), ([0, 0, 0], [0, 0, 0, 1]))\n"
+            "print(len(c.depth))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=repo, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[-1] == "4"
