@@ -371,13 +371,17 @@ def check_request(known, names, positions, call):
     if isinstance(names, (str, bytes)) or not hasattr(names, "__iter__"):
         raise ContactSimError(f"{call}.names: must be a list of joint names, got {show(names)}")
     names = list(names)
+    bad = f"{call}.positions: must be {len(names)} numbers, got {show(positions)}"
+    if isinstance(positions, (str, bytes)) or not hasattr(positions, "__len__"):
+        raise ContactSimError(bad)
     try:
-        pos = np.asarray(positions, dtype=float).reshape(-1)
+        raw = np.asarray(positions, dtype=object).reshape(-1)
+        # a boolean or a string is no position, even where numpy would convert it
+        if any(isinstance(x, (bool, np.bool_, str, bytes)) for x in raw):
+            raise ValueError
+        pos = raw.astype(float)
     except (TypeError, ValueError):
-        raise ContactSimError(f"{call}.positions: must be {len(names)} numbers, got {show(positions)}") from None
-    if np.asarray(positions, dtype=object).dtype == bool or any(isinstance(x, bool) for x in np.ravel(
-            np.asarray(positions, dtype=object))):
-        raise ContactSimError(f"{call}.positions: must be numbers, got a boolean")
+        raise ContactSimError(bad) from None
     if len(pos) != len(names):
         raise ContactSimError(f"{call}: {len(names)} joint names but {len(pos)} positions")
     for n, x in zip(names, pos):

@@ -131,6 +131,9 @@ def same(a, b):
     ("shoulder", [0.1], 5.0, "names: must be a list"),
     (["shoulder"], [0.1], 1.0, "stamp: must be after the previous pose"),
     (["tool"], [0.0], 5.0, "unknown joint 'tool'"),          # a fixed joint has no position
+    (["shoulder"], [True], 5.0, "set_joint_positions.positions: must be 1 numbers"),
+    (["shoulder"], ["0.1"], 5.0, "set_joint_positions.positions"),
+    (["shoulder"], 0.1, 5.0, "set_joint_positions.positions"),
 ])
 def test_bad_joint_positions_are_refused_by_name_and_change_nothing(mesh, names, positions, stamp, message):
     w, _ = arm_world(mesh)
