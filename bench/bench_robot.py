@@ -182,7 +182,8 @@ def main(argv=None):
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
     with open(os.path.join(HERE, "results", "robot.csv"), "w", newline="") as fh:
         wr = csv.writer(fh)
-        wr.writerow(["measurement", "links", "triangles_per_link", "objects", "p50_ms", "p99_ms", "colliding_pairs_per_tick"])
+        wr.writerow(["measurement", "links", "triangles_per_link", "objects", "p50_ms", "p99_ms",
+                     "colliding_pairs_per_tick"])
         for label, p50, p99, c in rows:
             wr.writerow([label, args.links, len(mesh.faces), args.objects, f"{p50:.3f}", f"{p99:.3f}", f"{c:.1f}"])
     return 0

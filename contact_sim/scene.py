@@ -164,7 +164,8 @@ def add_scene_robot(world, r, path, base_dir):
     elif isinstance(pkg, list):
         pkg = [v if os.path.isabs(str(v)) else os.path.join(base_dir, str(v)) for v in pkg]
     elif pkg is not None:
-        raise SceneError(f"{path}.package_paths", f"must be a list of folders or a mapping package → folder, got {pkg!r}")
+        raise SceneError(f"{path}.package_paths",
+                         f"must be a list of folders or a mapping package → folder, got {pkg!r}")
     prefix = r.get("prefix", "")
     pairs = r.get("disable_collisions") or []
     if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) == 2 for p in pairs):

@@ -211,7 +211,8 @@ def test_cylinder_kernels_are_there_whatever_kernel_module_was_imported_first(re
     import sys
 
     code = ("import contact_sim as cs\nfrom contact_sim.collision import primitives\n"
-            "c = cs.collide(cs.Cylinder(0.1, 0.4), ([0, 0, 0.19], [0, 0, 0, 1]), cs.Plane(), ([0, 0, 0], [0, 0, 0, 1]))\n"
+            "I = [0, 0, 0, 1]\n"
+            "c = cs.collide(cs.Cylinder(0.1, 0.4), ([0, 0, 0.19], I), cs.Plane(), ([0, 0, 0], I))\n"
             "print(len(c.depth))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=repo, timeout=300)
     assert out.returncode == 0, out.stderr

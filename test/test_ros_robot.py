@@ -6,7 +6,6 @@ import signal
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 import yaml
 
@@ -18,7 +17,7 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from domain_coordinator import domain_id  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState, PointCloud2  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
+from std_msgs.msg import Header, String  # noqa: E402
 
 from msg_adapters import conversions as cv  # noqa: E402
 from msg_adapters.node import DIAG_NAME  # noqa: E402
@@ -73,11 +72,8 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
                 spin.until(lambda: joints.get_subscription_count() > 0, 20.0, "the node on joint_states")
 
                 def send(names, positions, t_ns):
-                    joints.publish(JointState(header=stamp_header(t_ns), name=names, position=[float(x) for x in positions]))
-
-                def stamp_header(t_ns):
-                    from std_msgs.msg import Header
-                    return Header(stamp=stamp(t_ns), frame_id="")
+                    joints.publish(JointState(header=Header(stamp=stamp(t_ns), frame_id=""), name=names,
+                                              position=[float(x) for x in positions]))
 
                 # sweep the shoulder towards the box until its contact is published
                 theta = [0.0]
@@ -98,7 +94,8 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
                 assert 0.2 < theta[0] <= 0.3           # the geometric touch angle is 0.2155 rad
                 # an out-of-order joint state is refused and counted; the unknown 'wheel' was counted
                 send(["arm_shoulder"], [0.0], 1_000_000)
-                spin.until(lambda: got["diag"] is not None and int(got["diag"]["rejected_joint_state_out_of_order"]) >= 1
+                spin.until(lambda: got["diag"] is not None
+                           and int(got["diag"]["rejected_joint_state_out_of_order"]) >= 1
                            and int(got["diag"]["joint_states_unknown_joints"]) >= 1, 30.0, "the joint-state counters")
                 assert int(got["diag"]["joint_states_accepted"]) >= 1 and int(got["diag"]["robot_descriptions"]) == 1
                 spin.shutdown()
@@ -113,4 +110,3 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
             out = log.read()
             log.close()
         assert "robot 'arm_arm': 5 link bodies" in out, out[-3000:]
-        assert os.path.isfile(tmp_path / "grip.stl") and np.isfinite(theta[0])
