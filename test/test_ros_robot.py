@@ -98,6 +98,18 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
                            and int(got["diag"]["rejected_joint_state_out_of_order"]) >= 1
                            and int(got["diag"]["joint_states_unknown_joints"]) >= 1, 30.0, "the joint-state counters")
                 assert int(got["diag"]["joint_states_accepted"]) >= 1 and int(got["diag"]["robot_descriptions"]) == 1
+                # a description the engine refuses keeps the robot; a new one replaces it, the rest stays
+                desc.publish(String(data=urdf.replace('radius="0.004"', 'radius="-1"')))
+                spin.until(lambda: int(got["diag"]["rejected_robot_descriptions"]) >= 1, 30.0, "the refusal")
+                assert got["names"][-1] == "arm_finger"
+                finger = urdf.index('<link name="finger">')
+                smaller = urdf[:finger] + urdf[urdf.index("</link>", finger) + 7:]
+                smaller = smaller[:smaller.index('<joint name="finger_joint"')] + \
+                    smaller[smaller.index("</joint>", smaller.index('<joint name="finger_joint"')) + 8:]
+                desc.publish(String(data=smaller))
+                spin.until(lambda: got["names"] == ["obstacle", "arm_base", "arm_base#1", "arm_upper", "arm_gripper"],
+                           30.0, "body_names without the finger")
+                spin.until(lambda: int(got["diag"]["robot_descriptions"]) == 2, 30.0, "the second description counted")
                 spin.shutdown()
                 node.destroy_node()
             proc.send_signal(signal.SIGINT)
