@@ -724,6 +724,10 @@ class World:
             "shapes: " + ", ".join(f"{v} {k}" for k, v in sorted(shapes.items())),
             f"gravity {self.gravity.tolist()} m/s², dt {self.settings.dt:.6g} s",
         ]
+        for r in self.robots:
+            lines.append(f"robot {r.name}: {len(r.bodies)} link bodies, {len(r.q)} joints")
+        if self.disabled_pairs:
+            lines.append(f"{len(self.disabled_pairs)} body pairs never tested (adjacent links, disable_collisions)")
         from . import stepper
 
         lines += stepper.describe_models(self)

@@ -122,3 +122,15 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
             out = log.read()
             log.close()
         assert "robot 'arm_arm': 5 link bodies" in out, out[-3000:]
+
+
+def test_robot_links_are_not_tracked_by_default(tmp_path):
+    import contact_sim as cs
+    from msg_adapters.config import resolve_tracked
+
+    (tmp_path / "arm.urdf").write_text(arm_urdf(write_gripper_mesh(tmp_path / "grip.stl")))
+    scene = {"bodies": [{"name": "paddle", "kind": "kinematic", "shape": {"type": "box", "size": [0.1, 0.1, 0.1]}}],
+             "robots": [{"urdf": "arm.urdf"}]}
+    world = cs.load_scene(scene, base_dir=str(tmp_path))
+    assert resolve_tracked(world, [], "scene")[0] == ["paddle"]
+    assert "robot arm: 5 link bodies, 2 joints" in world.describe()
