@@ -244,12 +244,21 @@ def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=Fal
     if not is_xml and not os.path.isfile(text):
         raise ContactSimError(f"{where}: no such URDF file {text!r}")
     base_dir = os.getcwd() if is_xml else os.path.dirname(os.path.abspath(text))
+    # well-formed XML first: yourdfpy would otherwise "recover" a broken document into part of a robot
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(text) if is_xml else ET.parse(text).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise ContactSimError(f"{where}: not well-formed XML: {exc}") from None
+    if root.tag != "robot":
+        raise ContactSimError(f"{where}: not a URDF: the root element is <{root.tag}>, not <robot>")
     try:
         src = io.BytesIO(text.encode()) if is_xml else text
         model = yourdfpy.URDF.load(src, build_scene_graph=False, load_meshes=False, load_collision_meshes=False)
         robot = model.robot
     except Exception as exc:   # lxml and yourdfpy raise many types for a bad document
-        raise ContactSimError(f"{where}: not a valid URDF: {exc}") from None
+        raise ContactSimError(f"{where}: not a valid URDF ({type(exc).__name__}: {exc})") from None
     links = {link.name: link for link in robot.links}
     if not links:
         raise ContactSimError(f"{where}: the URDF has no links")

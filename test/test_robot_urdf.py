@@ -170,6 +170,8 @@ def test_bad_robots_are_refused_by_name_and_change_nothing(mesh, tmp_path):
          '</joint></robot>', {}, ["joint 'j' names an unknown link 'zz'"]),
         ('<robot name="r"><link name="a"><collision><geometry><cylinder radius="-1" length="1"/></geometry>'
          '</collision></link></robot>', {}, ["link 'a' collision 0", "radius"]),
+        ('<robot name="r"><link name="a"></robot>', {}, ["add_urdf: not well-formed XML"]),
+        ('<model name="r"/>', {}, ["the root element is <model>"]),
     ]
     for urdf, kw, parts in cases:
         with pytest.raises(cs.ContactSimError) as err:
