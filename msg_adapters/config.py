@@ -82,6 +82,9 @@ PARAMETERS = {
         "Topic of the robot's URDF (std_msgs/String, transient local): its links become kinematic bodies, moved by "
         "joint_states_topic. Empty: no robot input.", read_only=True)),
     "joint_states_topic": ("joint_states", _d("Topic of the robot's sensor_msgs/JointState.", read_only=True)),
+    "robot_description_semantic_topic": ("robot_description_semantic", _d(
+        "Topic of the robot's SRDF (std_msgs/String, transient local): its disable_collisions pairs are never "
+        "tested. Empty: not read.", read_only=True)),
     "robot_prefix": ("", _d("Prefix of the robot's body and joint names (the URDF's link and joint names after it).",
                             read_only=True)),
 }
@@ -109,7 +112,8 @@ def validate_config(values):
         ir = PARAMETERS[name][1].integer_range[0]
         if isinstance(v, bool) or not isinstance(v, int) or not ir.from_value <= v <= ir.to_value:
             raise ConfigError(f"parameter {name}: must be an integer in [{ir.from_value}, {ir.to_value}], got {v!r}")
-    for name in ("scene", "frame_id", "robot_description_topic", "joint_states_topic", "robot_prefix") + \
+    for name in ("scene", "frame_id", "robot_description_topic", "joint_states_topic", "robot_prefix",
+                 "robot_description_semantic_topic") + \
             tuple(MODEL_STRING):
         if not isinstance(cfg[name], str):
             raise ConfigError(f"parameter {name}: must be a string, got {cfg[name]!r}")

@@ -155,7 +155,7 @@ class Outputs:
             values["rejected_pose_" + r] = c["rejected_pose_" + r]
         for key in ("rejected_parameters", "step_errors", "resets", "clock_jumps_back", "body_states_set",
                     "rejected_body_states", "spawned_bodies", "rejected_spawns", "deleted_bodies", "rejected_deletes",
-                    "robot_descriptions", "rejected_robot_descriptions", "joint_states_received", "joint_states_accepted",
+                    "robot_descriptions", "robot_semantic_descriptions", "rejected_robot_descriptions", "joint_states_received", "joint_states_accepted",
                     "rejected_joint_states", "joint_states_unknown_joints"):
             values[key] = c[key]
         for r in JOINT_STATE_REASONS:

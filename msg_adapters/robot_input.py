@@ -16,6 +16,10 @@ A mixin of ``ContactSimNode``:
   applied (``rejected_joint_state_out_of_order``), older than ``pose_timeout`` on arrival
   (``..._stale``), malformed or refused by the engine (NaN, beyond the joint limits:
   ``..._invalid``) changes nothing and is counted and warned about, like a bad pose.
+- ``robot_description_semantic_topic`` (``std_msgs/String``, transient local; default
+  ``robot_description_semantic``, empty: not read): MoveIt's SRDF; its ``disable_collisions``
+  pairs are never tested (the robot is rebuilt with them). An SRDF that does not fit the robot
+  (an unknown link) is refused, counted and warned about.
 - After ``pose_timeout`` without joint states the links hold their last pose with zero velocity.
 """
 import numpy as np
@@ -34,6 +38,7 @@ class RobotInput:
     def _create_robot_input(self, overrides):
         self._robot_urdf = None          # the last accepted description (re-added when the scene changes)
         self._robot = None               # its RobotModel in the world
+        self._robot_srdf = None          # the last accepted semantic description
         self._js_t0_ns = None
         self._js_last_ns = None
         self._js_last_rx = -np.inf
@@ -46,6 +51,11 @@ class RobotInput:
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.sub_description = self.create_subscription(String, topic, self._on_robot_description, latched,
                                                         qos_overriding_options=overrides())
+        self.sub_semantic = None
+        if self.cfg["robot_description_semantic_topic"]:
+            self.sub_semantic = self.create_subscription(String, self.cfg["robot_description_semantic_topic"],
+                                                         self._on_robot_semantic, latched,
+                                                         qos_overriding_options=overrides())
         self.sub_joint_states = self.create_subscription(
             JointState, self.cfg["joint_states_topic"], self._on_joint_states,
             QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST),
@@ -67,21 +77,51 @@ class RobotInput:
             return
         self.counts["robot_descriptions"] += 1
         self._bodies_changed()
-        self.get_logger().info(f"robot {self._robot.name!r}: {len(self._robot.bodies)} link bodies "
-                               f"({', '.join(self._robot.bodies)})")
+        self._log_robot()
 
-    def _install_robot(self, urdf):
-        """Replace the robot (if any) by the one ``urdf`` describes; all or nothing."""
+    def _on_robot_semantic(self, msg):
+        if self._robot_urdf is not None:     # the robot again, with these pairs (refused: unchanged)
+            try:
+                self._install_robot(self._robot_urdf, msg.data, strict=True)
+            except Exception as exc:
+                self.counts["rejected_robot_descriptions"] += 1
+                self._warn("robot_description_semantic", f"{self.cfg['robot_description_semantic_topic']} refused: "
+                                                         f"{exc}; the robot is unchanged")
+                return
+            self._bodies_changed()
+            self._log_robot()
+        self._robot_srdf = msg.data
+        self.counts["robot_semantic_descriptions"] += 1
+
+    def _log_robot(self):
+        self.get_logger().info(f"robot {self._robot.name!r}: {len(self._robot.bodies)} link bodies "
+                               f"({', '.join(self._robot.bodies)}); {len(self.world.disabled_pairs)} body pairs "
+                               f"never tested")
+
+    def _install_robot(self, urdf, srdf=None, strict=False):
+        """Replace the robot (if any) by the one ``urdf`` describes (with the SRDF's allowed
+        collisions: ``srdf``, else the last accepted one); all or nothing. ``strict``: an SRDF that
+        does not fit refuses the whole request."""
         world = self.world
-        # a description the engine refuses on its own is refused before the old robot goes
-        contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=self.cfg["robot_prefix"])
+        srdf = self._robot_srdf if srdf is None else srdf
+        prefix = self.cfg["robot_prefix"]
+        # a description the engine refuses on its own is refused before the old robot goes; an SRDF
+        # that does not fit a new robot is dropped (the robot comes without it), not the robot
+        try:
+            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix, srdf=srdf)
+        except contact_sim.ContactSimError as exc:
+            if strict or srdf is None or ".srdf" not in str(exc):
+                raise
+            self._warn("robot_description_semantic", f"the SRDF does not fit this robot ({exc}); ignored")
+            srdf = self._robot_srdf = None
+            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix)
         carried = ("_cs_warm", "_cs_spec")     # what the stepper carries between steps (remapped by removal)
         saved = (world._snapshot(), world.robots, world.disabled_pairs, world.contacts,
                  {k: world.__dict__.get(k) for k in carried})
         try:
             if self._robot is not None and self._robot in world.robots:
                 world.remove_bodies(self._robot.bodies)
-            world.add_urdf(urdf, prefix=self.cfg["robot_prefix"])
+            world.add_urdf(urdf, prefix=prefix, srdf=srdf)
         except BaseException:   # e.g. a link named like a scene body
             world._restore(saved[0])
             world.robots, world.disabled_pairs, world.contacts = saved[1:4]

@@ -110,6 +110,14 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
                 spin.until(lambda: got["names"] == ["obstacle", "arm_base", "arm_base#1", "arm_upper", "arm_gripper"],
                            30.0, "body_names without the finger")
                 spin.until(lambda: int(got["diag"]["robot_descriptions"]) == 2, 30.0, "the second description counted")
+                # an SRDF: its pairs are never tested (the robot is rebuilt with them); one naming an
+                # unknown link is refused
+                semantic = node.create_publisher(String, "robot_description_semantic", LATCHED)
+                semantic.publish(String(data='<robot name="arm"><disable_collisions link1="elbow" link2="base"/></robot>'))
+                spin.until(lambda: int(got["diag"]["rejected_robot_descriptions"]) >= 2, 30.0, "the bad SRDF refused")
+                semantic.publish(String(data='<robot name="arm"><disable_collisions link1="gripper" link2="base"/>'
+                                             '</robot>'))
+                spin.until(lambda: int(got["diag"]["robot_semantic_descriptions"]) == 1, 30.0, "the SRDF taken")
                 spin.shutdown()
                 node.destroy_node()
             proc.send_signal(signal.SIGINT)
@@ -122,6 +130,9 @@ def test_node_builds_the_robot_and_reports_the_gripper_touching_a_box(tmp_path, 
             out = log.read()
             log.close()
         assert "robot 'arm_arm': 5 link bodies" in out, out[-3000:]
+        # the adjacent pairs of the 4-link robot, then those and the SRDF's (gripper, base): two bodies of base
+        assert "(arm_base, arm_base#1, arm_upper, arm_gripper); 4 body pairs never tested" in out, out[-3000:]
+        assert "(arm_base, arm_base#1, arm_upper, arm_gripper); 6 body pairs never tested" in out, out[-3000:]
 
 
 def test_robot_links_are_not_tracked_by_default(tmp_path):
