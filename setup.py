@@ -49,7 +49,9 @@ setup(
         ("share/" + PACKAGE, ["package.xml"]),
     ] + tree("config", "share/" + PACKAGE),
     python_requires=">=3.10",
-    install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60", "numba>=0.60"],
+    # yourdfpy: the URDF parser of World.add_urdf (issue 16)
+    install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60", "numba>=0.60",
+                      "yourdfpy>=0.0.56"],
     extras_require={
         # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
         "plot": ["matplotlib>=3.6"],

@@ -15,13 +15,13 @@ from .contacts import FEATURES, Contacts
 from .errors import BoundsError, ContactSimError, EngineError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
 from .settings import Material, Settings
-from .shapes import Box, Convex, Plane, Sphere, TriMesh
+from .shapes import Box, Convex, Cylinder, Plane, Sphere, TriMesh
 from .world import Body, World
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "DetectionStats", "EngineError", "FEATURES",
+    "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "Cylinder", "DetectionStats", "EngineError", "FEATURES",
     "Material", "Plane",
     "SceneError", "collide",
     "Settings", "Sphere", "TriMesh", "World", "default_scene_path", "list_scenes", "load_scene",

@@ -6,7 +6,7 @@ the same features touch: the warm-start cache keys on ``(body_a, body_b, feature
 unique within a pair in one detection. An id packs four fields (``fid(kind, x, y, z)``, read back
 by ``split_fid``): ``kind`` 3 bits (60–62), ``x`` and ``y`` 20 bits each (40–59, 20–39), ``z`` 20
 bits (0–19). "A" and "B" are the narrow-phase kernel's sides: A is the shape of higher rank
-(plane < sphere < box < convex < mesh), whichever of ``body_a``/``body_b`` that is; for a given pair
+(plane < sphere < box < convex < cylinder < mesh), whichever of ``body_a``/``body_b`` that is; for a given pair
 of bodies the sides never change, so neither do the ids.
 
 | kind | contact | x | y | z |

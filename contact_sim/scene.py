@@ -3,18 +3,20 @@ import os
 
 from .errors import ContactSimError, SceneError
 from .settings import parse_material, parse_settings
-from .validate import check_keys
-from .shapes import Box, Convex, Plane, Sphere, TriMesh
-from .validate import POINTS, SCALE
+from .shapes import Box, Convex, Cylinder, Plane, Sphere, TriMesh
+from .validate import POINTS, SCALE, check_keys
 from .world import World
 
-TOP_KEYS = {"name", "description", "gravity", "settings", "materials", "bodies"}
+TOP_KEYS = {"name", "description", "gravity", "settings", "materials", "bodies", "robots"}
+ROBOT_KEYS = {"urdf", "prefix", "base_pose", "joint_positions", "package_paths", "convex_meshes", "material",
+              "disable_collisions", "srdf"}
 BODY_KEYS = {"name", "kind", "model", "shape", "mass", "density", "position", "orientation", "velocity",
              "angular_velocity", "material", "collision"}
 SHAPE_KEYS = {
     "plane": {"type", "normal", "offset"},
     "sphere": {"type", "radius"},
     "box": {"type", "size", "slab_normals"},
+    "cylinder": {"type", "radius", "length", "slab_normals"},
     "convex": {"type", "points", "file", "scale", "slab_normals"},
     "mesh": {"type", "vertices", "faces", "file", "scale", "slab_normals"},
 }
@@ -119,8 +121,67 @@ def _build(data, base_dir):
             raise
         except ContactSimError as exc:
             raise _as_scene_error(exc) from None
+    robots = data.get("robots") or []
+    if not isinstance(robots, list):
+        raise SceneError("robots", f"must be a list, got {type(robots).__name__}")
+    for i, r in enumerate(robots):
+        add_scene_robot(world, r, f"robots[{i}]", base_dir)
     world.mark_initial()
     return world
+
+
+def add_scene_robot(world, r, path, base_dir):
+    """One ``robots:`` entry of a scene: ``{urdf: path (relative to the scene), prefix, base_pose:
+    {position, orientation}, joint_positions: {joint: value}, package_paths: [folders] or {package:
+    folder}, convex_meshes, material, disable_collisions: [[link_a, link_b], ...]}``; returns the
+    body names. Errors name ``path`` and the key."""
+    from . import robot
+
+    check_keys(r, path, ROBOT_KEYS)
+    if "urdf" not in r:
+        raise SceneError(f"{path}.urdf", "required: a URDF file path (relative to the scene)")
+    urdf = r["urdf"]
+    if not isinstance(urdf, str) or not urdf:
+        raise SceneError(f"{path}.urdf", f"must be a file path, got {urdf!r}")
+    if not urdf.lstrip().startswith("<"):
+        urdf = urdf if os.path.isabs(urdf) else os.path.join(base_dir, urdf)
+        if not os.path.isfile(urdf):
+            raise SceneError(f"{path}.urdf", f"no such file {r['urdf']!r} (looked in {base_dir})")
+    srdf = r.get("srdf")
+    if srdf is not None:
+        if not isinstance(srdf, str) or not srdf:
+            raise SceneError(f"{path}.srdf", f"must be a file path, got {srdf!r}")
+        srdf = srdf if os.path.isabs(srdf) else os.path.join(base_dir, srdf)
+        if not os.path.isfile(srdf):
+            raise SceneError(f"{path}.srdf", f"no such file {r['srdf']!r} (looked in {base_dir})")
+    pose = r.get("base_pose")
+    if pose is not None:
+        check_keys(pose, f"{path}.base_pose", {"position", "orientation"})
+        pose = (pose.get("position", [0.0, 0.0, 0.0]), pose.get("orientation", [0.0, 0.0, 0.0, 1.0]))
+    pkg = r.get("package_paths")
+    if isinstance(pkg, dict):
+        pkg = {k: v if os.path.isabs(str(v)) else os.path.join(base_dir, str(v)) for k, v in pkg.items()}
+    elif isinstance(pkg, list):
+        pkg = [v if os.path.isabs(str(v)) else os.path.join(base_dir, str(v)) for v in pkg]
+    elif pkg is not None:
+        raise SceneError(f"{path}.package_paths",
+                         f"must be a list of folders or a mapping package → folder, got {pkg!r}")
+    prefix = r.get("prefix", "")
+    pairs = r.get("disable_collisions") or []
+    if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) == 2 for p in pairs):
+        raise SceneError(f"{path}.disable_collisions", f"must be a list of [link_a, link_b] pairs, got {pairs!r}")
+    saved = world._snapshot(), world.robots, world.disabled_pairs
+    try:
+        names = robot.add_urdf(world, urdf, prefix, pose, r.get("joint_positions"), pkg, r.get("convex_meshes", False),
+                               r.get("material"), where=path, srdf=srdf)
+        world.disable_collisions([[prefix + str(a), prefix + str(b)] for a, b in pairs])
+    except SceneError:
+        raise
+    except ContactSimError as exc:
+        world._restore(saved[0])
+        world.robots, world.disabled_pairs = saved[1], saved[2]
+        raise _as_scene_error(exc) from None
+    return names
 
 
 def parse_body(b, path, base_dir="."):
@@ -193,6 +254,11 @@ def _parse_shape(d, path, base_dir):
             if "size" not in d:
                 raise SceneError(f"{path}.size", "required")
             return Box(d["size"], name=path)
+        if t == "cylinder":
+            for key in ("radius", "length"):
+                if key not in d:
+                    raise SceneError(f"{path}.{key}", "required")
+            return Cylinder(d["radius"], d["length"], name=path)
         scale = SCALE.check(d.get("scale", 1.0), f"{path}.scale")
         if "file" in d:
             other = {"points"} if t == "convex" else {"vertices", "faces"}

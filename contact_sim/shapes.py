@@ -348,4 +348,6 @@ class TriMesh(Polyhedron):
         return f"TriMesh({len(self.vertices)} vertices, {len(self.faces)} faces)"
 
 
-SHAPE_TYPES = {"plane": Plane, "sphere": Sphere, "box": Box, "convex": Convex, "mesh": TriMesh}
+from .cylinder import Cylinder  # noqa: E402  (a Convex subclass: defined after Convex)
+
+SHAPE_TYPES = {"plane": Plane, "sphere": Sphere, "box": Box, "convex": Convex, "mesh": TriMesh, "cylinder": Cylinder}

@@ -23,7 +23,8 @@ def warm_up():
     rng = np.random.default_rng(0)
     box = trimesh.creation.box((1.0, 1.0, 1.0))
     shapes = {"plane": cs.Plane(), "sphere": cs.Sphere(0.3), "box": cs.Box((0.5, 0.4, 0.3)),
-              "convex": cs.Convex(rng.normal(size=(12, 3)) * 0.2), "mesh": cs.TriMesh(box.vertices, box.faces)}
+              "convex": cs.Convex(rng.normal(size=(12, 3)) * 0.2), "mesh": cs.TriMesh(box.vertices, box.faces),
+              "cylinder": cs.Cylinder(0.2, 0.5)}
     names = list(shapes)
     for i, a in enumerate(names):
         for b in names[:i + 1]:

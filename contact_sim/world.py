@@ -147,6 +147,11 @@ class World:
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
         self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
+        # robots from URDF (contact_sim.robot.RobotModel): kinematic trees whose links are bodies here
+        self.robots = []
+        # body-name pairs (sorted tuples) never tested for contact (adjacent robot links, ...);
+        # configuration, not state: reset() keeps them, removing a body drops its pairs
+        self.disabled_pairs = set()
 
     @property
     def settings(self):
@@ -366,6 +371,69 @@ class World:
         for attr in ("_cs_warm", "_cs_spec"):   # what the stepper carries: (body_a, body_b, per-contact arrays...)
             setattr(self, attr, _remap_carried(getattr(self, attr, None), new_index))
         self.__dict__.pop("_cs_memo", None)       # every derived table is rebuilt for the new body set
+        gone = set(names)
+        self.disabled_pairs = {p for p in self.disabled_pairs if not (p[0] in gone or p[1] in gone)}
+        # a robot missing a link body can no longer be posed as a whole: it is dropped (its other
+        # link bodies stay, as plain kinematic bodies)
+        self.robots = [r for r in self.robots if not gone.intersection(r.bodies)]
+
+    # ------------------------------------------------------------------ robots and allowed collisions
+    def add_urdf(self, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None,
+                 convex_meshes=False, material=None, srdf=None):
+        """Add a robot from a URDF (a file path, or the XML text) and return its body names.
+
+        One kinematic body per ``<collision>`` element, named by its link with ``prefix`` prepended
+        (the second and later elements of a link: ``link#1``, ``link#2``, ...), each with its
+        element's frame (link pose ∘ ``origin``). Shapes: box, sphere, cylinder (``cs.Cylinder``),
+        mesh (with ``scale``; STL, OBJ, DAE through trimesh; a convex mesh, or any when
+        ``convex_meshes``, becomes its ``Convex`` hull, others a ``TriMesh``). Mesh URIs:
+        ``package://`` (``package_paths``: a mapping package → folder or a list of folders holding
+        packages; ``$CONTACT_SIM_PACKAGE_PATH``; the ament index), ``file://``, relative to the URDF
+        file. ``base_pose``: ``(position (3,), orientation (4,))`` of the root link (default the
+        origin); ``joint_positions``: a mapping joint → position (others 0, or their nearest
+        limit). Links joined by a joint never collide with each other (``disabled_pairs``), nor the
+        pairs an ``srdf`` (MoveIt's semantic description: a path or the XML text) lists in its
+        ``disable_collisions``. All or
+        nothing: a refused robot (an error naming the link, joint or URI) leaves the world unchanged."""
+        from . import robot
+
+        return robot.add_urdf(self, urdf, prefix, base_pose, joint_positions, package_paths, convex_meshes,
+                              material, srdf=srdf)
+
+    def set_joint_positions(self, names, positions, stamp=None):
+        """Move robots: ``names (M,)`` joints (with their robot's prefix), ``positions (M,)`` (rad or m)
+        at ``stamp`` (s; default the world time). Forward kinematics (revolute, continuous, prismatic,
+        fixed, mimic) poses every body of each robot concerned through ``set_poses`` at once, so link
+        velocities are finite differences of consecutive stamps. Refused by name, world unchanged:
+        an unknown or mimic joint, a repeated name, a non-finite value, a position beyond its limits
+        by more than 1e-9, a stamp not after the previous one."""
+        from . import robot
+
+        robot.set_joint_positions(self, names, positions, stamp)
+
+    def joint_positions(self):
+        """Every robot's movable joint positions ``{name: position}`` (mimic joints excluded)."""
+        return {n: x for r in self.robots for n, x in r.q.items()}
+
+    def disable_collisions(self, pairs):
+        """Never test the body pairs ``pairs`` (``[(name_a, name_b), ...]``) for contact; all or nothing."""
+        new = set()
+        for k, pair in enumerate(pairs):
+            if isinstance(pair, (str, bytes)) or len(pair) != 2:
+                raise ContactSimError(f"disable_collisions[{k}]: must be a pair of body names, got {show(pair)}")
+            a, b = (self._names[self.index(n)] for n in pair)
+            if a == b:
+                raise ContactSimError(f"disable_collisions[{k}]: a body with itself ({a!r})")
+            new.add((min(a, b), max(a, b)))
+        self.disabled_pairs = self.disabled_pairs | new
+
+    def remove_robot(self, name):
+        """Remove a robot (its name: the prefix + the URDF's robot name) and all its bodies."""
+        for r in self.robots:
+            if r.name == name:
+                self.remove_bodies(r.bodies)
+                return
+        raise ContactSimError(f"unknown robot {name!r} (robots: {', '.join(r.name for r in self.robots) or 'none'})")
 
     def body(self, name):
         """Snapshot (copies) of a body by name: position, orientation, velocities, mass, shape."""
@@ -656,6 +724,10 @@ class World:
             "shapes: " + ", ".join(f"{v} {k}" for k, v in sorted(shapes.items())),
             f"gravity {self.gravity.tolist()} m/s², dt {self.settings.dt:.6g} s",
         ]
+        for r in self.robots:
+            lines.append(f"robot {r.name}: {len(r.bodies)} link bodies, {len(r.q)} joints")
+        if self.disabled_pairs:
+            lines.append(f"{len(self.disabled_pairs)} body pairs never tested (adjacent links, disable_collisions)")
         from . import stepper
 
         lines += stepper.describe_models(self)
@@ -665,6 +737,8 @@ class World:
     def mark_initial(self):
         """Remember the current state as the one ``reset()`` returns to."""
         self._initial = (self.s.copy(), self.time)
+        for r in self.robots:
+            r.q_initial = dict(r.q)
 
     def reset(self):
         """Return to the state saved by ``mark_initial()`` (done by ``load_scene``)."""
@@ -674,6 +748,8 @@ class World:
         self.s = state.copy()
         self.time = t
         self.contacts = Contacts.empty()
+        for r in self.robots:
+            r.q = {n: r.q_initial.get(n, x) for n, x in r.q.items()}
         from . import stepper
 
         stepper.forget(self)

@@ -78,6 +78,15 @@ PARAMETERS = {
     "model.solver_iterations": (0, _d("Override the solver iterations (0 keeps the scene's).", ir=(0, 100000))),
     "model.contact_margin": (-1.0, _d("Override the contact margin in m (negative keeps the scene's).",
                                       dynamic_typing=True)),
+    "robot_description_topic": ("robot_description", _d(
+        "Topic of the robot's URDF (std_msgs/String, transient local): its links become kinematic bodies, moved by "
+        "joint_states_topic. Empty: no robot input.", read_only=True)),
+    "joint_states_topic": ("joint_states", _d("Topic of the robot's sensor_msgs/JointState.", read_only=True)),
+    "robot_description_semantic_topic": ("robot_description_semantic", _d(
+        "Topic of the robot's SRDF (std_msgs/String, transient local): its disable_collisions pairs are never "
+        "tested. Empty: not read.", read_only=True)),
+    "robot_prefix": ("", _d("Prefix of the robot's body and joint names (the URDF's link and joint names after it).",
+                            read_only=True)),
 }
 DOUBLES = {"rate_hz", "impulse_marker_scale", "pose_timeout", "velocity_decay", "diagnostics_period",
            "model.contact_margin"}
@@ -103,9 +112,13 @@ def validate_config(values):
         ir = PARAMETERS[name][1].integer_range[0]
         if isinstance(v, bool) or not isinstance(v, int) or not ir.from_value <= v <= ir.to_value:
             raise ConfigError(f"parameter {name}: must be an integer in [{ir.from_value}, {ir.to_value}], got {v!r}")
-    for name in ("scene", "frame_id") + tuple(MODEL_STRING):
+    for name in ("scene", "frame_id", "robot_description_topic", "joint_states_topic", "robot_prefix",
+                 "robot_description_semantic_topic") + \
+            tuple(MODEL_STRING):
         if not isinstance(cfg[name], str):
             raise ConfigError(f"parameter {name}: must be a string, got {cfg[name]!r}")
+    if cfg["robot_description_topic"] and not cfg["joint_states_topic"]:
+        raise ConfigError("parameter joint_states_topic: must name a topic when robot_description_topic is set")
     if not cfg["scene"].strip():
         raise ConfigError("parameter scene: must name a scene file or a shipped scene, got ''")
     for name in ("publish_markers", "publish_clock"):
@@ -171,7 +184,8 @@ def build_world(cfg):
 def resolve_tracked(world, requested, path):
     """Names and indices of the tracked bodies (all kinematic bodies when ``requested`` is empty)."""
     names = world.body_names
-    tracked = list(requested) or [n for n, k in zip(names, world.kind) if k == 1]
+    links = {b for r in world.robots for b in r.bodies}    # robot links follow joint positions, not poses
+    tracked = list(requested) or [n for n, k in zip(names, world.kind) if k == 1 and n not in links]
     for n in tracked:
         if n not in names:
             raise ConfigError(f"parameter tracked_bodies: unknown body {n!r} in scene {path} "

@@ -27,6 +27,7 @@ from std_srvs.srv import SetBool, Trigger
 import contact_sim
 
 from .body_control import BodyControl
+from .robot_input import RobotInput
 from .config import (PARAMETERS, ConfigError, apply_model, build_world, resolve_tracked,  # noqa: F401
                      validate_config)
 from .conversions import CdrError, PoseError, engine_reject_reason, parse_posearray_cdr, validate_poses
@@ -43,7 +44,7 @@ def qos_overrides():
                                  QoSPolicyKind.DURABILITY])
 
 
-class ContactSimNode(Outputs, BodyControl, Node):
+class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
     """See the module docstring and the README section "ROS interface"."""
 
     def __init__(self, **kwargs):
@@ -90,6 +91,7 @@ class ContactSimNode(Outputs, BodyControl, Node):
                 QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST),
                 raw=True, qos_overriding_options=qos_overrides())
             self._create_body_control(qos_overrides)
+            self._create_robot_input(qos_overrides)
         except (InvalidQosOverridesError, rclpy.exceptions.ParameterException, ValueError, KeyError,
                 TypeError, RuntimeError) as exc:   # rclpy raises RuntimeError for an unknown policy value
             raise ConfigError(f"QoS override: {exc}") from None
@@ -142,6 +144,8 @@ class ContactSimNode(Outputs, BodyControl, Node):
         self._pending = None                        # latest zero-stamp pose not yet applied (p, q)
         self.world.restart_pose_history(self.tracked)
         self._last_rx[:] = np.where(self._posed, self._now_ns() * 1e-9, -np.inf)
+        if hasattr(self, "_robot"):      # (not yet during set-up)
+            self._reset_joint_times()
 
     # ------------------------------------------------------------------ helpers
     def _now_ns(self):
@@ -302,6 +306,7 @@ class ContactSimNode(Outputs, BodyControl, Node):
             self._reset_tracking()
         if new_world is not None:
             self._install_world(*new_world)
+            self._reinstall_robot()
             self._publish_names()
             self.get_logger().info(f"loaded scene {self.scene_path}; tracking {', '.join(self.tracked) or 'nothing'}")
         apply_model(self.world, self.scene_settings, cfg)
@@ -383,6 +388,7 @@ class ContactSimNode(Outputs, BodyControl, Node):
             self._pending = None
             self._apply_pose(p, q, now_ns, now_ns)
         self._hold_timed_out(now_ns * 1e-9)
+        self._hold_robot(now_ns * 1e-9)
         saved, t_saved = world.s.copy(), world.time
         dt = self.period / self.cfg["substeps"]
         parts = []

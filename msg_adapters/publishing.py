@@ -20,6 +20,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 import contact_sim
 
+from .robot_input import JOINT_STATE_REASONS
 from .conversions import (contact_markers, contact_wrenches, contacts_to_pointcloud2, diagnostic_array, make_header,
                           multidof_cdr, names_cdr, ns_to_stamp, posearray_cdr)
 
@@ -27,7 +28,8 @@ POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "n
                        "frame_id", "out_of_bounds", "engine")
 #: counters whose growth since the last /diagnostics message makes it a WARN
 WARN_COUNTERS = ("rejected_poses", "rejected_parameters", "overruns", "poses_dropped", "rejected_body_states",
-                 "rejected_spawns", "rejected_deletes", "clock_jumps_back")
+                 "rejected_spawns", "rejected_deletes", "clock_jumps_back", "rejected_robot_descriptions",
+                 "rejected_joint_states", "joint_states_unknown_joints")
 
 
 def diag_name(node_name):
@@ -152,8 +154,12 @@ class Outputs:
         for r in POSE_REJECT_REASONS:
             values["rejected_pose_" + r] = c["rejected_pose_" + r]
         for key in ("rejected_parameters", "step_errors", "resets", "clock_jumps_back", "body_states_set",
-                    "rejected_body_states", "spawned_bodies", "rejected_spawns", "deleted_bodies", "rejected_deletes"):
+                    "rejected_body_states", "spawned_bodies", "rejected_spawns", "deleted_bodies", "rejected_deletes",
+                    "robot_descriptions", "robot_semantic_descriptions", "rejected_robot_descriptions", "joint_states_received", "joint_states_accepted",
+                    "rejected_joint_states", "joint_states_unknown_joints"):
             values[key] = c[key]
+        for r in JOINT_STATE_REASONS:
+            values["rejected_joint_state_" + r] = c["rejected_joint_state_" + r]
         values["last_step_error"] = self._last_step_error
         return values
 

@@ -206,6 +206,19 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
     return c, stats
 
 
+def disabled_keys(world):
+    """``world.disabled_pairs`` as sorted keys ``min·N + max (E,)`` of body indices (cached until a
+    body is added or removed, or the pairs change)."""
+    def build():
+        idx = world._index
+        k = [min(idx[a], idx[b]) * len(world) + max(idx[a], idx[b]) for a, b in world.disabled_pairs
+             if a in idx and b in idx]
+        return np.unique(np.array(k, np.int64))
+
+    return derived(world, "disabled_keys", (world.kind, world.disabled_pairs), build,
+                   key=(len(world), len(world.disabled_pairs)))
+
+
 def detect_world(world, margin=None):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
@@ -244,6 +257,11 @@ def detect_world(world, margin=None):
         ia, ib = np.empty_like(i), np.empty_like(j)
         n = broadphase.body_filter(i, j, world.kind, world.group, world.mask, ia, ib)
         ia, ib = ia[:n], ib[:n]
+        if world.disabled_pairs and n:
+            keys = disabled_keys(world)
+            if keys.size:
+                keep = ~np.isin(np.minimum(ia, ib) * bodies.n + np.maximum(ia, ib), keys)
+                ia, ib = ia[keep], ib[keep]
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
     return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)

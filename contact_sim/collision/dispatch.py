@@ -14,6 +14,8 @@ registers a kernel under the (A rank, B rank) pairs it handles (A of the higher 
 """
 import numpy as np
 
+from .geometry import NRANK
+
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
                "margin", "counters", "out_i", "out_f")
 TABLE = {}   # (rank A, rank B) -> kernel
@@ -28,14 +30,19 @@ def collider(*keys):
     return register
 
 
+_LOADED = []   # non-empty once every kernel module is imported
+
+
 def _load():
-    # the modules that register kernels (imported here, not above: they import ``collider``)
-    from . import meshes, polyhedra, primitives  # noqa: F401
+    # the modules that register kernels (imported here, not above: they import ``collider``). Not
+    # "while TABLE is empty": a test importing one kernel module first would leave the others out
+    from . import cylinders, meshes, polyhedra, primitives  # noqa: F401
+    _LOADED.append(True)
 
 
 def kernel_for(ra, rb):
     """The kernel of ranks ``ra >= rb``, or None (plane–plane, mesh–mesh: no kernel)."""
-    if not TABLE:
+    if not _LOADED:
         _load()
     return TABLE.get((ra, rb))
 
@@ -44,7 +51,7 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     """Contacts of pairs ``a, b (K,)`` (``ranks[a] >= ranks[b]``): ``(rows_i (M, 3), rows_f (M, 7),
     unsupported)``: the kernels' rows (``pair`` indexing the batch) and the number of pairs no kernel
     handles (mesh–mesh; plane–plane pairs are not contacts)."""
-    if not TABLE:
+    if not _LOADED:
         _load()
     arrays = geom.arrays()
     K = len(a)
@@ -52,14 +59,14 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     if K == 0:
         return out_i, out_f, 0
     # group the pairs by type pair (one stable sort), each group one kernel call writing after the last
-    key = ranks[a] * 5 + ranks[b]
+    key = ranks[a] * NRANK + ranks[b]
     order = np.argsort(key, kind="stable")
     ks, A, B = key[order], a[order], b[order]
     cuts = np.flatnonzero(ks[1:] != ks[:-1]) + 1
     starts, ends = np.r_[0, cuts], np.r_[cuts, K]
     n, unsupported = 0, 0
     for s, e in zip(starts.tolist(), ends.tolist()):
-        kernel = TABLE.get(divmod(int(ks[s]), 5))
+        kernel = TABLE.get(divmod(int(ks[s]), NRANK))
         if kernel is None:
             unsupported += (e - s) if ks[s] != 0 else 0   # plane–plane pairs are no contacts
             continue

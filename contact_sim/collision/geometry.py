@@ -29,13 +29,15 @@ from ..jit import njit
 from .vec3 import counting_order
 
 # shape type -> rank; kernels take A with the higher rank (so a plane or sphere is always B)
-RANK = {"plane": 0, "sphere": 1, "box": 2, "convex": 3, "mesh": 4}
-PLANE, SPHERE, BOX, CONVEX, MESH = 0, 1, 2, 3, 4
+# (a cylinder is a convex prism for the generic kernels, with exact kernels against planes and spheres)
+RANK = {"plane": 0, "sphere": 1, "box": 2, "convex": 3, "cylinder": 4, "mesh": 5}
+PLANE, SPHERE, BOX, CONVEX, CYLINDER, MESH = 0, 1, 2, 3, 4, 5
+NRANK = 6           # pair keys are rank A * NRANK + rank B
 
 # float columns of sf
 SF_PLANE = 0        # plane normal (3) and offset (1)
-SF_RADIUS = 4
-SF_HALF = 5         # box half sizes (3)
+SF_RADIUS = 4      # sphere and cylinder radius
+SF_HALF = 5         # box half sizes (3); a cylinder's half length at SF_HALF + 2
 SF_SPHERE = 8       # bounding sphere centre (3), radius (1)
 SF_BOX = 12         # object AABB centre (3), half sizes (3)
 SF_SCALE = 18       # largest extent: tolerances of a pair follow the smaller one's
@@ -336,6 +338,8 @@ def prepare_shapes(shapes):
     for k, s in enumerate(todo):
         if s.type == "box":
             SF[k, SF_HALF:SF_HALF + 3] = s.half
+        elif s.type == "cylinder":
+            SF[k, SF_RADIUS], SF[k, SF_HALF + 2] = s.radius, 0.5 * s.length
     # the batch as a table of its own (loops and edges keep their slack of 3 per triangle)
     SI[:, SI_V0], SI[:, SI_P0], SI[:, SI_T0] = vs[:-1], ps[:-1], ts[:-1]
     SI[:, SI_E0] = SI[:, SI_L0] = 3 * ts[:-1]

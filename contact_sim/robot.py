@@ -1,0 +1,474 @@
+"""Robots from URDF: collision geometry from the description, link poses from joint positions.
+
+``World.add_urdf`` parses a URDF (yourdfpy: a path or the XML text) and adds one kinematic body per
+``<collision>`` element of every link, named by the link (with the prefix): the first element of
+link ``L`` is body ``L``, further ones ``L#1``, ``L#2``, ... (the engine has no compound bodies; the
+bodies of one link always move together). Each body's frame is its element's frame: link pose ∘
+element ``origin``, so every shape stays centred as the engine's exact kernels expect.
+
+``World.set_joint_positions`` computes forward kinematics (revolute, continuous, prismatic, fixed
+and mimic joints; floating and planar joints stay at their origin) and applies every body of the
+robot through the vectorised ``World.set_poses``, so link velocities are finite differences of
+consecutive stamps like any kinematic body's. Bad input is refused by name before anything changes.
+
+Links joined by a joint never collide with each other (MoveIt's "Adjacent"; a link without
+geometry in between is skipped, so its geometric neighbours are adjacent); nor do the bodies of one
+link. ``World.disable_collisions`` turns off further pairs.
+"""
+import io
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from .errors import ContactSimError
+from .validate import show
+
+LIMIT_TOLERANCE = 1e-9      # a joint position may exceed its limits by this much (round-off of the sender)
+MOVABLE = ("revolute", "continuous", "prismatic")
+PACKAGE_PATH_ENV = "CONTACT_SIM_PACKAGE_PATH"   # folders holding ROS packages, os.pathsep-separated
+
+
+# ---------------------------------------------------------------- small rigid-transform helpers
+def rotation_about(axis, angle):
+    """``(3, 3)`` rotation by ``angle`` about the unit ``axis (3,)`` (Rodrigues)."""
+    x, y, z = axis
+    c, s = np.cos(angle), np.sin(angle)
+    C = 1.0 - c
+    return np.array([[c + x * x * C, x * y * C - z * s, x * z * C + y * s],
+                     [y * x * C + z * s, c + y * y * C, y * z * C - x * s],
+                     [z * x * C - y * s, z * y * C + x * s, c + z * z * C]])
+
+
+def matrix_to_quat(R):
+    """Quaternions ``(M, 4)`` x, y, z, w (w >= 0) of rotation matrices ``R (M, 3, 3)`` (Shepperd's
+    method: the largest of the four squared components is taken first, so no division is small)."""
+    R = np.asarray(R, float)
+    tr = R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]
+    cand = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    pick = np.argmax(cand, axis=1)
+    q = np.empty((len(R), 4))
+    for k in range(4):
+        m = pick == k
+        if not m.any():
+            continue
+        r = R[m]
+        if k == 0:
+            s = 2.0 * np.sqrt(1.0 + tr[m])
+            q[m] = np.stack([(r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s,
+                             (r[:, 1, 0] - r[:, 0, 1]) / s, 0.25 * s], axis=1)
+        else:
+            i = k - 1
+            j, l = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(1.0 + r[:, i, i] - r[:, j, j] - r[:, l, l])
+            out = np.empty((len(r), 4))
+            out[:, i] = 0.25 * s
+            out[:, j] = (r[:, j, i] + r[:, i, j]) / s
+            out[:, l] = (r[:, l, i] + r[:, i, l]) / s
+            out[:, 3] = (r[:, l, j] - r[:, j, l]) / s
+            q[m] = out
+    q *= np.where(q[:, 3:4] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def pose_matrix(position, orientation):
+    """``(4, 4)`` homogeneous transform of a position ``(3,)`` and quaternion ``(4,)`` x, y, z, w."""
+    x, y, z, w = np.asarray(orientation, float) / np.linalg.norm(orientation)
+    T = np.eye(4)
+    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+    T[:3, 3] = position
+    return T
+
+
+# ---------------------------------------------------------------- mesh files
+def resolve_uri(uri, base_dir, package_paths=None):
+    """The file a URDF mesh ``uri`` names, and the places looked in: ``(path or None, looked)``.
+
+    ``package://pkg/rest``: ``package_paths[pkg]/rest`` (a mapping), ``DIR/pkg/rest`` for each
+    ``DIR`` of ``package_paths`` (a list) and of ``$CONTACT_SIM_PACKAGE_PATH`` / ``$ROS_PACKAGE_PATH``,
+    then the package's share folder from the ament index when ``ament_index_python`` is installed
+    (it imports no ROS client library); ``file://`` an absolute path; anything else a path
+    relative to ``base_dir`` (the URDF file's folder)."""
+    looked = []
+    if uri.startswith("package://"):
+        pkg, _, rest = uri[len("package://"):].partition("/")
+        if isinstance(package_paths, Mapping):
+            if pkg in package_paths:
+                looked.append(os.path.join(str(package_paths[pkg]), rest))
+            dirs = []
+        else:
+            dirs = [str(d) for d in (package_paths or [])]
+        for var in (PACKAGE_PATH_ENV, "ROS_PACKAGE_PATH"):
+            dirs += [d for d in os.environ.get(var, "").split(os.pathsep) if d]
+        looked += [os.path.join(d, pkg, rest) for d in dirs]
+        for p in looked:
+            if os.path.isfile(p):
+                return p, looked
+        try:
+            from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+        except ImportError:
+            return None, looked + ["(ament index: ament_index_python not installed)"]
+        try:
+            p = os.path.join(get_package_share_directory(pkg), rest)
+        except (PackageNotFoundError, LookupError, ValueError, OSError):   # OSError: no AMENT_PREFIX_PATH
+            return None, looked + [f"(ament index: no package {pkg!r})"]
+        looked.append(p)
+        return (p if os.path.isfile(p) else None), looked
+    path = uri[len("file://"):] if uri.startswith("file://") else uri
+    if not os.path.isabs(path):
+        path = os.path.join(base_dir, path)
+    looked.append(path)
+    return (path if os.path.isfile(path) else None), looked
+
+
+def _mesh_shape(path, scale, convex, what):
+    """A ``Convex`` (the mesh is convex, or ``convex`` asks for its hull) or ``TriMesh`` of a mesh
+    file (STL, OBJ, DAE, ... through trimesh), vertices multiplied by ``scale (3,)``."""
+    import trimesh
+
+    from .shapes import Convex, TriMesh
+
+    try:
+        mesh = trimesh.load(path, force="mesh", process=True)
+    except Exception as exc:   # trimesh raises many types for bad files
+        raise ContactSimError(f"{what}: cannot read mesh {path!r}: {exc}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise ContactSimError(f"{what}: mesh {path!r} has no triangles")
+    v = np.asarray(mesh.vertices, float) * scale
+    f = np.asarray(mesh.faces, np.int64)
+    if np.linalg.det(np.diag(scale)) < 0:   # a mirroring scale turns the faces inside out
+        f = f[:, ::-1]
+    if convex or mesh.is_convex:
+        return Convex(v, name=what)
+    return TriMesh(v, f, name=what)
+
+
+# ---------------------------------------------------------------- the model
+class RobotModel:
+    """A robot's kinematic tree and the world bodies of its collision elements.
+
+    ``joints``: movable and fixed joints in tree order (parents first) as dicts; ``q``: position of
+    every movable joint by (prefixed) name; ``bodies`` / ``body_link`` / ``body_origin (B, 4, 4)``:
+    each collision body, its link and its frame in the link's."""
+
+    def __init__(self, name, prefix, root, joints, base, bodies, body_link, body_origin, q):
+        self.name, self.prefix, self.root = name, prefix, root
+        self.joints, self.base = joints, base
+        self.bodies, self.body_link, self.body_origin = bodies, body_link, body_origin
+        self.q = dict(q)
+        self.q_initial = dict(q)
+        self.by_name = {j["name"]: j for j in joints}
+
+    def link_transforms(self, q):
+        """World transforms ``{link: (4, 4)}`` of every link for joint positions ``q`` (a mapping)."""
+        T = {self.root: self.base}
+        for j in self.joints:
+            parent = T[j["parent"]]
+            M = parent @ j["origin"]
+            if j["type"] in MOVABLE:
+                m = j["mimic"]
+                x = q[j["name"]] if m is None else m[1] * q[m[0]] + m[2]
+                J = np.eye(4)
+                if j["type"] == "prismatic":
+                    J[:3, 3] = j["axis"] * x
+                else:
+                    J[:3, :3] = rotation_about(j["axis"], x)
+                M = M @ J
+            T[j["child"]] = M
+        return T
+
+    def body_poses(self, q):
+        """Positions ``(B, 3)`` and quaternions ``(B, 4)`` of the robot's bodies for ``q``."""
+        T = self.link_transforms(q)
+        W = np.array([T[link] for link in self.body_link]).reshape(-1, 4, 4) @ self.body_origin
+        return W[:, :3, 3].copy(), matrix_to_quat(W[:, :3, :3])
+
+    def check(self, names, positions, call):
+        """The new joint positions (a dict) after setting ``names (M,)`` to ``positions (M,)``; refuses
+        (``ContactSimError`` naming the joint) unknown, mimic, repeated, non-finite or out-of-limit ones."""
+        q = dict(self.q)
+        for n, x in zip(names, positions):
+            j = self.by_name[n]
+            if j["mimic"] is not None:
+                raise ContactSimError(f"{call}: joint {n!r} mimics {j['mimic'][0]!r}; set that joint instead")
+            lo, hi = j["limits"]
+            if not (lo - LIMIT_TOLERANCE <= x <= hi + LIMIT_TOLERANCE):
+                raise ContactSimError(f"{call}: joint {n!r} position {x!r} is outside its limits [{lo!r}, {hi!r}]")
+            q[n] = float(x)
+        return q
+
+
+def _joint_dict(j, prefix, where):
+    t = j.type
+    origin = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
+    axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, float)
+    if t in MOVABLE:
+        n = np.linalg.norm(axis)
+        if not np.isfinite(n) or n < 1e-12:
+            raise ContactSimError(f"{where}: joint {j.name!r}: axis must be non-zero, got {axis.tolist()}")
+        axis = axis / n
+    lo, hi = -np.inf, np.inf
+    if t in ("revolute", "prismatic"):
+        lim = j.limit
+        lo = 0.0 if lim is None or lim.lower is None else float(lim.lower)
+        hi = 0.0 if lim is None or lim.upper is None else float(lim.upper)
+        if not lo <= hi:
+            raise ContactSimError(f"{where}: joint {j.name!r}: lower limit {lo!r} above upper {hi!r}")
+    mimic = None
+    if j.mimic is not None and t in MOVABLE:
+        mult = 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier)
+        off = 0.0 if j.mimic.offset is None else float(j.mimic.offset)
+        mimic = (prefix + j.mimic.joint, mult, off)
+    if not np.all(np.isfinite(origin)):
+        raise ContactSimError(f"{where}: joint {j.name!r}: origin is not finite")
+    return {"name": prefix + j.name, "type": t if t in MOVABLE else "fixed", "parent": j.parent, "child": j.child,
+            "origin": origin, "axis": axis, "limits": (lo, hi), "mimic": mimic}
+
+
+def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=False, where="add_urdf", srdf=None):
+    """Parse ``urdf`` (a path, or the XML text) into ``(RobotModel without q, shapes (B,), adjacent
+    body-name pairs)``. Errors name the link, joint or mesh URI."""
+    import yourdfpy
+
+    from .cylinder import Cylinder
+    from .shapes import Box, Sphere
+
+    if not isinstance(urdf, (str, os.PathLike)):
+        raise ContactSimError(f"{where}: urdf must be a file path or URDF XML text, got {type(urdf).__name__}")
+    if not isinstance(prefix, str):
+        raise ContactSimError(f"{where}.prefix: must be a string, got {show(prefix)}")
+    text = str(urdf)
+    is_xml = text.lstrip().startswith("<")
+    if not is_xml and not os.path.isfile(text):
+        raise ContactSimError(f"{where}: no such URDF file {text!r}")
+    base_dir = os.getcwd() if is_xml else os.path.dirname(os.path.abspath(text))
+    # well-formed XML first: yourdfpy would otherwise "recover" a broken document into part of a robot
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(text) if is_xml else ET.parse(text).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise ContactSimError(f"{where}: not well-formed XML: {exc}") from None
+    if root.tag != "robot":
+        raise ContactSimError(f"{where}: not a URDF: the root element is <{root.tag}>, not <robot>")
+    try:
+        src = io.BytesIO(text.encode()) if is_xml else text
+        model = yourdfpy.URDF.load(src, build_scene_graph=False, load_meshes=False, load_collision_meshes=False)
+        robot = model.robot
+    except Exception as exc:   # lxml and yourdfpy raise many types for a bad document
+        raise ContactSimError(f"{where}: not a valid URDF ({type(exc).__name__}: {exc})") from None
+    links = {link.name: link for link in robot.links}
+    if not links:
+        raise ContactSimError(f"{where}: the URDF has no links")
+    children = {}
+    parent_of = {}
+    for j in robot.joints:
+        for end in (j.parent, j.child):
+            if end not in links:
+                raise ContactSimError(f"{where}: joint {j.name!r} names an unknown link {end!r}")
+        if j.child in parent_of:
+            raise ContactSimError(f"{where}: link {j.child!r} has two parent joints")
+        parent_of[j.child] = j
+        children.setdefault(j.parent, []).append(j)
+    roots = [n for n in links if n not in parent_of]
+    if len(roots) != 1:
+        raise ContactSimError(f"{where}: the links must form one tree; roots: {roots}")
+    # joints parents first (depth-first from the root)
+    order, stack = [], [roots[0]]
+    while stack:
+        for j in reversed(children.get(stack.pop(), [])):
+            order.append(j)
+            stack.append(j.child)
+    if len(order) != len(robot.joints):
+        raise ContactSimError(f"{where}: the joints contain a cycle")
+    joints = [_joint_dict(j, prefix, where) for j in order]
+    names = {j["name"] for j in joints}
+    for j in joints:
+        if j["mimic"] is not None:
+            m = j["mimic"][0]
+            if m not in names or j["mimic"][0] == j["name"] or \
+                    next(x for x in joints if x["name"] == m)["type"] not in MOVABLE:
+                raise ContactSimError(f"{where}: joint {j['name']!r} mimics {m!r}, which is not a movable joint")
+    if base_pose is None:
+        base = np.eye(4)
+    else:
+        from .validate import ORIENTATION, POSITION
+
+        try:
+            p, o = base_pose
+        except (TypeError, ValueError):
+            raise ContactSimError(f"{where}.base_pose: must be (position (3,), orientation (4,) x, y, z, w), "
+                                  f"got {show(base_pose)}") from None
+        base = pose_matrix(POSITION.check(p, f"{where}.base_pose.position"),
+                           ORIENTATION.check(o, f"{where}.base_pose.orientation"))
+    # collision elements → shapes (a mesh file and scale loaded once)
+    shapes, bodies, body_link, origins, cache = [], [], [], [], {}
+    for lname, link in links.items():
+        for e, col in enumerate(link.collisions):
+            what = f"{where}: link {lname!r} collision {e}"
+            g = col.geometry
+            if g is None:
+                raise ContactSimError(f"{what}: no geometry")
+            if g.box is not None:
+                shape = Box(g.box.size, name=f"{what}.box")
+            elif g.sphere is not None:
+                shape = Sphere(g.sphere.radius, name=f"{what}.sphere")
+            elif g.cylinder is not None:
+                shape = Cylinder(g.cylinder.radius, g.cylinder.length, name=f"{what}.cylinder")
+            elif g.mesh is not None:
+                uri = g.mesh.filename
+                path, looked = resolve_uri(uri, base_dir, package_paths)
+                if path is None:
+                    raise ContactSimError(f"{what}: cannot find mesh {uri!r} (looked in: {', '.join(looked)})")
+                sc = np.broadcast_to(np.asarray(1.0 if g.mesh.scale is None else g.mesh.scale, float), (3,)).copy()
+                if not np.all(np.isfinite(sc)) or np.any(sc == 0):
+                    raise ContactSimError(f"{what}: mesh {uri!r} scale must be finite and non-zero, got {sc.tolist()}")
+                key = (path, tuple(sc))
+                if key not in cache:
+                    cache[key] = _mesh_shape(path, sc, convex_meshes, f"{what}: mesh {uri!r}")
+                shape = cache[key]
+            else:
+                raise ContactSimError(f"{what}: no box, sphere, cylinder or mesh")
+            shapes.append(shape)
+            bodies.append(prefix + lname + ("" if e == 0 else f"#{e}"))
+            body_link.append(lname)
+            origins.append(np.eye(4) if col.origin is None else np.asarray(col.origin, float))
+    # adjacency: a joint's child against its nearest ancestor with geometry; a link's own bodies
+    has_geom = {n for n in body_link}
+    of_link = {}
+    for b, lname in zip(bodies, body_link):
+        of_link.setdefault(lname, []).append(b)
+    pairs = set()
+    for group in of_link.values():
+        pairs |= {(a, b) for a in group for b in group if a < b}
+    for lname in has_geom:
+        up = parent_of.get(lname)
+        while up is not None and up.parent not in has_geom:
+            up = parent_of.get(up.parent)
+        if up is not None:
+            pairs |= {tuple(sorted((a, b))) for a in of_link[lname] for b in of_link[up.parent]}
+    rm = RobotModel(prefix + robot.name, prefix, roots[0], joints, base, bodies, body_link,
+                    np.array(origins).reshape(-1, 4, 4), {})
+    if srdf is not None:
+        pairs |= srdf_pairs(srdf, links, of_link, prefix, where)
+    return rm, shapes, pairs
+
+
+def initial_positions(model, joint_positions, where):
+    """Joint positions at start: 0, or the nearest limit when 0 is outside them; then the given ones."""
+    q = {}
+    for j in model.joints:
+        if j["type"] in MOVABLE and j["mimic"] is None:
+            lo, hi = j["limits"]
+            q[j["name"]] = float(min(max(0.0, lo), hi))
+    model.q = q
+    if joint_positions:
+        if not isinstance(joint_positions, Mapping):
+            raise ContactSimError(f"{where}.joint_positions: must be a mapping of joint name → position, "
+                                  f"got {show(joint_positions)}")
+        names = [model.prefix + str(k) if model.prefix + str(k) in model.by_name else str(k) for k in joint_positions]
+        names, pos = check_request(model.by_name, names, list(joint_positions.values()), f"{where}.joint_positions")
+        q = model.check(names, pos, f"{where}.joint_positions")
+    return q
+
+
+def check_request(known, names, positions, call):
+    """``names`` as a list of known joint names and ``positions`` as floats ``(M,)``; refuses a
+    non-list, unknown or repeated name, a length mismatch, a non-number or a non-finite value."""
+    if isinstance(names, (str, bytes)) or not hasattr(names, "__iter__"):
+        raise ContactSimError(f"{call}.names: must be a list of joint names, got {show(names)}")
+    names = list(names)
+    bad = f"{call}.positions: must be {len(names)} numbers, got {show(positions)}"
+    if isinstance(positions, (str, bytes)) or not hasattr(positions, "__len__"):
+        raise ContactSimError(bad)
+    try:
+        raw = np.asarray(positions, dtype=object).reshape(-1)
+        # a boolean or a string is no position, even where numpy would convert it
+        if any(isinstance(x, (bool, np.bool_, str, bytes)) for x in raw):
+            raise ValueError
+        pos = raw.astype(float)
+    except (TypeError, ValueError):
+        raise ContactSimError(bad) from None
+    if len(pos) != len(names):
+        raise ContactSimError(f"{call}: {len(names)} joint names but {len(pos)} positions")
+    for n, x in zip(names, pos):
+        if n not in known:
+            raise ContactSimError(f"{call}: unknown joint {n!r} (joints: {', '.join(sorted(known)) or 'none'})")
+        if not np.isfinite(x):
+            raise ContactSimError(f"{call}: joint {n!r} position must be finite, got {x!r}")
+    if len(set(names)) != len(names):
+        raise ContactSimError(f"{call}: a joint is named twice in {names!r}")
+    return names, pos
+
+
+def srdf_pairs(srdf, links, of_link, prefix, where):
+    """Body-name pairs of an SRDF's ``<disable_collisions link1= link2=/>`` (MoveIt's allowed
+    collisions; ``srdf`` a path or the XML text). Links without geometry have no bodies (no pair);
+    a link the URDF does not have is refused by name."""
+    import xml.etree.ElementTree as ET
+
+    text = str(srdf)
+    try:
+        root = ET.fromstring(text) if text.lstrip().startswith("<") else ET.parse(text).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise ContactSimError(f"{where}.srdf: cannot read {text[:60]!r}: {exc}") from None
+    pairs = set()
+    for k, e in enumerate(root.iter("disable_collisions")):
+        a, b = e.get("link1"), e.get("link2")
+        for n in (a, b):
+            if n not in links:
+                raise ContactSimError(f"{where}.srdf: disable_collisions {k} names an unknown link {n!r}")
+        pairs |= {tuple(sorted((x, y))) for x in of_link.get(a, []) for y in of_link.get(b, []) if x != y}
+    return pairs
+
+
+# ---------------------------------------------------------------- world operations
+def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None, convex_meshes=False,
+             material=None, where="add_urdf", srdf=None):
+    """See ``World.add_urdf``; ``where`` starts error messages (a scene path)."""
+    model, shapes, pairs = parse(urdf, prefix, base_pose, package_paths, convex_meshes, where, srdf)
+    q = initial_positions(model, joint_positions, where)
+    model.q, model.q_initial = dict(q), dict(q)
+    taken = [b for b in model.bodies if b in world._index]
+    if taken:
+        raise ContactSimError(f"{where}: body {taken[0]!r} already exists (use prefix= for a second robot)")
+    names = {j["name"] for r in world.robots for j in r.joints}
+    clash = [j["name"] for j in model.joints if j["name"] in names]
+    if clash:
+        raise ContactSimError(f"{where}: joint {clash[0]!r} already belongs to another robot (use prefix=)")
+    pos, quat = model.body_poses(q)
+    extra = {} if material is None else {"material": material}
+    specs = [dict(name=b, shape=s, kind="kinematic", position=p, orientation=o, where=f"{where}: body {b!r}", **extra)
+             for b, s, p, o in zip(model.bodies, shapes, pos, quat)]
+    world.add_bodies(specs)   # all or nothing
+    world.robots = world.robots + [model]   # a new list: a caller holding the old one can roll back
+    world.disable_collisions(sorted(pairs))
+    return list(model.bodies)
+
+
+def set_joint_positions(world, names, positions, stamp=None):
+    """See ``World.set_joint_positions``."""
+    call = "set_joint_positions"
+    owner = {j["name"]: r for r in world.robots for j in r.joints if j["type"] in MOVABLE}
+    names, pos = check_request(owner, names, positions, call)
+    if not names:
+        return
+    new = {}
+    for n, x in zip(names, pos):
+        r = owner[n]
+        new.setdefault(id(r), (r, [], []))
+        new[id(r)][1].append(n)
+        new[id(r)][2].append(x)
+    qs, bodies, P, Q = [], [], [], []
+    for r, ns, xs in new.values():
+        q = r.check(ns, xs, call)
+        p, o = r.body_poses(q)
+        qs.append((r, q))
+        bodies += r.bodies
+        P.append(p)
+        Q.append(o)
+    world.set_poses(bodies, np.concatenate(P), np.concatenate(Q), stamp)   # checks everything first
+    for r, q in qs:
+        r.q = q

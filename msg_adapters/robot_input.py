@@ -1,0 +1,209 @@
+"""A robot from ``robot_description``, moved by ``joint_states``: the inputs robot_state_publisher takes.
+
+A mixin of ``ContactSimNode``:
+
+- ``robot_description_topic`` (``std_msgs/String``, transient local, reliable; parameter, default
+  ``robot_description``, empty disables): the URDF. When it arrives the robot's link bodies are
+  added (``World.add_urdf``, bodies named by link with ``robot_prefix``); a new description replaces
+  them, the other bodies keep their state. A description the engine refuses is counted and warned
+  about, and the robot already there stays.
+- ``joint_states_topic`` (``sensor_msgs/JointState``, best effort so reliable publishers match too;
+  default ``joint_states``): positions of the robot's joints, applied with
+  ``World.set_joint_positions`` at the message stamp (zero: time of receipt), so link velocities are
+  finite differences of consecutive stamps. Joints the robot does not have are counted
+  (``joint_states_unknown_joints``) and warned about, the known ones applied; mimic joints are
+  computed from the joints they follow and skipped. A message stamped no later than the last one
+  applied (``rejected_joint_state_out_of_order``), older than ``pose_timeout`` on arrival
+  (``..._stale``), malformed or refused by the engine (NaN, beyond the joint limits:
+  ``..._invalid``) changes nothing and is counted and warned about, like a bad pose.
+- ``robot_description_semantic_topic`` (``std_msgs/String``, transient local; default
+  ``robot_description_semantic``, empty: not read): MoveIt's SRDF; its ``disable_collisions``
+  pairs are never tested (the robot is rebuilt with them). An SRDF that does not fit the robot
+  (an unknown link) is refused, counted and warned about.
+- After ``pose_timeout`` without joint states the links hold their last pose with zero velocity.
+"""
+import numpy as np
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+import contact_sim
+
+JOINT_STATE_REASONS = ("out_of_order", "stale", "invalid", "malformed", "no_robot")
+
+
+class RobotInput:
+    """``robot_description`` and ``joint_states`` of ``ContactSimNode``."""
+
+    def _create_robot_input(self, overrides):
+        self._robot_urdf = None          # the last accepted description (re-added when the scene changes)
+        self._robot = None               # its RobotModel in the world
+        self._robot_srdf = None          # the last accepted semantic description
+        self._js_t0_ns = None
+        self._js_last_ns = None
+        self._js_last_rx = -np.inf
+        self._robot_held = True
+        self.sub_description = self.sub_joint_states = None
+        topic = self.cfg["robot_description_topic"]
+        if not topic:
+            return
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.sub_description = self.create_subscription(String, topic, self._on_robot_description, latched,
+                                                        qos_overriding_options=overrides())
+        self.sub_semantic = None
+        if self.cfg["robot_description_semantic_topic"]:
+            self.sub_semantic = self.create_subscription(String, self.cfg["robot_description_semantic_topic"],
+                                                         self._on_robot_semantic, latched,
+                                                         qos_overriding_options=overrides())
+        self.sub_joint_states = self.create_subscription(
+            JointState, self.cfg["joint_states_topic"], self._on_joint_states,
+            QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST),
+            qos_overriding_options=overrides())
+
+    # ------------------------------------------------------------------ the description
+    def _on_robot_description(self, msg):
+        try:
+            self._install_robot(msg.data)
+        except contact_sim.ContactSimError as exc:
+            self.counts["rejected_robot_descriptions"] += 1
+            self._warn("robot_description", f"{self.cfg['robot_description_topic']} refused: {exc}; "
+                                            f"{'the robot is unchanged' if self._robot else 'no robot'}")
+            return
+        except Exception as exc:   # whatever a document can provoke: refused, never a crash
+            self.counts["rejected_robot_descriptions"] += 1
+            self._warn("robot_description", f"{self.cfg['robot_description_topic']} refused: "
+                                            f"{type(exc).__name__}: {exc}")
+            return
+        self.counts["robot_descriptions"] += 1
+        self._bodies_changed()
+        self._log_robot()
+
+    def _on_robot_semantic(self, msg):
+        if self._robot_urdf is not None:     # the robot again, with these pairs (refused: unchanged)
+            try:
+                self._install_robot(self._robot_urdf, msg.data, strict=True)
+            except Exception as exc:
+                self.counts["rejected_robot_descriptions"] += 1
+                self._warn("robot_description_semantic", f"{self.cfg['robot_description_semantic_topic']} refused: "
+                                                         f"{exc}; the robot is unchanged")
+                return
+            self._bodies_changed()
+            self._log_robot()
+        self._robot_srdf = msg.data
+        self.counts["robot_semantic_descriptions"] += 1
+
+    def _log_robot(self):
+        self.get_logger().info(f"robot {self._robot.name!r}: {len(self._robot.bodies)} link bodies "
+                               f"({', '.join(self._robot.bodies)}); {len(self.world.disabled_pairs)} body pairs "
+                               f"never tested")
+
+    def _install_robot(self, urdf, srdf=None, strict=False):
+        """Replace the robot (if any) by the one ``urdf`` describes (with the SRDF's allowed
+        collisions: ``srdf``, else the last accepted one); all or nothing. ``strict``: an SRDF that
+        does not fit refuses the whole request."""
+        world = self.world
+        srdf = self._robot_srdf if srdf is None else srdf
+        prefix = self.cfg["robot_prefix"]
+        # a description the engine refuses on its own is refused before the old robot goes; an SRDF
+        # that does not fit a new robot is dropped (the robot comes without it), not the robot
+        try:
+            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix, srdf=srdf)
+        except contact_sim.ContactSimError as exc:
+            if strict or srdf is None or ".srdf" not in str(exc):
+                raise
+            self._warn("robot_description_semantic", f"the SRDF does not fit this robot ({exc}); ignored")
+            srdf = self._robot_srdf = None
+            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix)
+        carried = ("_cs_warm", "_cs_spec")     # what the stepper carries between steps (remapped by removal)
+        saved = (world._snapshot(), world.robots, world.disabled_pairs, world.contacts,
+                 {k: world.__dict__.get(k) for k in carried})
+        try:
+            if self._robot is not None and self._robot in world.robots:
+                world.remove_bodies(self._robot.bodies)
+            world.add_urdf(urdf, prefix=prefix, srdf=srdf)
+        except BaseException:   # e.g. a link named like a scene body
+            world._restore(saved[0])
+            world.robots, world.disabled_pairs, world.contacts = saved[1:4]
+            world.__dict__.update(saved[4])
+            world.__dict__.pop("_cs_memo", None)
+            raise
+        self._robot = world.robots[-1]
+        self._robot_urdf = urdf
+        self._js_t0_ns = self._js_last_ns = None     # a new robot: its first joint state places it
+        self._robot_held = True
+
+    def _reinstall_robot(self):
+        """After a new scene: the robot of the last description into the new world."""
+        self._robot = None
+        if self._robot_urdf is None:
+            return
+        try:
+            self._install_robot(self._robot_urdf)
+        except Exception as exc:
+            self.counts["rejected_robot_descriptions"] += 1
+            self._warn("robot_description", f"robot_description does not fit the new scene: {exc}")
+
+    # ------------------------------------------------------------------ joint states
+    def _reject_joint_state(self, reason, text):
+        self.counts["rejected_joint_states"] += 1
+        self.counts["rejected_joint_state_" + reason] += 1
+        self._warn("joint_state_" + reason, f"{self.cfg['joint_states_topic']} rejected ({reason}): {text}; "
+                                            f"the robot keeps its last good pose")
+
+    def _on_joint_states(self, msg):
+        self.counts["joint_states_received"] += 1
+        robot = self._robot
+        if robot is None or robot not in self.world.robots:
+            return self._reject_joint_state("no_robot", f"no robot yet (waiting for "
+                                                        f"{self.cfg['robot_description_topic']})")
+        names, pos = list(msg.name), np.asarray(msg.position, float)
+        if len(names) != len(pos):
+            return self._reject_joint_state("malformed", f"{len(names)} names but {len(pos)} positions")
+        movable = {j["name"]: j for j in robot.joints if j["type"] in ("revolute", "continuous", "prismatic")}
+        unknown = [n for n in names if n not in movable]
+        if unknown:
+            self.counts["joint_states_unknown_joints"] += len(unknown)
+            self._warn("joint_state_unknown", f"{self.cfg['joint_states_topic']}: unknown joints "
+                                              f"{', '.join(map(repr, unknown[:5]))}{' ...' if len(unknown) > 5 else ''}"
+                                              f" ignored (robot {robot.name!r})")
+        keep = [i for i, n in enumerate(names) if n in movable and movable[n]["mimic"] is None]
+        now_ns = self._now_ns()
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or now_ns
+        if self._js_last_ns is not None and stamp_ns <= self._js_last_ns:
+            return self._reject_joint_state("out_of_order", f"stamp {stamp_ns * 1e-9:.9f} s is not after the "
+                                                            f"previous joint state's {self._js_last_ns * 1e-9:.9f} s")
+        if (now_ns - stamp_ns) * 1e-9 > self.cfg["pose_timeout"]:
+            return self._reject_joint_state("stale", f"stamp {stamp_ns * 1e-9:.9f} s is older than pose_timeout "
+                                                     f"({self.cfg['pose_timeout']:g} s) at {now_ns * 1e-9:.9f} s")
+        if not keep:
+            return
+        if self._js_t0_ns is None:
+            self._js_t0_ns = stamp_ns
+        try:
+            self.world.set_joint_positions([names[i] for i in keep], pos[keep], (stamp_ns - self._js_t0_ns) * 1e-9)
+        except contact_sim.ContactSimError as exc:
+            return self._reject_joint_state("invalid", str(exc))
+        self._js_last_ns = stamp_ns
+        self._js_last_rx = now_ns * 1e-9
+        self._robot_held = False
+        self.counts["joint_states_accepted"] += 1
+
+    def _reset_joint_times(self):
+        """Forget joint-state stamps (a reset, a clock jump): the next one places the links afresh."""
+        self._js_t0_ns = self._js_last_ns = None
+        if self._robot is not None and self._robot in self.world.robots:
+            self.world.restart_pose_history(self._robot.bodies)
+
+    def _hold_robot(self, now_s):
+        """No joint states for pose_timeout: the links stay at the last forward kinematics, at rest
+        (a kinematic body keeps moving at its velocity otherwise)."""
+        robot = self._robot
+        if self._robot_held or robot is None or robot not in self.world.robots:
+            return
+        if now_s - self._js_last_rx <= self.cfg["pose_timeout"]:
+            return
+        p, q = robot.body_poses(robot.q)
+        zeros = np.zeros((len(p), 3))
+        self.world.set_states(robot.bodies, positions=p, orientations=q, velocities=zeros, angular_velocities=zeros)
+        self._robot_held = True
