@@ -11,13 +11,13 @@ import numpy as np
 
 from . import dynamics, quat
 from .contacts import Contacts
-from .errors import BoundsError, ContactSimError, EngineError
+from .errors import ContactSimError, EngineError
+from .kinds import DYNAMIC, KINDS, KINEMATIC
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .shapes import Plane, Shape
-from .validate import (ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, POSITIONS, STAMP,
-                       VELOCITY, Choice, Nested, show)
+from .validate import ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, VELOCITY, Choice, Nested, show
+from .world_input import BodyInput
 
-KINDS = ("static", "kinematic", "dynamic")
 # Per-body attributes of a World, rows in body order (arrays) or items (lists). remove_bodies and the
 # rollback of add_bodies treat them together: a new per-body attribute belongs here (an engine test
 # fails when an array with a row per body is missing from this list).
@@ -26,7 +26,6 @@ BODY_ARRAYS = ("kind", "particle", "mass", "inv_mass", "inertia_body", "inv_iner
 BODY_LISTS = ("_names", "shapes", "user_shapes", "material_names")
 MODELS = ("rigid", "particle")
 _KIND, _MODEL = Choice(KINDS), Choice(MODELS)
-STATIC, KINEMATIC, DYNAMIC = 0, 1, 2
 DEFAULT_DENSITY = 1000.0  # kg/m³ (water), when neither mass nor density is given
 ALL_GROUPS = 0xFFFFFFFF
 
@@ -86,26 +85,7 @@ class _State:
         return c
 
 
-def _length(value):
-    """``len(value)`` of a list, tuple or array with at least one dimension, else None."""
-    if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim > 0):
-        return len(value)
-    return None
-
-
-def _rows(check, value, m, path, row_path, settings, row_rule):
-    """``check`` an ``(m, n)`` batch; when it is refused and the batch has ``m`` rows, name the
-    first bad row by checking the rows one by one with ``row_rule``."""
-    try:
-        return check(value, path, settings, count=m, row_path=row_path)
-    except ContactSimError:
-        if _length(value) == m:
-            for i in range(m):
-                row_rule.check(value[i], row_path(i), settings)
-        raise
-
-
-class World:
+class World(BodyInput):
     """A rigid-body world. See the package docstring for the public contract.
 
     Every public method checks its arguments before it changes anything (``contact_sim.validate``;
@@ -458,151 +438,6 @@ class World:
     def velocities(self):
         """Linear ``(N, 3)`` (of the centres of mass) and angular ``(N, 3)`` velocities (copies)."""
         return self.s.vel.copy(), self.s.omega.copy()
-
-    # ------------------------------------------------------------------ driving bodies
-    def set_pose(self, name, position, orientation, stamp=None):
-        """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time
-        ``stamp`` (s; default the world time). From the second pose on its linear and angular
-        velocity are the finite differences of successive poses over their stamps, so responses
-        see how fast it really moves. Stamps must increase. Bad input changes nothing; a position
-        beyond ``settings.max_position`` or a pose implying a speed beyond ``max_speed`` /
-        ``max_angular_speed`` raises ``BoundsError``."""
-        self._set_poses([name], [position], [orientation], stamp, single=True)
-
-    def set_poses(self, names, positions, orientations, stamp=None):
-        """``set_pose`` for several kinematic bodies at one ``stamp``, vectorised: ``names (M,)``,
-        ``positions (M, 3)``, ``orientations (M, 4)``. The whole batch is checked before anything
-        changes, so a bad row leaves every body as it was; errors name the body and the reason.
-        An empty batch changes nothing."""
-        self._set_poses(names, positions, orientations, stamp, single=False)
-
-    def _set_poses(self, names, positions, orientations, stamp, single):
-        st = self.settings
-        call = "set_pose" if single else "set_poses"
-        if isinstance(names, (str, bytes)) or not hasattr(names, "__iter__"):
-            raise ContactSimError(f"set_poses.names: must be a list of body names, got {show(names)}")
-        names = list(names)
-        m = len(names)
-        idx = np.array([self.index(n) for n in names], dtype=np.int64)
-
-        def where(i):
-            return f"set_pose({names[i]!r})"
-
-        if len(set(idx.tolist())) != m:
-            raise ContactSimError(f"set_poses: a body is named twice in {names!r}")
-        bad = np.flatnonzero(self.kind[idx] != KINEMATIC)
-        if bad.size:
-            i = bad[0]
-            raise ContactSimError(f"{where(i)}: only kinematic bodies are posed from outside; {names[i]!r} is "
-                                  f"{KINDS[self.kind[idx[i]]]} (use set_state for dynamic bodies)")
-        lengths = [_length(positions), _length(orientations)]
-        if None not in lengths and lengths != [m, m]:
-            raise ContactSimError(f"set_poses: {m} names but {lengths[0]} positions and {lengths[1]} orientations")
-        pos = _rows(POSITIONS.check, positions, m, f"{call}.positions", lambda i: f"{where(i)}.position", st,
-                    POSITION)
-        q = _rows(ORIENTATION.check_rows, orientations, m, f"{call}.orientations",
-                  lambda i: f"{where(i)}.orientation", st, ORIENTATION)
-        t = self.time if stamp is None else STAMP.check(stamp, f"{where(0) if single else 'set_poses'}.stamp")
-        s = self.s
-        posed = s.posed[idx]
-        bad = np.flatnonzero(posed & (t - s.stamp[idx] <= 0))
-        if bad.size:
-            i = bad[0]
-            raise ContactSimError(f"{where(i)}.stamp: must be after the previous pose ({s.stamp[idx[i]]!r}), got {t!r}")
-        com_world = pos + quat.rotate(q, self.com_local[idx])
-        j, ij = np.flatnonzero(posed), idx[posed]
-        if j.size:
-            # velocities: finite differences from the previous *pose* (between poses the body moved on
-            # at its velocity; a difference from there would halve the velocity of a steadily driven
-            # body every other pose), over the stamps, within the world's speed bounds
-            dt = (t - s.stamp[ij])[:, None]
-            q_prev = s.pose_quat[ij]
-            qj = np.where(np.sum(q[j] * q_prev, axis=1, keepdims=True) < 0, -q[j], q[j])  # shorter way round
-            q[j] = qj
-            turn = quat.to_rotvec(quat.mul(qj, quat.conj(q_prev)))
-            move = com_world[j] - s.pose_pos[ij]
-            for d, bound, unit in ((move, "max_speed", "m/s"), (turn, "max_angular_speed", "rad/s")):
-                # compared before dividing: stamps a hair apart would overflow the quotient
-                over = np.linalg.norm(d, axis=1) > getattr(st, bound) * dt[:, 0]
-                if over.any():
-                    k = int(np.argmax(over))
-                    speed = float(np.linalg.norm(d[k])) / float(dt[k, 0])
-                    raise BoundsError(f"{where(j[k])}: moving since the previous pose {float(dt[k, 0]):.6g} s ago "
-                                      f"implies {speed:.6g} {unit}, above {bound} ({getattr(st, bound):g} {unit})")
-            omega = turn / dt
-            vel = move / dt
-        # ---- commit (nothing below can fail)
-        if j.size:
-            s.omega[ij] = omega
-            s.vel[ij] = vel
-        s.pos[idx] = com_world
-        s.quat[idx] = q
-        s.pose_pos[idx] = com_world
-        s.pose_quat[idx] = q
-        s.stamp[idx] = t
-        s.posed[idx] = True
-
-    def restart_pose_history(self, names=None):
-        """The next pose of each named kinematic body (every body when ``names`` is None) is taken
-        as a first pose: it places the body and keeps its velocity, no finite difference across the
-        gap (after a clock jump, or when a body was driven another way meanwhile)."""
-        idx = np.arange(len(self)) if names is None else np.array([self.index(n) for n in names], np.int64)
-        self.s.posed[idx] = False
-
-    def set_state(self, name, position=None, orientation=None, velocity=None, angular_velocity=None):
-        """Overwrite any part of a non-static body's state (teleport, set a velocity). Checked first,
-        world bounds included; ``None`` keeps that part."""
-        as_rows = [None if v is None else [v] for v in (position, orientation, velocity, angular_velocity)]
-        self._set_states([name], *as_rows, label="set_state")
-
-    def set_states(self, names, positions=None, orientations=None, velocities=None, angular_velocities=None):
-        """``set_state`` for several non-static bodies at once, all or nothing: ``names (M,)`` and,
-        each optional (None leaves that part unchanged), ``positions (M, 3)`` body-frame origins,
-        ``orientations (M, 4)`` x,y,z,w, ``velocities (M, 3)`` of the centres of mass and
-        ``angular_velocities (M, 3)``, world frame. A kinematic body given a velocity moves at it
-        until the next pose or state; errors name the body and the reason."""
-        self._set_states(names, positions, orientations, velocities, angular_velocities, label="set_states")
-
-    def _set_states(self, names, positions, orientations, velocities, angular_velocities, label):
-        names = [names] if isinstance(names, str) else list(names)
-        m = len(names)
-        idx = np.array([self.index(n) for n in names], np.int64)
-        if len(set(idx.tolist())) != m:
-            raise ContactSimError(f"{label}: a body is named twice in {names!r}")
-        for i in np.flatnonzero(self.kind[idx] == STATIC):
-            raise ContactSimError(f"{label}({names[i]!r}): {names[i]!r} is static and never moves")
-        st = self.settings
-        parts = {}
-        for key, value, rule in (("position", positions, POSITION), ("orientation", orientations, ORIENTATION),
-                                 ("velocity", velocities, VELOCITY),
-                                 ("angular_velocity", angular_velocities, ANGULAR_VELOCITY)):
-            if value is None:
-                continue
-            try:
-                rows = list(value)
-            except TypeError:
-                raise ContactSimError(f"{label}.{key}: must be one row per body, got {value!r}") from None
-            if len(rows) != m:
-                raise ContactSimError(f"{label}.{key}: {len(rows)} rows for {m} bodies")
-            parts[key] = np.array([rule.check(rows[i], f"{label}({names[i]!r}).{key}", st)
-                                   for i in range(m)]).reshape(m, -1)
-        om = parts.get("angular_velocity")
-        if om is not None:
-            for i in np.flatnonzero(self.particle[idx] & om.any(axis=1)):
-                raise ContactSimError(f"{label}({names[i]!r}).angular_velocity: a particle does not rotate")
-        # ---- commit (nothing below can fail)
-        s = self.s
-        origin = parts.get("position")
-        if origin is None:
-            origin = s.pos[idx] - quat.rotate(s.quat[idx], self.com_local[idx])
-        if "orientation" in parts:
-            s.quat[idx] = parts["orientation"]
-        s.pos[idx] = origin + quat.rotate(s.quat[idx], self.com_local[idx])
-        if "velocity" in parts:
-            s.vel[idx] = parts["velocity"]
-        if om is not None:
-            s.omega[idx] = om
-        s.posed[idx] = False   # a kinematic body set from outside: its pose history starts again
 
     # ------------------------------------------------------------------ stepping
     def step(self, dt=None):
