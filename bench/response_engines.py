@@ -129,7 +129,7 @@ class ContactSimEngine(Engine):
 
     def after_step(self):
         st = self.world.last_solve
-        get = st.get if isinstance(st, dict) else (lambda k, d=None: getattr(st, k, d))  # dict today, StepStats later
+        get = st.get
         self.contacts.append(get("contacts", np.nan))
         self.iterations.append(get("iterations", np.nan))
         det = self.world.last_detection

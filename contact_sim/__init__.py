@@ -8,7 +8,7 @@ Quick start::
         world.step()
     print(world.body("ball").position)
 
-The engine depends on numpy, scipy, trimesh and PyYAML only; it never imports ROS.
+The engine depends on numpy, numba, scipy, trimesh, PyYAML and yourdfpy; it never imports ROS.
 """
 from .collision import DetectionStats, collide
 from .contacts import FEATURES, Contacts
@@ -16,14 +16,13 @@ from .errors import BoundsError, ContactSimError, EngineError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
 from .settings import Material, Settings
 from .shapes import Box, Convex, Cylinder, Plane, Sphere, TriMesh
+from .stats import StepStats
 from .world import Body, World
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "Cylinder", "DetectionStats", "EngineError", "FEATURES",
-    "Material", "Plane",
-    "SceneError", "collide",
-    "Settings", "Sphere", "TriMesh", "World", "default_scene_path", "list_scenes", "load_scene",
-    "resolve_scene",
+    "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "Cylinder", "DetectionStats", "EngineError",
+    "FEATURES", "Material", "Plane", "SceneError", "Settings", "Sphere", "StepStats", "TriMesh", "World", "collide",
+    "default_scene_path", "list_scenes", "load_scene", "resolve_scene",
 ]

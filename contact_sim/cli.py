@@ -8,6 +8,7 @@ import time
 import numpy as np
 
 from .errors import ContactSimError
+from .kinds import DYNAMIC
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
 from .settings import Settings
 
@@ -66,7 +67,7 @@ class Recorder:
         up = -world.gravity / np.linalg.norm(world.gravity) if np.any(world.gravity) else np.array([0, 0, 1.0])
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
         for i, name in enumerate(self.names):
-            if world.kind[i] == 2:
+            if world.kind[i] == DYNAMIC:
                 ax1.plot(a["time"], a["position"][:, i] @ up, label=name)
         ax1.set_ylabel("height (m)")
         if len(self.names) <= 12:

@@ -28,15 +28,16 @@ import numpy as np
 
 from . import dynamics, free_motion, quat
 from .contacts import Contacts
+from .kinds import DYNAMIC, KINEMATIC, STATIC
 from .memo import derived
 from .settings import combine
+from .stats import StepStats
 from .vec import cross
 from .response import models as _models
 from .collision import detect_world
 from .response import solver
 from .response import toi as toi_mod
 
-DYNAMIC = 2
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
@@ -162,7 +163,7 @@ def _speculative_margin(world, dt):
     step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
     s = world.s
     base = world.settings.contact_margin
-    moving = world.kind != 0
+    moving = world.kind != STATIC
     if not moving.any():
         return base
     vmax = 0.0   # everything at rest: only gravity closes gaps
@@ -485,11 +486,11 @@ def _impulse_step(world, dt, m):
         correction = _potential_change(world, vp * dt)
     world._cs_warm = warm_out
     world.contacts = _merge_records(world, records)
-    world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen,
-                        "contacts": len(world.contacts), "impacts": events, "toi": m.toi,
-                        "response": m.response, "correction_energy": correction,
-                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift,
-                        "kick_error_bound": world.__dict__.pop("_cs_kick_error"), "rest_work_bound": rest_bound}
+    world.last_solve = StepStats(iterations=iters, residual=residual, max_penetration=max_pen,
+                                 contacts=len(world.contacts), impacts=events, toi=m.toi, response=m.response,
+                                 correction_energy=correction, kinematic_work=_kinematic_work(world, world.contacts),
+                                 rotation_drift=drift, kick_error_bound=world.__dict__.pop("_cs_kick_error"),
+                                 rest_work_bound=rest_bound)
 
 
 def _potential_change(world, dx):
@@ -509,7 +510,7 @@ def _kinematic_work(world, c):
     s = world.s
     total = 0.0
     for side, sign in ((c.body_a, -1.0), (c.body_b, 1.0)):   # A gets +impulse, B its negative
-        k = world.kind[side] == 1
+        k = world.kind[side] == KINEMATIC
         if k.any():
             i = side[k]
             u = s.vel[i] + cross(s.omega[i], c.point[k] - s.pos[i])
@@ -690,7 +691,6 @@ def _penalty_step(world, dt, m):
         world.contacts = Contacts.empty()
         drift = world._advance_free(dt)
         iters, residual = 0, 0.0
-    world.last_solve = {"iterations": iters, "residual": residual, "max_penetration": max_pen, "contacts": k,
-                        "impacts": 0, "toi": m.toi, "response": m.response, "correction_energy": 0.0,
-                        "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift,
-                        "kick_error_bound": 0.0, "rest_work_bound": 0.0}
+    world.last_solve = StepStats(iterations=iters, residual=residual, max_penetration=max_pen, contacts=k,
+                                 toi=m.toi, response=m.response,
+                                 kinematic_work=_kinematic_work(world, world.contacts), rotation_drift=drift)

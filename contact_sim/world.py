@@ -14,6 +14,7 @@ from .contacts import Contacts
 from .errors import ContactSimError, EngineError
 from .kinds import DYNAMIC, KINDS, KINEMATIC
 from .settings import DEFAULT_MATERIAL, Material, Settings
+from .stats import StepStats
 from .shapes import Plane, Shape
 from .validate import ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, VELOCITY, Choice, Nested, show
 from .world_input import BodyInput
@@ -127,6 +128,7 @@ class World(BodyInput):
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
         self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
+        self.last_solve = StepStats()  # statistics of the last step (zeros before the first)
         # robots from URDF (contact_sim.robot.RobotModel): kinematic trees whose links are bodies here
         self.robots = []
         # body-name pairs (sorted tuples) never tested for contact (adjacent robot links, ...);

@@ -14,6 +14,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.parameter import Parameter
 
 import contact_sim
+from contact_sim.kinds import KINEMATIC
 from contact_sim.scene import source_scenes_dir
 from contact_sim.settings import parse_settings
 
@@ -190,7 +191,7 @@ def resolve_tracked(world, requested, path):
         if n not in names:
             raise ConfigError(f"parameter tracked_bodies: unknown body {n!r} in scene {path} "
                               f"(bodies: {', '.join(names)})")
-        if world.kind[names.index(n)] != 1:
+        if world.kind[names.index(n)] != KINEMATIC:
             raise ConfigError(f"parameter tracked_bodies: body {n!r} is not kinematic; only kinematic bodies "
                               f"are driven by poses")
     return tracked, np.array([names.index(n) for n in tracked], np.int64)

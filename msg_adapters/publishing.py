@@ -119,9 +119,8 @@ class Outputs:
         last = self._last_tick_time * 1e3 if n else 0.0
         contacts = getattr(self, "contacts", None)
         contacts = contact_sim.Contacts.empty() if contacts is None else contacts
-        solve = getattr(self.world, "last_solve", None)  # a dict (stepper) or an object; may not exist
-        residual = solve.get("residual") if isinstance(solve, dict) else getattr(solve, "residual", None)
-        iterations = solve.get("iterations") if isinstance(solve, dict) else getattr(solve, "iterations", None)
+        solve = self.world.last_solve   # a contact_sim.StepStats
+        residual, iterations = solve.residual, solve.iterations
         try:
             residual = float(residual)
         except (TypeError, ValueError):

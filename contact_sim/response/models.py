@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Sphere
 
@@ -48,7 +49,7 @@ def _can_touch(world):
     """Boolean ``(N,N)`` matrix of body pairs that can touch (masks agree, one is dynamic)."""
     g, m = world.group, world.mask
     ok = ((g[:, None] & m[None, :]) != 0) & ((g[None, :] & m[:, None]) != 0)
-    dyn = world.kind == 2
+    dyn = world.kind == DYNAMIC
     ok &= dyn[:, None] | dyn[None, :]
     np.fill_diagonal(ok, False)
     return ok
@@ -71,7 +72,7 @@ def _body_deps(world):
 def _build_shape_info(world):
     n = len(world)
     thin = np.array([sh.thinnest() for sh in world.shapes]) if n else np.zeros(0)
-    dyn = world.kind == 2
+    dyn = world.kind == DYNAMIC
     spheres = all(isinstance(world.shapes[i], Sphere) for i in np.flatnonzero(dyn))
     finite = np.isfinite(thin)
     thinnest = float(thin[finite].min()) if finite.any() else np.inf
@@ -87,7 +88,7 @@ def step_travel(world, dt):
     """Distance ``(N,)`` each body can travel in one step at its current speed under gravity."""
     v = world.s.vel
     g = float(np.sqrt(world.gravity @ world.gravity))
-    return np.sqrt(np.einsum("ij,ij->i", v, v)) * dt + np.where(world.kind == 2, 0.5 * g * dt * dt, 0.0)
+    return np.sqrt(np.einsum("ij,ij->i", v, v)) * dt + np.where(world.kind == DYNAMIC, 0.5 * g * dt * dt, 0.0)
 
 
 def thin_and_fast(world, dt):
@@ -97,7 +98,7 @@ def thin_and_fast(world, dt):
         return []
     limit = _shape_info(world)[3]
     travel = step_travel(world, dt)
-    bad = np.flatnonzero((world.kind == 2) & (travel > limit))
+    bad = np.flatnonzero((world.kind == DYNAMIC) & (travel > limit))
     return [(world.body_names[i], float(travel[i]), float(limit[i])) for i in bad]
 
 
@@ -121,7 +122,7 @@ def choose(world, dt=None):
 
 def _choose(world, dt, fast):
     st = world.settings
-    dyn = world.kind == 2
+    dyn = world.kind == DYNAMIC
     reasons = []
     # friction
     if st.friction == "auto":
@@ -206,7 +207,7 @@ def _effective_masses(world):
     touch = _can_touch(world)
     if not touch.any():
         return None
-    m = np.where(world.kind == 2, world.mass, np.inf)
+    m = np.where(world.kind == DYNAMIC, world.mass, np.inf)
     inv = np.where(np.isfinite(m), 1.0 / m, 0.0)
     meff = 1.0 / np.maximum(inv[:, None] + inv[None, :], 1e-300)
     meff = np.where(touch, meff, np.inf)
@@ -223,7 +224,7 @@ def preflight(world, models=None, dt=None):
     names = world.body_names
     if len(world) and len(world) <= 2000:
         touch = _can_touch(world)
-        dyn2 = touch & (world.kind == 2)[:, None] & (world.kind == 2)[None, :]
+        dyn2 = touch & (world.kind == DYNAMIC)[:, None] & (world.kind == DYNAMIC)[None, :]
         if dyn2.any():
             mass = world.mass
             ratio = np.divide(mass[:, None], mass[None, :], out=np.zeros(dyn2.shape), where=dyn2)

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .. import dynamics, quat
+from ..kinds import DYNAMIC, KINEMATIC
 from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
 
@@ -77,7 +78,7 @@ class Motion:
             q, _ = dynamics.rotate_free(q[None], self.omega[i][None], s.principal_q[i][None],
                                         s.principal_moments[i][None], tau)
             q = q[0]
-        elif self.world.kind[i] == 1 and np.any(self.omega[i]):
+        elif self.world.kind[i] == KINEMATIC and np.any(self.omega[i]):
             q = quat.mul(quat.from_rotvec(self.omega[i] * tau), q)
         return p, q
 
@@ -218,7 +219,7 @@ def max_spin(m, k):
     w = m.omega[k]
     s = m.world.s
     mom = s.principal_moments[k]
-    if m.world.kind[k] != 2 or not np.all(np.isfinite(mom)) or mom.min() <= 0:
+    if m.world.kind[k] != DYNAMIC or not np.all(np.isfinite(mom)) or mom.min() <= 0:
         return float(np.linalg.norm(w))            # kinematic: spins as told; particles do not spin
     qp = quat.mul(s.quat[k], s.principal_q[k])
     pi = mom * quat.rotate(quat.conj(qp), w)
@@ -277,7 +278,7 @@ def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
         if other.size:
             oi, fi = np.repeat(other, finite.size), np.tile(finite, other.size)
             i, j = np.concatenate([i, np.minimum(oi, fi)]), np.concatenate([j, np.maximum(oi, fi)])
-    ok = (kind[i] == 2) | (kind[j] == 2)
+    ok = (kind[i] == DYNAMIC) | (kind[j] == DYNAMIC)
     mesh = derived(world, "mesh_bodies", (), lambda: np.array([sh.type == "mesh" for sh in world.shapes], bool),
                    key=len(world))
     ok &= ~(mesh[i] & mesh[j])   # mesh–mesh: no contact to find (detection skips them; collide refuses them)
