@@ -6,7 +6,7 @@ import pytest
 
 import contact_sim as cs
 from contact_sim import dynamics, quat
-from contact_sim.response import solver
+from contact_sim.response import direct, solver
 
 pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
 
@@ -223,7 +223,7 @@ def test_batched_3x3_solve_matches_lapack_and_flags_singular_blocks():
     r = rng.normal(size=(500, 3))
     m[7] = 0.0                                           # singular: flagged, x = 0
     m[9] = np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
-    x, good = solver._solve3(m, r)
+    x, good = direct._solve3(m, r)
     ok = np.ones(500, bool)
     ok[[7, 9]] = False
     assert np.array_equal(good, ok)

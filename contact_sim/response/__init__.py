@@ -1,7 +1,8 @@
 """Collision response and time of impact (issue 4).
 
-* ``solver``  — contact rows, the exact active-set solve and projected Gauss–Seidel (pure functions
-  of body arrays and contact arrays); ``pgs`` — the compiled Gauss–Seidel sweeps;
+* ``rows``    — contact constraint rows and their velocity algebra;
+* ``solver``  — the solve by size: ``direct`` (the exact active set) or projected Gauss–Seidel
+  (``pgs``: the compiled sweeps and row set-up), pure functions of body and contact arrays;
 * ``toi``     — time of impact: closed forms, bracket + Brent, swept test;
 * ``models``  — ``auto`` model choice, ``describe`` and preflight warnings.
 

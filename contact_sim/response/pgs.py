@@ -1,6 +1,6 @@
 """Compiled projected Gauss–Seidel: one loop over contacts per sweep, the way Box2D's solver reads.
 
-The contact rows (``solver.Rows``: directions ``n, t1, t2``, angular Jacobians ``r×d`` and their
+The contact rows (``rows.Rows``: directions ``n, t1, t2``, angular Jacobians ``r×d`` and their
 images under the inverse inertia, effective inverse masses ``K``) are built by numpy once per
 solve; the sweeps, where the time goes, are a kernel over them. Contacts are visited in their
 order (detection's, which is deterministic), each sees every impulse applied before it in the same
@@ -154,7 +154,7 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
 @njit
 def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, hint, movable, dynamic_levers,
                t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, dirs):
-    """Constraint rows of ``K`` contacts (``solver.build_rows``' arithmetic, one contact at a time),
+    """Constraint rows of ``K`` contacts (``rows.build_rows``' arithmetic, one contact at a time),
     written to the preallocated outputs. ``hint (K,3)`` the contact points' relative velocity (``t1``
     follows its tangential part where it is above 1e-12; else ``t1 = n × e``, ``e`` the coordinate
     axis least aligned with ``n``); ``dynamic_levers`` False puts a movable body's contact at its

@@ -1,0 +1,282 @@
+"""The exact contact solve: an active-set method on the Delassus (contact coupling) matrix, dense
+or sparse, with the batched path for independent single contacts."""
+import numpy as np
+
+from .rows import _TINY, SolveResult, apply, row_velocity
+
+DIRECT_MAX_CONTACTS = 500       # default of settings.direct_max_contacts: the active set up to this many contacts
+DIRECT_FIRST = 200              # up to this many, the active set directly; above, only if Gauss–Seidel does not converge
+DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
+DIRECT_CONSISTENCY = 1e-7       # active rows must hold to this × the largest right-hand side, else the set is inconsistent
+DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
+DIRECT_DENSE_MAX = 16           # above this many contacts the Delassus matrix stays sparse (SuperLU): most
+                                # large sets are many small islands, and a threaded dense BLAS factorisation
+                                # of a few hundred rows costs tens of ms on a loaded 2-core machine
+
+
+def _regularised_solve(sub, r, eps, refine=2):
+    """``x`` with ``sub @ x = r`` for a symmetric positive semi-definite ``sub (m,m)``: Cholesky of
+    ``sub + eps·I`` followed by ``refine`` steps of iterative refinement (proximal point), which
+    remove the shift's bias on the well-determined part (exact to rounding for full rank) and leave
+    redundant directions at their least-norm value."""
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+    reg = sub.copy()
+    reg[np.diag_indices_from(reg)] += eps
+    try:
+        f = cho_factor(reg, check_finite=False)
+    except LinAlgError:
+        return np.linalg.lstsq(sub, r, rcond=None)[0]
+    x = cho_solve(f, r, check_finite=False)
+    for _ in range(refine):
+        x += cho_solve(f, r - sub @ x, check_finite=False)
+    return x
+
+
+def _regularised_solve_sparse(sub, r, eps, refine=2):
+    """``_regularised_solve`` for a sparse ``sub (m,m)`` (CSR/CSC): SuperLU of ``sub + eps·I``
+    with the same iterative refinement; dense least squares if the factorisation fails."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    m = sub.shape[0]
+    try:
+        f = splu((sub + eps * sparse.identity(m, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError:
+        return np.linalg.lstsq(sub.toarray(), r, rcond=None)[0]
+    x = f.solve(r)
+    for _ in range(refine):
+        x += f.solve(r - sub @ x)
+    return x
+
+
+def delassus(rows, dense=True):
+    """Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)``, rows ordered (n, t1, t2) per contact:
+    ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``.
+    Built as a sparse product (12 non-zeros per row of ``J``), returned dense (or CSR when
+    ``dense`` is false)."""
+    k = len(rows.a)
+    d = rows.dirs
+    if dense:   # small: dense J and W over the bodies involved, one small matrix product
+        _, inv = np.unique(np.concatenate([rows.a, rows.b]), return_inverse=True)
+        nb = int(inv.max()) + 1 if k else 0
+        ca = (6 * inv[:k])[:, None] + np.arange(6)                      # (K,6) columns of A's body
+        cb = (6 * inv[k:])[:, None] + np.arange(6)
+        r3 = np.arange(k)[:, None, None]
+        d3 = np.arange(3)[None, :, None]
+        J = np.zeros((k, 3, 6 * nb))
+        W = np.zeros((k, 3, 6 * nb))
+        J[r3, d3, ca[:, None, :]] = np.concatenate([d, rows.ang_a], axis=2)
+        J[r3, d3, cb[:, None, :]] = -np.concatenate([d, rows.ang_b], axis=2)
+        W[r3, d3, ca[:, None, :]] = np.concatenate([rows.ima[:, None, None] * d, rows.iang_a], axis=2)
+        W[r3, d3, cb[:, None, :]] = -np.concatenate([rows.imb[:, None, None] * d, rows.iang_b], axis=2)
+        J = J.reshape(3 * k, 6 * nb)
+        return J @ W.reshape(3 * k, 6 * nb).T
+    from scipy import sparse
+
+    r = np.repeat(np.arange(3 * k), 12)
+    cols_a = 6 * rows.a[:, None] + np.arange(6)                          # (K,6)
+    cols_b = 6 * rows.b[:, None] + np.arange(6)
+    cols = np.concatenate([np.broadcast_to(cols_a[:, None, :], (k, 3, 6)),
+                           np.broadcast_to(cols_b[:, None, :], (k, 3, 6))], axis=2).ravel()
+    jv = np.concatenate([d, rows.ang_a, -d, -rows.ang_b], axis=2).ravel()            # (K,3,12)
+    wv = np.concatenate([rows.ima[:, None, None] * d, rows.iang_a, -rows.imb[:, None, None] * d,
+                         -rows.iang_b], axis=2).ravel()
+    n6 = 6 * (max(int(rows.a.max()), int(rows.b.max())) + 1) if k else 0
+    J = sparse.csr_matrix((jv, (r, cols)), shape=(3 * k, n6))
+    W = sparse.csr_matrix((wv, (r, cols)), shape=(3 * k, n6))
+    return (J @ W.T).tocsr()
+
+
+_NEXT = np.array([1, 2, 0])
+_PREV = np.array([2, 0, 1])
+
+
+def _solve3(m, r):
+    """Batched 3×3 solves ``m (k,3,3) x = r (k,3)`` by the adjugate (Cramer's rule: a handful of
+    vectorised products instead of LAPACK's per-call setup, which dominates at this size), and a
+    ``(k,) bool`` of the systems that are not singular (``|det|`` above round-off of the entries'
+    scale, the trace for these positive semi-definite Delassus blocks; ``x = 0`` for the others).
+    The blocks solved here are symmetric positive definite (sticking contacts), where the adjugate
+    is as accurate as pivoted LU."""
+    # row j of the adjugate's transpose is r_{j+1} × r_{j+2}: all three cross products at once
+    r1, r2 = m[:, _NEXT, :], m[:, _PREV, :]
+    adj = r1[:, :, _NEXT] * r2[:, :, _PREV] - r1[:, :, _PREV] * r2[:, :, _NEXT]
+    det = np.einsum("ki,ki->k", m[:, 0], adj[:, 0])
+    scale = np.einsum("kii->k", m)
+    good = np.abs(det) > 1e-300 * np.maximum(scale ** 3, 1e-300)
+    x = np.einsum("kji,kj->ki", adj, r) / np.where(good, det, 1.0)[:, None]
+    x[~good] = 0.0
+    return x, good
+
+
+def _solve_singles(rows, v0, target_n, mu_s, friction):
+    """Exact impulses ``(k,3)`` of contacts that share no movable body with any other contact
+    (each its own 3×3 problem, batched) and a ``(k,) bool`` of those whose answer is consistent:
+    separating (λ = 0), or active with λ_n ≥ 0 and sticking inside the static cone (a sliding one
+    is left to the general path). ``v0 (k,3)`` row velocities, ``target_n (k,)``."""
+    k = len(v0)
+    lam = np.zeros((k, 3))
+    act = v0[:, 0] < target_n
+    ok = ~act
+    if not act.any():
+        return lam, ok
+    i = np.flatnonzero(act)
+    kk = rows.K[i]
+    rhs = -v0[i]
+    rhs[:, 0] += target_n[i]
+    fr = (mu_s[i] > 0) if friction else np.zeros(i.size, bool)
+    kn = kk[:, 0, 0]
+    # frictionless: normal row only; sticking: the full 3×3 block
+    x = np.zeros((i.size, 3))
+    x[:, 0] = np.where(kn > 0, rhs[:, 0] / np.where(kn > 0, kn, 1.0), 0.0)
+    bad = np.zeros(i.size, bool)
+    if fr.any():
+        f = np.flatnonzero(fr)
+        xs, good = _solve3(kk[f], rhs[f])
+        x[f] = xs
+        bad[f] = ~good
+    good_n = (kn > 0) & (x[:, 0] >= 0) & ~bad
+    if friction:
+        good_n &= np.sqrt(np.einsum("ij,ij->i", x[:, 1:], x[:, 1:])) <= mu_s[i] * x[:, 0] * (1 + 1e-12) + 1e-300
+    lam[i] = np.where(good_n[:, None], x, 0.0)
+    ok[i] = good_n
+    return lam, ok
+
+
+def _peel_singles(rows, vel, omega, target_n, mu_s):
+    """Contacts that share no movable body with any other contact, solved exactly and batched
+    (``_solve_singles``), without touching ``vel, omega``. Returns ``(done (d,) int, lam (d,3),
+    rest (r,) int)``: the consistent singles, their impulses, and every other contact."""
+    k = len(rows.a)
+    mov = rows.movable
+    n = len(mov)
+    cnt = np.bincount(rows.a[mov[rows.a]], minlength=n) + np.bincount(rows.b[mov[rows.b]], minlength=n)
+    single = (~mov[rows.a] | (cnt[rows.a] == 1)) & (~mov[rows.b] | (cnt[rows.b] == 1))
+    if not single.any():
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.arange(k)
+    friction = mu_s is not None and bool((mu_s > 0).any())
+    si = np.flatnonzero(single)
+    v0s = row_velocity(rows, vel, omega, slice(None) if si.size == k else si)
+    lam_s, ok = _solve_singles(rows.select(si), v0s, target_n[si], mu_s[si] if friction else None, friction)
+    single[si[~ok]] = False
+    return si[ok], lam_s[ok], np.flatnonzero(~single)
+
+
+def _safest_start(A, rhs, *candidates):
+    """The candidate impulses ``(K,3)`` (``None`` skipped; zero always a candidate) with the lowest
+    contact objective ``f(λ) = ½ λ·Aλ − λ·rhs`` (``rhs`` = target − current row velocity): the
+    quantity projected Gauss–Seidel descends, so its start decides where it can end. An unfinished
+    active-set answer can be far worse than no impulse at all; warm-starting from it diverges."""
+    k = len(rhs) // 3
+    best, best_f = np.zeros((k, 3)), 0.0
+    for lam in candidates:
+        if lam is None or not np.all(np.isfinite(lam)):
+            continue
+        x = lam.ravel()
+        f = 0.5 * float(x @ (A @ x)) - float(x @ rhs)
+        if f < best_f:
+            best, best_f = lam, f
+    return best
+
+
+def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None, _split=True):
+    """Exact contact impulses by an active-set method on the dense Delassus matrix.
+
+    Solves ``v_n + (Aλ)_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction (tangential velocity
+    zero) by linear solves on the active rows, moving contacts in and out of the active set until
+    every normal impulse is non-negative and every inactive contact is satisfied. When a sticking
+    impulse leaves the static friction cone (sliding), or the set does not settle in
+    ``DIRECT_MAX_ROUNDS``, it stops and returns ``converged False`` with the impulses clamped
+    to the cone, for ``solve`` to finish from (warm start). Returns ``(SolveResult, converged)``;
+    ``vel, omega`` are updated only when converged."""
+    k = len(rows.a)
+    if k == 0:
+        return SolveResult(np.zeros((0, 3)), 0, 0.0), True
+    if _split and A is None:
+        # contacts that share no movable body with another contact are independent 3×3 problems:
+        # solved batched, whatever their number (cheaper than the dense active set even for a few);
+        # the rest (islands of several contacts) by the active set below
+        done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
+        if done.size:
+            lam = np.zeros((k, 3))
+            lam[done] = lam_s
+            res_r, conv = SolveResult(np.zeros((0, 3)), 1, 0.0), True
+            if rest.size:
+                res_r, conv = solve_direct(rows.select(rest), vel, omega, target_n=target_n[rest],
+                                           mu_s=None if mu_s is None else mu_s[rest],
+                                           mu_d=None if mu_d is None else mu_d[rest],
+                                           warm=None if warm is None else warm[rest], _split=False)
+                lam[rest] = res_r.impulse
+            if not conv:
+                return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
+            apply(rows.select(done), vel, omega, lam_s, unique=True)
+            return SolveResult(lam, 1, res_r.residual), True
+    dense = k <= DIRECT_DENSE_MAX
+    if A is None:
+        A = delassus(rows, dense)
+    else:
+        dense = isinstance(A, np.ndarray)
+    v0 = row_velocity(rows, vel, omega)                  # (K,3)
+    rhs = -v0.copy()
+    rhs[:, 0] += target_n
+    rhs = rhs.ravel()
+    friction = mu_s is not None and np.any(mu_s > 0)
+    # initial guess: every contact that is not separating is pushing (a resting stack starts
+    # with all its layers active: guessing only the approaching ones adds one layer per round)
+    act = v0[:, 0] <= target_n
+    if warm is not None:
+        act |= warm[:, 0] > 0
+    diag = np.diag(A) if dense else A.diagonal()
+    eps = DIRECT_REGULARISATION * max(float(diag.max()), _TINY)
+    tol = 1e-12 + 1e-9 * float(np.abs(rhs).max())
+    lam = np.zeros((k, 3))
+    converged = False
+    for _ in range(DIRECT_MAX_ROUNDS + k // 4):
+        sel = np.zeros((k, 3), bool)
+        sel[:, 0] = act
+        if friction:
+            sel[:, 1:] = (act & (mu_s > 0))[:, None]
+        S = np.flatnonzero(sel.ravel())
+        x = np.zeros(3 * k)
+        if S.size:
+            if dense:
+                x[S] = _regularised_solve(A[np.ix_(S, S)], rhs[S], eps)
+            else:
+                x[S] = _regularised_solve_sparse(A[S][:, S], rhs[S], eps)
+        lam = x.reshape(k, 3)
+        ax = A @ x
+        if S.size and np.abs(ax[S] - rhs[S]).max() > DIRECT_CONSISTENCY * (np.abs(rhs).max() + _TINY):
+            # the active rows cannot all hold (e.g. more sticking points than the bodies have
+            # freedoms, pulling different ways): the regularised solve answers with impulses of
+            # size 1/eps. No active set containing them is right; Gauss–Seidel takes over
+            break
+        vn = v0[:, 0] + ax[0::3]
+        neg = act & (lam[:, 0] < 0)
+        viol = ~act & (vn < target_n - tol)
+        if neg.any() or viol.any():
+            act = (act & ~neg) | viol
+            continue
+        converged = True
+        break
+    lam[:, 0] = np.maximum(lam[:, 0], 0.0)
+    if friction:
+        mag = np.linalg.norm(lam[:, 1:], axis=1)
+        out = mag > mu_s * lam[:, 0] * (1 + 1e-12) + 1e-300
+        if out.any():
+            converged = False
+            lim = mu_d * lam[:, 0]
+            lam[:, 1:] *= np.where(out, lim / np.maximum(mag, _TINY), 1.0)[:, None]
+    else:
+        lam[:, 1:] = 0.0
+    if not converged:
+        return SolveResult(_safest_start(A, rhs, lam, warm), DIRECT_MAX_ROUNDS, np.inf), False
+    apply(rows, vel, omega, lam)
+    resid = (A @ lam.ravel() - rhs).reshape(k, 3)
+    resid[:, 0] = np.where(lam[:, 0] > 0, resid[:, 0], np.minimum(resid[:, 0], 0.0))
+    if not friction:
+        resid[:, 1:] = 0.0
+    residual = float(np.max(np.abs(resid) / np.maximum(diag.reshape(k, 3), _TINY))) if k else 0.0
+    return SolveResult(lam, 1, residual), True
+
+

@@ -1,0 +1,116 @@
+"""Contact constraint rows: per-contact geometry ``(K, ...)`` (directions ``n, t1, t2``, lever
+arms, angular Jacobians and their images under the inverse inertia, effective inverse masses),
+built by a kernel (``pgs.build_rows``), and the velocity algebra every solver shares."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..vec import cross
+from . import pgs
+
+_TINY = 1e-300
+
+
+@dataclass
+class Rows:
+    """Per-contact constraint geometry ``(K, ...)`` shared by the solver phases."""
+
+    a: np.ndarray
+    b: np.ndarray
+    n: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+    ra: np.ndarray
+    rb: np.ndarray
+    # angular Jacobian rows (r×d) and their images under the inverse inertia, per direction
+    ang_a: np.ndarray   # (K, 3 dirs, 3)
+    ang_b: np.ndarray
+    iang_a: np.ndarray
+    iang_b: np.ndarray
+    ima: np.ndarray     # (K,)
+    imb: np.ndarray
+    K: np.ndarray       # (K, 3, 3) effective inverse mass in the (n, t1, t2) basis
+    dirs: np.ndarray    # (K, 3, 3) the directions n, t1, t2 as rows
+    movable: np.ndarray  # (N,) bool: bodies whose velocity the solver changes
+
+    def __len__(self):
+        return len(self.a)
+
+    def select(self, idx):
+        """Rows of the contacts ``idx`` (index array or boolean mask), without recomputation; ``self``
+        when ``idx`` picks every row in order (the common case: 14 array copies saved; rows are never
+        modified in place, only annotated with derived data that the same rows share)."""
+        idx = np.asarray(idx)
+        k = len(self.a)
+        if (idx.all() if idx.dtype == bool else np.array_equal(idx, np.arange(k))) and len(idx) == k:
+            return self
+        f = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
+        return Rows(*[getattr(self, x)[idx] for x in f], self.movable)
+
+
+def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None, rel_vel=None,
+               dynamic_levers=True):
+    """Constraint rows for contacts. ``pos (N,3)`` centres of mass; ``vel/omega (N,3)`` (optional) or
+    the contact points' relative velocity ``rel_vel (K,3)`` when already known pick the first
+    tangent along the current sliding direction. ``dynamic_levers=False`` (the kinematic
+    response) puts each movable body's contact at its centre: it acts as a particle. Returns ``Rows``."""
+    if movable is None:
+        movable = inv_mass > 0
+    k = len(a)
+    hint = rel_vel
+    if hint is None and vel is not None and k:
+        ra0 = point - pos[a]
+        rb0 = point - pos[b]
+        if not dynamic_levers:
+            ra0 = np.where(movable[a][:, None], 0.0, ra0)
+            rb0 = np.where(movable[b][:, None], 0.0, rb0)
+        hint = (vel[a] + cross(omega[a], ra0)) - (vel[b] + cross(omega[b], rb0))
+    if hint is None:
+        hint = np.zeros((k, 3))
+    c = np.ascontiguousarray
+    t1, t2, ra, rb = (np.empty((k, 3)) for _ in range(4))
+    ang_a, ang_b, iang_a, iang_b, K, d = (np.empty((k, 3, 3)) for _ in range(6))
+    ima, imb = np.empty(k), np.empty(k)
+    pgs.build_rows(c(a, dtype=np.int64), c(b, dtype=np.int64), c(point, dtype=float), c(normal, dtype=float),
+                   c(pos, dtype=float), c(inv_mass, dtype=float), c(inv_inertia, dtype=float), c(hint, dtype=float),
+                   c(movable, dtype=np.bool_), bool(dynamic_levers), t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b,
+                   ima, imb, K, d)
+    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable)
+
+
+def row_velocity(rows, vel, omega, idx=slice(None)):
+    """Relative velocity of the contact points of A and B ``(k,3)`` in the (n, t1, t2) basis."""
+    a, b = rows.a[idx], rows.b[idx]
+    d = rows.dirs[idx]
+    va, vb = vel[a], vel[b]
+    return (np.einsum("kdi,ki->kd", d, va - vb) + np.einsum("kdi,ki->kd", rows.ang_a[idx], omega[a])
+            - np.einsum("kdi,ki->kd", rows.ang_b[idx], omega[b]))
+
+
+def apply(rows, vel, omega, lam, idx=slice(None), unique=False):
+    """Apply impulses ``lam (k,3)`` (n, t1, t2 components, on A; −on B) to the velocity arrays in
+    place. When ``unique`` says so (or for an index array ``idx``), no movable body
+    repeats, so plain fancy indexing is exact (a repeated static or kinematic body gets zero from
+    every contact); otherwise the contributions are accumulated."""
+    a, b = rows.a[idx], rows.b[idx]
+    imp = np.einsum("kd,kdi->ki", lam, rows.dirs[idx])
+    dwa = np.einsum("kd,kdi->ki", lam, rows.iang_a[idx])
+    dwb = np.einsum("kd,kdi->ki", lam, rows.iang_b[idx])
+    if isinstance(idx, slice) and not unique:
+        np.add.at(vel, a, rows.ima[:, None] * imp)
+        np.add.at(vel, b, -rows.imb[:, None] * imp)
+        np.add.at(omega, a, dwa)
+        np.add.at(omega, b, -dwb)
+        return
+    vel[a] += rows.ima[idx][:, None] * imp
+    vel[b] -= rows.imb[idx][:, None] * imp
+    omega[a] += dwa
+    omega[b] -= dwb
+
+
+@dataclass
+class SolveResult:
+    impulse: np.ndarray     # (K,3) accumulated (normal, t1, t2) impulses on A
+    iterations: int
+    residual: float         # largest impulse change of the last sweep (N·s)
+
