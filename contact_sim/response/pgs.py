@@ -1,9 +1,9 @@
 """Compiled projected Gauss–Seidel: one loop over contacts per sweep, the way Box2D's solver reads.
 
 The contact rows (``rows.Rows``: directions ``n, t1, t2``, angular Jacobians ``r×d`` and their
-images under the inverse inertia, effective inverse masses ``K``) are built by numpy once per
-solve; the sweeps, where the time goes, are a kernel over them. Contacts are visited in their
-order (detection's, which is deterministic), each sees every impulse applied before it in the same
+images under the inverse inertia, effective inverse masses ``K``) are built once per solve by the
+kernel ``build_rows`` below; the sweeps, where the time goes, are a kernel over them. Contacts are
+visited in their order (detection's, which is deterministic), each sees every impulse applied before it in the same
 sweep (sequential Gauss–Seidel, which converges in fewer sweeps than the coloured, vectorised
 variant it replaces: a colour's contacts could not see each other), and the result is
 bit-identical run to run.
