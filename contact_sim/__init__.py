@@ -10,7 +10,7 @@ Quick start::
 
 The engine depends on numpy, scipy, trimesh and PyYAML only; it never imports ROS.
 """
-from .collision import DetectionStats, collide
+from .collision import DetectionStats, collide, vertex_inside
 from .contacts import FEATURES, Contacts
 from .errors import BoundsError, ContactSimError, EngineError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
@@ -25,5 +25,5 @@ __all__ = [
     "Material", "Plane",
     "SceneError", "collide",
     "Settings", "Sphere", "TriMesh", "World", "default_scene_path", "list_scenes", "load_scene",
-    "resolve_scene",
+    "resolve_scene", "vertex_inside",
 ]

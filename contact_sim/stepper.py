@@ -35,6 +35,7 @@ from .response import models as _models
 from .collision import detect_world
 from .response import solver
 from .response import toi as toi_mod
+from .response import kinematic as kinematic_mod
 
 DYNAMIC = 2
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
@@ -367,7 +368,9 @@ def _impulse_step(world, dt, m):
                 spec_target = np.minimum((c.depth - 0.5 * g_n * t_left * t_left) / t_left, 0.0)
                 closing = ~touching & (vn0 < spec_target)
             bounced = impact | (closing & (e > 0))
-            if impact.any() or closing.any():
+            if m.response == "kinematic" and impact.any() and not closing.any():
+                lam[:, 0], vn1 = _kinematic_impacts(world, c, rel_vel, e, touching & (vn0 <= 0.0))
+            elif impact.any() or closing.any():
                 # a touching pair that separates takes no impact impulse: it was not hit; were it
                 # held at v_n = 0 against the push of the others' impulses, the LCP would make it
                 # push a separating body along (positive work: a corner gained energy). If the
@@ -494,6 +497,17 @@ def _impulse_step(world, dt, m):
                         "response": m.response, "correction_energy": correction,
                         "kinematic_work": _kinematic_work(world, world.contacts), "rotation_drift": drift,
                         "kick_error_bound": world.__dict__.pop("_cs_kick_error"), "rest_work_bound": rest_bound}
+
+
+def _kinematic_impacts(world, c, rel_vel, e, which):
+    """The kinematic response ``v ← v − (1+k)(N·v)N`` (``response.kinematic``) on the contacts
+    ``which``: ``(normal impulses (K,), normal velocities after (K,))``."""
+    s = world.s
+    inv_m = np.where(world.kind == DYNAMIC, world.inv_mass, 0.0)
+    before = s.vel[c.body_a] - s.vel[c.body_b]
+    lam = kinematic_mod.kinematic_impacts(s.vel, inv_m, c.body_a, c.body_b, c.normal, rel_vel, e, which)
+    rv = rel_vel + (s.vel[c.body_a] - s.vel[c.body_b]) - before
+    return lam, np.einsum("ij,ij->i", c.normal, rv)
 
 
 def _potential_change(world, dx):

@@ -42,7 +42,9 @@ from . import bounding, broadphase, dispatch, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
 from .vec3 import rotations
 
-__all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
+from .inside import vertex_inside
+
+__all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK", "vertex_inside"]
 
 
 
