@@ -27,35 +27,43 @@ RAYS = _R / np.linalg.norm(_R, axis=1, keepdims=True)
 
 
 @njit
+def ray_triangle(px, py, pz, rx, ry, rz, V, i0, i1, i2, eps):
+    """The ray ``p + t r`` (t > 0) against the triangle of rows ``i0, i1, i2`` of ``V (n, 3)``
+    (Möller–Trumbore): ``1`` when it crosses, plus ``2`` when it grazes an edge or vertex or starts
+    on the triangle (within ``eps``), where the parity cannot be trusted."""
+    e1x, e1y, e1z = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]
+    e2x, e2y, e2z = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]
+    hx, hy, hz = ry * e2z - rz * e2y, rz * e2x - rx * e2z, rx * e2y - ry * e2x
+    det = e1x * hx + e1y * hy + e1z * hz
+    if not abs(det) > 1e-14:
+        return 0
+    inv = 1.0 / det
+    sx, sy, sz = px - V[i0, 0], py - V[i0, 1], pz - V[i0, 2]
+    u = (sx * hx + sy * hy + sz * hz) * inv
+    qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
+    v = (qx * rx + qy * ry + qz * rz) * inv
+    tt = (e2x * qx + e2y * qy + e2z * qz) * inv
+    w = 1.0 - u - v
+    hit = tt > 0 and u >= 0 and v >= 0 and w >= 0
+    bad = (tt > -eps and (abs(u) < eps or abs(v) < eps or abs(w) < eps) and u > -eps and v > -eps
+           and w > -eps) or (hit and abs(tt) < eps * (np.sqrt(abs(det)) + 1e-300))
+    return (1 if hit else 0) + (2 if bad else 0)
+
+
+@njit
 def parity_inside(p, V, tris, t0, nt, eps=1e-9):
-    """Odd ray-crossing parity of point ``p (3,)`` against triangles ``tris[t0:t0+nt]`` of world
-    vertices ``V``; rays that graze an edge or vertex are discarded in favour of the next (when all
-    three graze, the majority vote of their parities)."""
+    """Odd ray-crossing parity of point ``p (3,)`` against triangles ``tris[t0:t0+nt]`` of vertices
+    ``V`` (any one frame); rays that graze an edge or vertex are discarded in favour of the next
+    (when all three graze, the majority vote of their parities)."""
     votes = 0
     px, py, pz = p[0], p[1], p[2]
     for r in range(RAYS.shape[0]):
         rx, ry, rz = RAYS[r, 0], RAYS[r, 1], RAYS[r, 2]
         hits, bad = 0, False
         for t in range(nt):
-            T0, T1, T2 = V[tris[t0 + t, 0]], V[tris[t0 + t, 1]], V[tris[t0 + t, 2]]
-            e1x, e1y, e1z = T1[0] - T0[0], T1[1] - T0[1], T1[2] - T0[2]
-            e2x, e2y, e2z = T2[0] - T0[0], T2[1] - T0[1], T2[2] - T0[2]
-            hx, hy, hz = ry * e2z - rz * e2y, rz * e2x - rx * e2z, rx * e2y - ry * e2x
-            det = e1x * hx + e1y * hy + e1z * hz
-            if not abs(det) > 1e-14:
-                continue
-            inv = 1.0 / det
-            sx, sy, sz = px - T0[0], py - T0[1], pz - T0[2]
-            u = (sx * hx + sy * hy + sz * hz) * inv
-            qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
-            v = (qx * rx + qy * ry + qz * rz) * inv
-            tt = (e2x * qx + e2y * qy + e2z * qz) * inv
-            w = 1.0 - u - v
-            hit = tt > 0 and u >= 0 and v >= 0 and w >= 0
-            if (tt > -eps and (abs(u) < eps or abs(v) < eps or abs(w) < eps) and u > -eps and v > -eps
-                    and w > -eps) or (hit and abs(tt) < eps * (np.sqrt(abs(det)) + 1e-300)):
-                bad = True
-            hits += hit
+            code = ray_triangle(px, py, pz, rx, ry, rz, V, tris[t0 + t, 0], tris[t0 + t, 1], tris[t0 + t, 2], eps)
+            hits += code & 1
+            bad |= code >= 2
         odd = hits % 2 == 1
         if not bad:
             return odd

@@ -16,7 +16,7 @@ from .dispatch import collider
 from .geometry import BOX, CONVEX, MESH, SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
     SI_T0, SPHERE
 from .inside import RAYS, parity_inside, plane_excess  # noqa: F401 (RAYS: older imports)
-from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, put, reduce4
+from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4, put
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
 from .vec3 import col_max, dotr, inside_loop, set_row, cross, dot, norm
@@ -164,23 +164,5 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             c = _crossings(VP, EP, NM, dM, npm, fM, loops, VM, 1.0, 0, P, Nn, D, F, I, c)
             c = _crossings(VM, EM, NP, dP, npp, fP, loops, VP, -1.0, 1, P, Nn, D, F, I, c)
             counters[2] += c > 0
-        if c <= 4:
-            for r in range(c):
-                k = put(out_i, out_f, k, i, P[r], Nn[r], D[r], F[r], I[r])
-            continue
-        # at most 4: the deepest points, spread as reduce4 does (in order of depth)
-        order = np.arange(c)
-        for r in range(1, c):     # stable insertion sort, deepest first
-            o, j = order[r], r - 1
-            while j >= 0 and D[order[j]] < D[o]:
-                order[j + 1] = order[j]
-                j -= 1
-            order[j + 1] = o
-        ps, ds = P[order], D[order]
-        keep = np.empty(c, np.bool_)
-        reduce4(ps, ds, np.ones(c, np.bool_), Nn[order[0]], keep)
-        for r in range(c):
-            if keep[r]:
-                o = order[r]
-                k = put(out_i, out_f, k, i, P[o], Nn[o], D[o], F[o], I[o])
+        k = emit_deepest4(out_i, out_f, k, i, P, Nn, D, F, I, c)
     return k

@@ -278,18 +278,12 @@ def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
             oi, fi = np.repeat(other, finite.size), np.tile(finite, other.size)
             i, j = np.concatenate([i, np.minimum(oi, fi)]), np.concatenate([j, np.maximum(oi, fi)])
     ok = (kind[i] == 2) | (kind[j] == 2)
-    mesh = derived(world, "mesh_bodies", (), lambda: np.array([sh.type == "mesh" for sh in world.shapes], bool),
-                   key=len(world))
-    ok &= ~(mesh[i] & mesh[j])   # mesh–mesh: no contact to find (detection skips them; collide refuses them)
     g, mk = world.group, world.mask
     ok &= ((g[i] & mk[j]) != 0) & ((g[j] & mk[i]) != 0)
     # no relative motion: a pair apart now stays apart
     still = ~(np.any(m.vel[i] != m.vel[j], axis=1) | np.any(m.acc[i] != m.acc[j], axis=1)
               | np.any(m.omega[i] != 0, axis=1) | np.any(m.omega[j] != 0, axis=1))
     ok &= ~still
-    # mesh–mesh pairs are not detected (issue 14): no time of impact either
-    typ_mesh = np.array([sh.type == "mesh" for sh in world.shapes])
-    ok &= ~(typ_mesh[i] & typ_mesh[j])
     if only is not None:
         sel = np.zeros(n, bool)
         sel[list(only)] = True
