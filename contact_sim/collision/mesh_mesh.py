@@ -13,8 +13,9 @@ Per pair, cheapest first (the pair's bounding sphere and OBB have already overla
 2. **edge crossing face**, for pairs where no vertex is inside (two interlocked rings): each
    edge of one crosses a triangle of the other when its endpoints lie strictly on opposite sides
    of the triangle's plane and the crossing point is inside the triangle. Normal: the crossed
-   face's normal (oriented to push the meshes apart), depth: the shallower endpoint's distance to
-   the face plane (an estimate, as for mesh–polyhedron).
+   face's normal (oriented to push the meshes apart), depth: the shorter of the shallower
+   endpoint's distance to the face plane and the crossing point's distance to the face's border
+   (an estimate; exactly 0 for faces that only touch).
 
 Every query walks an **AABB tree over the mesh's triangles** (``build_bvh``: median splits on the
 longest axis, at most ``LEAF_SIZE`` triangles per leaf), built once per mesh shape and kept on it
@@ -71,30 +72,53 @@ def build_bvh(verts, tris):
     return nodes[:count], boxes[:count], perm
 
 
+def border_edges(tris, normals):
+    """``(T, 3) bool``: edge ``e`` of triangle ``t`` (from its vertex ``e`` to ``e + 1``) is a border
+    of a face, not a diagonal inside a flat quad (the triangle across it has another normal, or
+    there is none). A crossing point's distance to the face border counts only these."""
+    T = len(tris)
+    a = tris.reshape(-1)
+    b = np.roll(tris, -1, axis=1).reshape(-1)
+    key = np.minimum(a, b) * (int(tris.max()) + 1) + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    border = np.ones(3 * T, bool)
+    same = np.flatnonzero(k[1:] == k[:-1])      # consecutive half-edges of one edge
+    i, j = order[same], order[same + 1]
+    flat = np.einsum("ij,ij->i", normals[i // 3], normals[j // 3]) > 1.0 - 1e-9
+    border[i[flat]] = False
+    border[j[flat]] = False
+    return border.reshape(T, 3)
+
+
 def shape_bvh(shape):
-    """The tree of a mesh shape (built on first use, then kept on the shape)."""
+    """The tree of a mesh shape and its border edges (built on first use, then kept on the shape):
+    ``(nodes, boxes, perm, border)``."""
     bvh = getattr(shape, "_cs_bvh", None)
     if bvh is None:
         g = shape._cs_geom
-        bvh = shape._cs_bvh = build_bvh(g.verts, g.tris)
+        bvh = shape._cs_bvh = build_bvh(g.verts, g.tris) + (border_edges(np.asarray(g.tris), g.planes[:, :3]),)
     return bvh
 
 
 def table_bvh(geom):
     """The trees of a ``GeomTable``'s meshes stacked: ``(nodes (B, 4), boxes (B, 6), perm (T,),
-    root (S,))``, child and triangle indices made global, ``root[s]`` the root node of shape row
-    ``s`` (-1 for other shapes). Built once per table and kept on it."""
+    root (S,), border (T, 3))``, child and triangle indices made global, ``root[s]`` the root node
+    of shape row ``s`` (-1 for other shapes), ``border`` per triangle row of the table (see
+    ``border_edges``; true for non-mesh rows). Built once per table and kept on it."""
     hit = getattr(geom, "_cs_bvh", None)
     if hit is not None:
         return hit
     from .geometry import SI_RANK
     root = np.full(len(geom.shapes), -1, np.int64)
     N, Bx, P = [np.zeros((1, 4), np.int64)], [np.zeros((1, 6))], [np.zeros(1, np.int64)]
+    border = np.ones((len(geom.tris), 3), np.bool_)
     nb = 1
     for s, shape in enumerate(geom.shapes):
         if geom.si[s, SI_RANK] != MESH:
             continue
-        nodes, boxes, perm = shape_bvh(shape)
+        nodes, boxes, perm, bd = shape_bvh(shape)
+        border[geom.si[s, SI_T0]:geom.si[s, SI_T0] + len(bd)] = bd
         nodes = nodes.copy()
         inner = nodes[:, 3] == 0
         nodes[inner, 0] += nb
@@ -111,7 +135,7 @@ def table_bvh(geom):
         N[k][leaf, 2] += off
         off += len(P[k])
     hit = (np.ascontiguousarray(np.concatenate(N)), np.ascontiguousarray(np.concatenate(Bx)),
-           np.ascontiguousarray(np.concatenate(P)), root)
+           np.ascontiguousarray(np.concatenate(P)), root, border)
     geom._cs_bvh = hit
     return hit
 
@@ -256,23 +280,29 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, clos
 
 
 @njit
-def _in_triangle(V, i0, i1, i2, nx, ny, nz, x, y, z, eps):
-    """Point ``x`` on the plane of triangle ``i0 i1 i2`` of ``V`` (counter-clockwise about the normal
-    ``n``) inside it: on the inner side of each edge, within ``eps``."""
+def _in_triangle(V, i0, i1, i2, nx, ny, nz, x, y, z, border, t):
+    """Point ``x`` on the plane of triangle ``t`` = ``i0 i1 i2`` of ``V`` (counter-clockwise about the
+    unit normal ``n``): ``(inside, its distance to the nearest border edge line)`` (negative:
+    outside that edge; ``inf`` when no edge of the triangle is a border, ``border (T, 3)``)."""
+    inside, best = np.inf, np.inf
     for e in range(3):
         a, b = (i0, i1) if e == 0 else ((i1, i2) if e == 1 else (i2, i0))
         ex, ey, ez = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
         wx, wy, wz = x - V[a, 0], y - V[a, 1], z - V[a, 2]
-        if (ey * wz - ez * wy) * nx + (ez * wx - ex * wz) * ny + (ex * wy - ey * wx) * nz < -eps:
-            return False
-    return True
+        s = (ey * wz - ez * wy) * nx + (ez * wx - ex * wz) * ny + (ex * wy - ey * wx) * nz
+        dist = s / np.sqrt(ex * ex + ey * ey + ez * ez)
+        inside = min(inside, dist)
+        if border[t, e]:
+            best = min(best, dist)
+    return inside, best
 
 
 @njit
-def _edges_through(VE, tE, tris, VF, tF, nx, ny, nz, d, sgn, tag, eps, R, p, P, Nn, D, F, I, c, tE_local, tF_local):
+def _edges_through(VE, tE, tris, VF, tF, nx, ny, nz, d, sgn, tag, eps, R, p, P, Nn, D, F, I, c, tE_local, tF_local,
+                   border):
     """The edges of triangle ``tE`` (vertices ``VE``; each edge once: from the lower vertex index)
-    crossing triangle ``tF`` (vertices ``VF``, plane ``n·x = d``, in the same frame): candidates with
-    normal ``sgn·n`` (world), depth the shallower endpoint's distance to the plane."""
+    crossing triangle ``tF`` (vertices ``VF``, plane ``n·x = d``, in the same frame; within ``eps``
+    of its border counts): candidates with normal ``sgn·n`` (world)."""
     for e in range(3):
         i0, i1 = tris[tE, e], tris[tE, (e + 1) % 3]
         if i0 > i1 or c >= P.shape[0]:
@@ -285,19 +315,24 @@ def _edges_through(VE, tE, tris, VF, tF, nx, ny, nz, d, sgn, tag, eps, R, p, P, 
         x = VE[i0, 0] + t * (VE[i1, 0] - VE[i0, 0])
         y = VE[i0, 1] + t * (VE[i1, 1] - VE[i0, 1])
         z = VE[i0, 2] + t * (VE[i1, 2] - VE[i0, 2])
-        if not _in_triangle(VF, tris[tF, 0], tris[tF, 1], tris[tF, 2], nx, ny, nz, x, y, z, eps):
+        inside, inner = _in_triangle(VF, tris[tF, 0], tris[tF, 1], tris[tF, 2], nx, ny, nz, x, y, z, border, tF)
+        if inside < -eps:
             continue
         for r in range(3):
             P[c, r] = R[r, 0] * x + R[r, 1] * y + R[r, 2] * z + p[r]
             Nn[c, r] = sgn * (R[r, 0] * nx + R[r, 1] * ny + R[r, 2] * nz)
-        D[c], F[c], I[c] = min(abs(s0), abs(s1)), F_EDGE, fid(FID_CROSSING, 3 * tE_local + e, tF_local, tag)
+        # the depth: the shorter way out, along the normal (the shallower endpoint back through the
+        # plane) or within the plane (the crossing point out of the face); 0 for an edge that only
+        # touches the face's border (coplanar resting faces)
+        D[c] = max(min(abs(s0), abs(s1), inner), 0.0)
+        F[c], I[c] = F_EDGE, fid(FID_CROSSING, 3 * tE_local + e, tF_local, tag)
         c += 1
     return c
 
 
 @njit
 def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, rootA, rootB, Rr, tr, tol, eps,
-               Ra, pa, P, Nn, D, F, I, c):
+               Ra, pa, P, Nn, D, F, I, c, border):
     """Step 2: both trees walked at once (in A's frame; B's boxes carried there as the boxes of
     their rotated boxes); each pair of triangles in overlapping leaves has each one's edges tested
     against the other's face. ``XB`` B's vertices in A's frame, ``Rr, tr`` B's frame to A's."""
@@ -341,7 +376,7 @@ def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, roo
                         continue
                     # B's edges through A's face: A pushed against its face normal
                     c = _edges_through(XB, tb, tris, VA, ta, planes[fa, 0], planes[fa, 1], planes[fa, 2],
-                                       planes[fa, 3], -1.0, 0, eps, Ra, pa, P, Nn, D, F, I, c, tb - t0B, ta - t0A)
+                                       planes[fa, 3], -1.0, 0, eps, Ra, pa, P, Nn, D, F, I, c, tb - t0B, ta - t0A, border)
                     # A's edges through B's face (its plane carried into A's frame): A pushed along it
                     fb = p0B + tb - t0B
                     nx = Rr[0, 0] * planes[fb, 0] + Rr[0, 1] * planes[fb, 1] + Rr[0, 2] * planes[fb, 2]
@@ -349,7 +384,7 @@ def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, roo
                     nz = Rr[2, 0] * planes[fb, 0] + Rr[2, 1] * planes[fb, 1] + Rr[2, 2] * planes[fb, 2]
                     db = planes[fb, 3] + nx * tr[0] + ny * tr[1] + nz * tr[2]
                     c = _edges_through(VA, ta, tris, XB, tb, nx, ny, nz, db, 1.0, 1, eps, Ra, pa, P, Nn, D, F, I, c,
-                                       ta - t0A, tb - t0B)
+                                       ta - t0A, tb - t0B, border)
             continue
         # split the node that is not a leaf (the larger box when neither is)
         split_a = lb or (not la and (boxes[ka, 3] - boxes[ka, 0]) + (boxes[ka, 4] - boxes[ka, 1])
@@ -370,7 +405,7 @@ def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, roo
 @collider((MESH, MESH), extra=table_bvh)
 @njit
 def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
-              out_i, out_f, nodes, boxes, perm, root):
+              out_i, out_f, nodes, boxes, perm, root, border):
     """Triangle mesh A against triangle mesh B (either concave): vertices inside (ray parity) or
     within the margin, then, when no vertex is inside, edges crossing faces (module docstring)."""
     nv = col_max(si, SI_NV, shape_of, a, b)
@@ -410,7 +445,7 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             counters[1] += 1
             c0 = c
             c = _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, root[sa], root[sb], Rr, tr,
-                           tol, tol * tol, Ra, pa, P, Nn, D, F, I, c)
+                           tol, tol, Ra, pa, P, Nn, D, F, I, c, border)
             counters[2] += c > c0
         k = emit_deepest4(out_i, out_f, k, i, P, Nn, D, F, I, c)
     return k
