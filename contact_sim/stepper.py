@@ -319,9 +319,11 @@ def _impulse_step(world, dt, m):
     rest_bound = 0.0
     world._cs_kick_error = 0.0
     spec = SPECULATIVE and not exact_toi
+    swept_pair = None
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
-        c = _detect(world, det_margin)
+        c = toi_mod.mark_swept(_detect(world, det_margin), swept_pair)   # the sweep's hit: feature swept
+        swept_pair = None
         rel_vel = _relative_velocity(world, c, m)
         if spec and det_margin > margin and len(c):
             near = _closing_filter(world, c, rel_vel, t_left, margin)
@@ -467,6 +469,7 @@ def _impulse_step(world, dt, m):
             if ev < t_left:
                 tau = ev
                 events += 1
+                swept_pair = motion.swept_pair
         frac = tau / t_left
         if k:
             if dv_rest is not None:
