@@ -18,7 +18,8 @@
 5. positions of penetrating contacts are corrected by split-impulse pseudo-velocities, which move
    bodies and are then discarded (no energy is added).
 
-Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal.
+Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
+(friction on) regularised Coulomb friction (``response.penalty_friction``).
 
 ``world.contacts`` gets the contacts of the step with the impulses applied to A (normal and
 friction parts), ``world.last_solve`` a dict with the solver's iterations, residual, maximum
@@ -36,6 +37,7 @@ from .collision import detect_world
 from .response import solver
 from .response import toi as toi_mod
 from .response import kinematic as kinematic_mod
+from .response import penalty_friction
 
 DYNAMIC = 2
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
@@ -693,6 +695,9 @@ def _penalty_step(world, dt, m):
         w_end = s.omega.copy()
         res = solver.solve_soft(rows, v_end, w_end, target_n=target, compliance=gamma,
                                 iterations=st.solver_iterations, tolerance=st.solver_tolerance)
+        if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
+            penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
+                                                 _coefficients(world, c, m)[2], st.penalty.friction_velocity)
         world.contacts = _record(c, rows, res.impulse, vn0)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step
