@@ -182,3 +182,22 @@ def test_concave_body_rests_in_a_concave_trough(toi):
     assert np.linalg.norm(b.position - p0) < 1e-3               # drift under a millimetre over 3 s
     assert abs(b.position[2] - 0.2) < 1e-3                      # on the floor (its origin is its bottom)
     assert w.last_solve["max_penetration"] < 1e-3
+
+
+def test_concave_body_rests_on_an_open_terrain_mesh():
+    # an open mesh is one-sided: everything behind it is inside, however deep (no box cut-off)
+    g = np.linspace(-1, 1, 9)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(81)])
+    F = [[a, a + 9, a + 10] for a in (i * 9 + j for i in range(8) for j in range(8))]
+    F += [[a, a + 10, a + 1] for a in (i * 9 + j for i in range(8) for j in range(8))]
+    terrain = cs.TriMesh(V, np.array(F))
+    assert not terrain.watertight
+    w = cs.World(gravity=(0, 0, -9.81))
+    w.add_body("terrain", terrain, kind="static")
+    w.add_body("L", mesh(l_prism(0.15, 0.4, 0.2)), mass=1.0, position=(-0.13, -0.17, 0.05))
+    for _ in range(int(2.0 / w.settings.dt)):
+        w.step()
+    b = w.body("L")
+    assert abs(b.position[2]) < 1e-3 and np.linalg.norm(b.velocity) < 1e-3
+    assert abs(b.orientation[3]) > 1 - 1e-4        # flat on it, not tipped over

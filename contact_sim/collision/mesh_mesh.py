@@ -245,8 +245,10 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, clos
     reach = margin + tol
     for u in range(nx):
         px, py, pz = X[u, 0], X[u, 1], X[u, 2]
-        if (abs(px - box[0]) > box[3] + reach or abs(py - box[1]) > box[4] + reach
-                or abs(pz - box[2]) > box[5] + reach):
+        # outside Y's box (and its margin) nothing is inside a closed mesh; an open mesh's inside
+        # is everything behind it, so its vertices are all asked
+        if closedY and (abs(px - box[0]) > box[3] + reach or abs(py - box[1]) > box[4] + reach
+                        or abs(pz - box[2]) > box[5] + reach):
             continue
         if closedY:
             inside = bvh_parity(px, py, pz, VY, tris, nodes, boxes, perm, rootY, tol, stack)
