@@ -6,7 +6,6 @@ import trimesh
 from scipy.spatial.transform import Rotation as Rot
 
 import contact_sim as cs
-from contact_sim.collision import detect_world
 from contact_sim.collision.mesh_mesh import build_bvh
 
 I = (0.0, 0.0, 0.0, 1.0)
