@@ -109,7 +109,7 @@ def mesh_mesh():
     if not r:
         return []
     out = ["### Mesh–mesh (`bench/bench_mesh_mesh.py`)", "",
-           "Two tori at 100–200 random poses whose bounding volumes overlap, median time of one `cs.collide` "
+           "Two tori at 100 random poses within 2.4 m of each other (about 60 % intersect), median time of one `cs.collide` "
            "(contacts: points, normals, depths) with the per-mesh AABB tree and without it (one leaf holding "
            "every triangle), and python-fcl's BVH yes/no beside it; the verdicts agree.", "",
            "| triangles per mesh | tree (ms) | no tree (ms) | python-fcl verdict (ms) |", "|---|---|---|---|"]
