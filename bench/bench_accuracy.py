@@ -164,8 +164,13 @@ def sliding_block(method, dt):
 
 
 def solver_methods():
-    return {f"impulse, {it} iterations": {"response": "impulse", "toi": "next_step", "solver_iterations": it}
-            for it in (4, 20)}
+    out = {f"impulse, {it} iterations": {"response": "impulse", "toi": "next_step", "solver_iterations": it}
+           for it in (4, 20)}
+    # penalty with its regularised Coulomb friction (issue 14): k 5e4, damping ratio 0.7 for 1 kg
+    k = 5e4
+    out["penalty + friction (k 5e4)"] = {"response": "penalty", "toi": "next_step", "friction": True,
+                                         "penalty": {"stiffness": k, "damping": float(2 * 0.7 * np.sqrt(k))}}
+    return out
 
 
 THETA, MU_INCLINE = np.radians(35.0), 0.5

@@ -10,7 +10,7 @@ Quick start::
 
 The engine depends on numpy, numba, scipy, trimesh, PyYAML and yourdfpy; it never imports ROS.
 """
-from .collision import DetectionStats, collide
+from .collision import DetectionStats, collide, vertex_inside
 from .contacts import FEATURES, Contacts
 from .errors import BoundsError, ContactSimError, EngineError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
@@ -24,5 +24,5 @@ __version__ = "0.1.0"
 __all__ = [
     "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "Cylinder", "DetectionStats", "EngineError",
     "FEATURES", "Material", "Plane", "SceneError", "Settings", "Sphere", "StepStats", "TriMesh", "World", "collide",
-    "default_scene_path", "list_scenes", "load_scene", "resolve_scene",
+    "default_scene_path", "list_scenes", "load_scene", "resolve_scene", "vertex_inside",
 ]

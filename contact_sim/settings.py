@@ -30,6 +30,8 @@ class Penalty(Declared):
 
     stiffness: float = declare(1.0e5, Number(gt=0, le=_HUGE, unit="N/m"), "N/m")
     damping: float = declare(1.0e2, Number(ge=0, le=_HUGE, unit="N·s/m"), "N·s/m")
+    friction_velocity: float = declare(1.0e-4, Number(gt=0, le=_HUGE, unit="m/s"),
+                                       "m/s: regularised Coulomb friction is viscous below this sliding speed")
 
 
 @dataclass(eq=True)

@@ -18,7 +18,8 @@
 5. positions of penetrating contacts are corrected by split-impulse pseudo-velocities, which move
    bodies and are then discarded (no energy is added).
 
-Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal.
+Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
+(friction on) regularised Coulomb friction (``response.penalty_friction``).
 
 ``world.contacts`` gets the contacts of the step with the impulses applied to A (normal and
 friction parts), ``world.last_solve`` a dict with the solver's iterations, residual, maximum
@@ -37,6 +38,8 @@ from .response import models as _models
 from .collision import detect_world
 from .response import solver
 from .response import toi as toi_mod
+from .response import kinematic as kinematic_mod
+from .response import penalty_friction
 
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
@@ -313,9 +316,11 @@ def _impulse_step(world, dt, m):
     rest_bound = 0.0
     world._cs_kick_error = 0.0
     spec = st.speculative and not exact_toi
+    swept_pair = None
     while True:
         det_margin = _speculative_margin(world, t_left) if spec else margin
-        c = _detect(world, det_margin)
+        c = toi_mod.mark_swept(_detect(world, det_margin), swept_pair)   # the sweep's hit: feature swept
+        swept_pair = None
         rel_vel = _relative_velocity(world, c, m)
         if spec and det_margin > margin and len(c):
             near = _closing_filter(world, c, rel_vel, t_left, margin)
@@ -362,7 +367,9 @@ def _impulse_step(world, dt, m):
                 spec_target = np.minimum((c.depth - 0.5 * g_n * t_left * t_left) / t_left, 0.0)
                 closing = ~touching & (vn0 < spec_target)
             bounced = impact | (closing & (e > 0))
-            if impact.any() or closing.any():
+            if m.response == "kinematic" and impact.any() and not closing.any():
+                lam[:, 0], vn1 = _kinematic_impacts(world, c, rel_vel, e, touching & (vn0 <= 0.0))
+            elif impact.any() or closing.any():
                 # a touching pair that separates takes no impact impulse: it was not hit; were it
                 # held at v_n = 0 against the push of the others' impulses, the LCP would make it
                 # push a separating body along (positive work: a corner gained energy). If the
@@ -461,6 +468,7 @@ def _impulse_step(world, dt, m):
             if ev < t_left:
                 tau = ev
                 events += 1
+                swept_pair = motion.swept_pair
         frac = tau / t_left
         if k:
             if dv_rest is not None:
@@ -491,6 +499,17 @@ def _impulse_step(world, dt, m):
                                  correction_energy=correction, kinematic_work=_kinematic_work(world, world.contacts),
                                  rotation_drift=drift, kick_error_bound=world.__dict__.pop("_cs_kick_error"),
                                  rest_work_bound=rest_bound)
+
+
+def _kinematic_impacts(world, c, rel_vel, e, which):
+    """The kinematic response ``v ← v − (1+k)(N·v)N`` (``response.kinematic``) on the contacts
+    ``which``: ``(normal impulses (K,), normal velocities after (K,))``."""
+    s = world.s
+    inv_m = np.where(world.kind == DYNAMIC, world.inv_mass, 0.0)
+    before = s.vel[c.body_a] - s.vel[c.body_b]
+    lam = kinematic_mod.kinematic_impacts(s.vel, inv_m, c.body_a, c.body_b, c.normal, rel_vel, e, which)
+    rv = rel_vel + (s.vel[c.body_a] - s.vel[c.body_b]) - before
+    return lam, np.einsum("ij,ij->i", c.normal, rv)
 
 
 def _potential_change(world, dx):
@@ -675,6 +694,9 @@ def _penalty_step(world, dt, m):
         res = solver.solve_soft(rows, v_end, w_end, target_n=target, compliance=gamma,
                                 iterations=st.solver_iterations, tolerance=st.solver_tolerance,
                                 direct_max=st.direct_max_contacts)
+        if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
+            penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
+                                                 _coefficients(world, c, m)[2], st.penalty.friction_velocity)
         world.contacts = _record(c, rows, res.impulse, vn0)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step

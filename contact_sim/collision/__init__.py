@@ -42,7 +42,9 @@ from . import bounding, broadphase, dispatch, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
 from .vec3 import rotations
 
-__all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK"]
+from .inside import vertex_inside
+
+__all__ = ["collide", "collide_pairs", "detect_world", "DetectionStats", "RANK", "vertex_inside"]
 
 
 
@@ -55,8 +57,8 @@ class DetectionStats:
     ``settled_by_vertex``: polyhedron pairs where a vertex of one is inside the other;
     ``needed_edge_face``: polyhedron pairs that got past the bounding volumes and the face-axis
     test with no vertex inside, so the edge–face test ran (``edge_face_hits`` of them crossed);
-    ``colliding_pairs``, ``contacts``: what was reported; ``unsupported_pairs``: mesh–mesh
-    pairs, skipped; ``seconds``: per stage (``broad``, ``bounding``, ``narrow``, ``total``).
+    ``colliding_pairs``, ``contacts``: what was reported; ``unsupported_pairs``: pairs no
+    kernel handles (none since mesh–mesh has one); ``seconds``: per stage (``broad``, ``bounding``, ``narrow``, ``total``).
     """
 
     bodies: int = 0
@@ -309,7 +311,7 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     t0 = time.perf_counter()
     if (settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin)
             and isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
-            and shape_b.type in RANK and not (shape_a.type == "mesh" and shape_b.type == "mesh")):
+            and shape_b.type in RANK):
         fa, fb = single.fast_pose(pose_a), single.fast_pose(pose_b)
         if fa is not None and fb is not None:
             bodies = _bodies_cached((shape_a, shape_b))
@@ -321,8 +323,6 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     pa, qa = _check_pose(pose_a, "collide: pose_a", st)
     pb, qb = _check_pose(pose_b, "collide: pose_b", st)
     stats = Flag().check(stats, "collide: stats")
-    if shape_a.type == "mesh" and shape_b.type == "mesh":
-        raise ContactSimError("collide: mesh-mesh pairs are not supported; make one of them convex")
     bodies = _bodies_cached((shape_a, shape_b))
     st = DetectionStats(bodies=2, candidate_pairs=1, bounding_volume=bounding_volume, margin=margin)
     c, st = _detect(bodies, np.array([pa, pb]), np.array([qa, qb]), np.array([0]),

@@ -19,29 +19,35 @@ from .geometry import NRANK
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
                "margin", "counters", "out_i", "out_f")
 TABLE = {}   # (rank A, rank B) -> kernel
+EXTRA = {}   # (rank A, rank B) -> extra(geom): arrays passed after out_f (mesh–mesh: its trees)
 
 
-def collider(*keys):
-    """Register the decorated kernel for the shape-type pairs ``keys`` ((rank A, rank B) tuples)."""
+def collider(*keys, extra=None):
+    """Register the decorated kernel for the shape-type pairs ``keys`` ((rank A, rank B) tuples).
+    ``extra(geom)``, when given, returns a tuple of arrays of the geometry table built for that
+    kernel alone (mesh–mesh's bounding-volume trees), passed after ``out_f``."""
     def register(kernel):
         for key in keys:
             TABLE[key] = kernel
+            if extra is not None:
+                EXTRA[key] = extra
         return kernel
     return register
 
 
-_LOADED = []   # non-empty once every kernel module is imported
+_LOADED = []
 
 
 def _load():
-    # the modules that register kernels (imported here, not above: they import ``collider``). Not
-    # "while TABLE is empty": a test importing one kernel module first would leave the others out
-    from . import cylinders, meshes, polyhedra, primitives  # noqa: F401
+    # the modules that register kernels (imported here, not above: they import ``collider``). A
+    # flag, not an empty TABLE, says whether they are in: importing one of them elsewhere first
+    # (``narrow`` imports ``meshes``) fills part of the table
+    from . import cylinders, mesh_mesh, meshes, polyhedra, primitives  # noqa: F401
     _LOADED.append(True)
 
 
 def kernel_for(ra, rb):
-    """The kernel of ranks ``ra >= rb``, or None (plane–plane, mesh–mesh: no kernel)."""
+    """The kernel of ranks ``ra >= rb``, or None (plane–plane: no kernel)."""
     if not _LOADED:
         _load()
     return TABLE.get((ra, rb))
@@ -50,7 +56,7 @@ def kernel_for(ra, rb):
 def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     """Contacts of pairs ``a, b (K,)`` (``ranks[a] >= ranks[b]``): ``(rows_i (M, 3), rows_f (M, 7),
     unsupported)``: the kernels' rows (``pair`` indexing the batch) and the number of pairs no kernel
-    handles (mesh–mesh; plane–plane pairs are not contacts)."""
+    handles (none today; plane–plane pairs are not contacts)."""
     if not _LOADED:
         _load()
     arrays = geom.arrays()
@@ -70,7 +76,9 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
         if kernel is None:
             unsupported += (e - s) if ks[s] != 0 else 0   # plane–plane pairs are no contacts
             continue
-        m = kernel(*arrays, shape_of, A[s:e], B[s:e], pos, R, margin, counters, out_i[n:], out_f[n:])
+        more = EXTRA.get(divmod(int(ks[s]), NRANK))
+        m = kernel(*arrays, shape_of, A[s:e], B[s:e], pos, R, margin, counters, out_i[n:], out_f[n:],
+                   *(more(geom) if more is not None else ()))
         out_i[n:n + m, 0] += s
         n += m
     rows_i = out_i[:n]

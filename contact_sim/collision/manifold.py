@@ -231,3 +231,29 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
             k = put(out_i, out_f, k, pair, pts[i], normal, DEP[i], feat, fid(kind, fr, fi, CODE[i]))
     return k
 
+
+
+@njit
+def emit_deepest4(out_i, out_f, k, pair, P, Nn, D, F, I, c):
+    """Write the ``c`` candidates ``P (C, 3)``, ``Nn (C, 3)``, ``D``, ``F``, ``I (C,)`` of one pair, or
+    when there are more than 4 the deepest 4 spread as ``reduce4`` picks them (in order of
+    depth, about the deepest one's normal); returns the next row."""
+    if c <= 4:
+        for r in range(c):
+            k = put(out_i, out_f, k, pair, P[r], Nn[r], D[r], F[r], I[r])
+        return k
+    order = np.arange(c)
+    for r in range(1, c):     # stable insertion sort, deepest first
+        o, j = order[r], r - 1
+        while j >= 0 and D[order[j]] < D[o]:
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = o
+    ps, ds = P[order], D[order]
+    keep = np.empty(c, np.bool_)
+    reduce4(ps, ds, np.ones(c, np.bool_), Nn[order[0]], keep)
+    for r in range(c):
+        if keep[r]:
+            o = order[r]
+            k = put(out_i, out_f, k, pair, P[o], Nn[o], D[o], F[o], I[o])
+    return k

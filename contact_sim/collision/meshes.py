@@ -15,52 +15,11 @@ from ..jit import njit
 from .dispatch import collider
 from .geometry import BOX, CONVEX, MESH, SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
     SI_T0, SPHERE
-from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, put, reduce4
+from .inside import RAYS, parity_inside, plane_excess  # noqa: F401 (RAYS: older imports)
+from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4, put
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
 from .vec3 import col_max, dotr, inside_loop, set_row, cross, dot, norm
-
-# rays for the parity test: generic directions, so a ray through an edge or vertex is rare; when
-# one is (a barycentric coordinate or the distance within a tolerance of 0) the next ray decides
-_R = np.array([[0.5773, 0.3141, 0.7537], [-0.2718, 0.8414, -0.4667], [0.6931, -0.6180, 0.3711]])
-RAYS = _R / np.linalg.norm(_R, axis=1, keepdims=True)
-
-
-@njit
-def parity_inside(p, V, tris, t0, nt, eps=1e-9):
-    """Odd ray-crossing parity of point ``p (3,)`` against triangles ``tris[t0:t0+nt]`` of world
-    vertices ``V``; rays that graze an edge or vertex are discarded in favour of the next (when all
-    three graze, the majority vote of their parities)."""
-    votes = 0
-    px, py, pz = p[0], p[1], p[2]
-    for r in range(RAYS.shape[0]):
-        rx, ry, rz = RAYS[r, 0], RAYS[r, 1], RAYS[r, 2]
-        hits, bad = 0, False
-        for t in range(nt):
-            T0, T1, T2 = V[tris[t0 + t, 0]], V[tris[t0 + t, 1]], V[tris[t0 + t, 2]]
-            e1x, e1y, e1z = T1[0] - T0[0], T1[1] - T0[1], T1[2] - T0[2]
-            e2x, e2y, e2z = T2[0] - T0[0], T2[1] - T0[1], T2[2] - T0[2]
-            hx, hy, hz = ry * e2z - rz * e2y, rz * e2x - rx * e2z, rx * e2y - ry * e2x
-            det = e1x * hx + e1y * hy + e1z * hz
-            if not abs(det) > 1e-14:
-                continue
-            inv = 1.0 / det
-            sx, sy, sz = px - T0[0], py - T0[1], pz - T0[2]
-            u = (sx * hx + sy * hy + sz * hz) * inv
-            qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
-            v = (qx * rx + qy * ry + qz * rz) * inv
-            tt = (e2x * qx + e2y * qy + e2z * qz) * inv
-            w = 1.0 - u - v
-            hit = tt > 0 and u >= 0 and v >= 0 and w >= 0
-            if (tt > -eps and (abs(u) < eps or abs(v) < eps or abs(w) < eps) and u > -eps and v > -eps
-                    and w > -eps) or (hit and abs(tt) < eps * (np.sqrt(abs(det)) + 1e-300)):
-                bad = True
-            hits += hit
-        odd = hits % 2 == 1
-        if not bad:
-            return odd
-        votes += odd
-    return votes >= 2
 
 
 @njit
@@ -171,11 +130,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         touch_tol = TOUCH_TOLERANCE * min(sf[sm, SF_SCALE], sf[sp, SF_SCALE])
         c = np.int64(0)
         for v in range(nvm):       # (b) mesh vertices against the polyhedron's planes
-            m, pm = -np.inf, 0
-            for p in range(npp):
-                x = dot(NP[p], VM[v]) - dP[p]
-                if x > m:
-                    m, pm = x, p
+            m, pm = plane_excess(NP, dP, npp, VM, v)   # vertex inside iff m <= 0
             if m <= margin:
                 for j in range(3):
                     P[c, j], Nn[c, j] = VM[v, j] - 0.5 * m * NP[pm, j], NP[pm, j]
@@ -209,23 +164,5 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             c = _crossings(VP, EP, NM, dM, npm, fM, loops, VM, 1.0, 0, P, Nn, D, F, I, c)
             c = _crossings(VM, EM, NP, dP, npp, fP, loops, VP, -1.0, 1, P, Nn, D, F, I, c)
             counters[2] += c > 0
-        if c <= 4:
-            for r in range(c):
-                k = put(out_i, out_f, k, i, P[r], Nn[r], D[r], F[r], I[r])
-            continue
-        # at most 4: the deepest points, spread as reduce4 does (in order of depth)
-        order = np.arange(c)
-        for r in range(1, c):     # stable insertion sort, deepest first
-            o, j = order[r], r - 1
-            while j >= 0 and D[order[j]] < D[o]:
-                order[j + 1] = order[j]
-                j -= 1
-            order[j + 1] = o
-        ps, ds = P[order], D[order]
-        keep = np.empty(c, np.bool_)
-        reduce4(ps, ds, np.ones(c, np.bool_), Nn[order[0]], keep)
-        for r in range(c):
-            if keep[r]:
-                o = order[r]
-                k = put(out_i, out_f, k, i, P[o], Nn[o], D[o], F[o], I[o])
+        k = emit_deepest4(out_i, out_f, k, i, P, Nn, D, F, I, c)
     return k

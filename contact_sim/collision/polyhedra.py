@@ -25,6 +25,7 @@ import numpy as np
 from ..contacts import FID_EDGE, fid
 from ..jit import njit
 from .dispatch import collider
+from .inside import inside_planes
 from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
 from .vec3 import col_max, cross, dot, dotr, inside_loop, mv, norm, transform_rows
@@ -54,14 +55,9 @@ def face_query(N, d, npl, V, nv):
         if m > best:
             best, face = m, p
     inside = False
-    if best < 0:
+    if best < 0:   # the lecture's vertex test: a vertex of the other inside every face plane
         for v in range(nv):
-            worst = -np.inf
-            for p in range(npl):
-                worst = max(worst, dotr(N, p, V, v) - d[p])
-                if worst >= 0:
-                    break
-            if worst < 0:
+            if inside_planes(N, d, npl, V, v):
                 inside = True
                 break
     return best, face, inside

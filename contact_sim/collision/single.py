@@ -70,6 +70,8 @@ class PairPlan:
         self.b = np.array([0 if self.swap else 1], np.int64)
         self.kernel = dispatch.kernel_for(int(max(r)), int(min(r)))
         self.arrays = bodies.geom.arrays()
+        more = dispatch.EXTRA.get((int(max(r)), int(min(r))))
+        self.more = more(bodies.geom) if more is not None else ()   # mesh–mesh: the trees
         self.shape_of = bodies.shape_of
 
 
@@ -80,7 +82,7 @@ def collide_fast(plan, pa, qa, pb, qb, margin):
     k = 0
     if plan.kernel is not None:
         k = plan.kernel(*plan.arrays, plan.shape_of, plan.a, plan.b, pos, R, float(margin), np.zeros(3, np.int64),
-                        out_i, out_f)
+                        out_i, out_f, *plan.more)
     if plan.swap:
         out_f[:k, 3:6] *= -1.0
     # the response columns are zero: one block, split into its columns (separate arrays to the user)

@@ -4,13 +4,16 @@
 * ``solver``  — the solve by size: ``direct`` (the exact active set) or projected Gauss–Seidel
   (``pgs``: the compiled sweeps and row set-up), pure functions of body and contact arrays;
 * ``toi``     — time of impact: closed forms, bracket + Brent, swept test;
-* ``models``  — ``auto`` model choice, ``describe`` and preflight warnings.
+* ``models``  — ``auto`` model choice, ``describe`` and preflight warnings;
+* ``kinematic`` — the kinematic response ``v − (1+k)(N·v)N``; ``swept`` — swept-volume time of impact;
+  ``penalty_friction`` — regularised Coulomb friction of the penalty response.
 
 The step pipeline that uses them is ``contact_sim.stepper``.
 """
-from .models import (ContactModelWarning, MassRatioWarning, PenaltyStiffnessWarning, TunnellingWarning,
+from .models import (ContactModelWarning, MassRatioWarning, PenaltyFrictionWarning, PenaltyStiffnessWarning,
+                     TunnellingWarning,
                      choose, describe, preflight)
 from .solver import build_rows, row_velocity, solve
 
-__all__ = ["ContactModelWarning", "MassRatioWarning", "PenaltyStiffnessWarning", "TunnellingWarning",
-           "build_rows", "choose", "describe", "preflight", "row_velocity", "solve"]
+__all__ = ["ContactModelWarning", "MassRatioWarning", "PenaltyFrictionWarning", "PenaltyStiffnessWarning",
+           "TunnellingWarning", "build_rows", "choose", "describe", "preflight", "row_velocity", "solve"]

@@ -15,6 +15,7 @@ from ..shapes import Sphere
 
 PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the step cannot resolve the spring's oscillation
 FRACTIONAL_AUTO_MAX_BODIES = 16
+FRICTION_CREEP_LIMIT = 1e-3   # m/s: penalty friction's regulariser above this lets held bodies creep visibly
 
 
 class ContactModelWarning(UserWarning):
@@ -24,6 +25,12 @@ class ContactModelWarning(UserWarning):
 class PenaltyStiffnessWarning(ContactModelWarning):
     """Penalty stiffness too high for the step size to resolve the spring's oscillation (stable, as
     the spring is integrated implicitly, but its elastic bounce is damped away)."""
+
+
+class PenaltyFrictionWarning(ContactModelWarning):
+    """Penalty friction's regularisation speed lets a body that friction should hold creep: up to
+    ``settings.penalty.friction_velocity`` at the friction angle (the regularised damper is
+    integrated implicitly, so it is stable at any step; the price of a large regulariser is creep)."""
 
 
 class TunnellingWarning(ContactModelWarning):
@@ -254,6 +261,12 @@ def preflight(world, models=None, dt=None):
                             f"(resolved below {PENALTY_OMEGA_DT_LIMIT:g}); the spring is integrated implicitly, "
                             f"so it stays stable, but its bounce is damped away: lower k or dt for an elastic "
                             f"contact"))
+        vr = world.settings.penalty.friction_velocity
+        if m.friction and vr > FRICTION_CREEP_LIMIT:
+            out.append((PenaltyFrictionWarning,
+                        f"penalty friction_velocity {vr:g} m/s is above {FRICTION_CREEP_LIMIT:g} m/s: bodies that "
+                        f"friction holds creep at up to friction_velocity·tan(slope)/mu (that speed at the friction "
+                        f"angle); lower it (the regularised friction is implicit, so any value is stable)"))
     return out
 
 

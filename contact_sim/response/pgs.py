@@ -223,3 +223,83 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, hint, movable, d
                     for x in range(3):
                         s += ang[c, d, x] * iang[c, e, x]
                     K[c, d, e] += s
+
+
+@njit
+def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, compliance, mu, v_reg,
+                         lam, vel, omega, iterations, tolerance):
+    """Sequential Gauss–Seidel over the penalty response's soft normal rows and their regularised
+    Coulomb friction (``penalty_friction.solve_with_friction``), in place: per contact, the normal
+    row ``n·v + γ λn ≥ target ⟂ λn ≥ 0``, then the friction damper ``μλn/v_reg`` integrated
+    implicitly, ``(K_tt + γ_t) Δλt = −(v_t + γ_t λt)`` with ``γ_t = v_reg/(μλn)``, capped at
+    ``μλn`` along the sliding velocity the point would have without this contact's friction.
+    Arrays as ``sweeps``; ``mu (K,)``. Stops when a sweep changes no impulse by more than
+    ``tolerance`` × the largest one. Returns the sweeps done."""
+    k = a.shape[0]
+    rv = np.zeros(3)
+    done = 0
+    for it in range(iterations):
+        change = 0.0
+        for c in range(k):
+            ia = a[c]
+            ib = b[c]
+            for d in range(3):
+                s = 0.0
+                for x in range(3):
+                    s += (dirs[c, d, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, d, x] * omega[ia, x]
+                          - ang_b[c, d, x] * omega[ib, x])
+                rv[d] = s
+            old0 = lam[c, 0]
+            old1 = lam[c, 1]
+            old2 = lam[c, 2]
+            kn = K[c, 0, 0] + compliance[c]
+            new0 = max(old0 + (target_n[c] - rv[0] - compliance[c] * old0) / kn, 0.0)
+            vt0 = rv[1] + K[c, 1, 0] * (new0 - old0)
+            vt1 = rv[2] + K[c, 2, 0] * (new0 - old0)
+            cap = mu[c] * new0
+            new1 = 0.0
+            new2 = 0.0
+            if cap > 0.0:
+                g = v_reg / cap
+                p = K[c, 1, 1] + g
+                q = K[c, 1, 2]
+                r = K[c, 2, 1]
+                u = K[c, 2, 2] + g
+                r0 = -(vt0 + g * old1)
+                r1 = -(vt1 + g * old2)
+                det = p * u - q * r
+                new1 = old1 + (u * r0 - q * r1) / det
+                new2 = old2 + (p * r1 - r * r0) / det
+                mag = math.sqrt(new1 * new1 + new2 * new2)
+                if mag > cap:
+                    # sliding: Coulomb's force against the velocity the point would have without this
+                    # contact's friction (maximal dissipation)
+                    f0 = vt0 - (K[c, 1, 1] * old1 + K[c, 1, 2] * old2)
+                    f1 = vt1 - (K[c, 2, 1] * old1 + K[c, 2, 2] * old2)
+                    fm = math.sqrt(f0 * f0 + f1 * f1)
+                    if fm > 0.0:
+                        new1, new2 = -cap * f0 / fm, -cap * f1 / fm
+                    else:
+                        m = max(mag, 1e-300)
+                        new1, new2 = cap * new1 / m, cap * new2 / m
+            d0 = new0 - old0
+            d1 = new1 - old1
+            d2 = new2 - old2
+            lam[c, 0] = new0
+            lam[c, 1] = new1
+            lam[c, 2] = new2
+            for x in range(3):
+                pv = d0 * dirs[c, 0, x] + d1 * dirs[c, 1, x] + d2 * dirs[c, 2, x]
+                vel[ia, x] += ima[c] * pv
+                vel[ib, x] -= imb[c] * pv
+                omega[ia, x] += d0 * iang_a[c, 0, x] + d1 * iang_a[c, 1, x] + d2 * iang_a[c, 2, x]
+                omega[ib, x] -= d0 * iang_b[c, 0, x] + d1 * iang_b[c, 1, x] + d2 * iang_b[c, 2, x]
+            change = max(change, abs(d0), abs(d1), abs(d2))
+        done = it + 1
+        biggest = 1e-300
+        for c in range(k):
+            for d in range(3):
+                biggest = max(biggest, abs(lam[c, d]))
+        if change <= tolerance * biggest:
+            break
+    return done

@@ -15,6 +15,10 @@ torque-free rotation of ``dynamics.rotate_free``. Roots:
   most ``MAX_SAMPLES`` times and the first sign change refined by Brent's method, so a fast-spinning
   body costs a bounded amount per step instead of thousands of samples.
 
+``toi = swept`` puts the lecture's swept-volume test (``response.swept``) before that search for
+pairs that only translate during the step: closed-form roots along separating directions, a
+conservative time of impact, no distance evaluations.
+
 Candidate pairs come from the broad phase over the boxes bounding each body's path (O(N log N)):
 a fast body among thousands at rest is tested against its neighbours along its path, not
 against every body of the world.
@@ -26,6 +30,7 @@ from .. import dynamics, quat
 from ..kinds import DYNAMIC, KINEMATIC
 from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
+from .swept import mark_swept, swept_toi  # noqa: F401 (mark_swept: the stepper marks the sweep's contacts)
 
 XTOL = 1e-15
 TOI_TOLERANCE = 1e-9   # × the smaller body's size: a pair this close counts as touching at its impact time
@@ -121,26 +126,7 @@ def _extent(shape):
     return np.inf
 
 
-def _segment_box_entry(p0, p1, half, inflate):
-    """Entry fraction in [0,1] of the segment ``p0→p1`` (box frame) into the box of half sizes
-    ``half`` grown by ``inflate``; ``inf`` if it misses (slab test)."""
-    d = p1 - p0
-    lo, hi = -half - inflate, half + inflate
-    t0, t1 = 0.0, 1.0
-    for k in range(3):
-        if abs(d[k]) < 1e-300:
-            if p0[k] < lo[k] or p0[k] > hi[k]:
-                return np.inf
-            continue
-        a, b = (lo[k] - p0[k]) / d[k], (hi[k] - p0[k]) / d[k]
-        a, b = min(a, b), max(a, b)
-        t0, t1 = max(t0, a), min(t1, b)
-        if t0 > t1:
-            return np.inf
-    return t0
-
-
-def pair_toi(world, motion, i, j, T, swept=False):
+def pair_toi(world, motion, i, j, T):
     """First touching time of bodies ``i, j`` in ``(0, T]`` (``inf`` if none)."""
     si, sj = world.shapes[i], world.shapes[j]
     m = motion
@@ -279,18 +265,12 @@ def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
             oi, fi = np.repeat(other, finite.size), np.tile(finite, other.size)
             i, j = np.concatenate([i, np.minimum(oi, fi)]), np.concatenate([j, np.maximum(oi, fi)])
     ok = (kind[i] == DYNAMIC) | (kind[j] == DYNAMIC)
-    mesh = derived(world, "mesh_bodies", (), lambda: np.array([sh.type == "mesh" for sh in world.shapes], bool),
-                   key=len(world))
-    ok &= ~(mesh[i] & mesh[j])   # mesh–mesh: no contact to find (detection skips them; collide refuses them)
     g, mk = world.group, world.mask
     ok &= ((g[i] & mk[j]) != 0) & ((g[j] & mk[i]) != 0)
     # no relative motion: a pair apart now stays apart
     still = ~(np.any(m.vel[i] != m.vel[j], axis=1) | np.any(m.acc[i] != m.acc[j], axis=1)
               | np.any(m.omega[i] != 0, axis=1) | np.any(m.omega[j] != 0, axis=1))
     ok &= ~still
-    # mesh–mesh pairs are not detected (issue 14): no time of impact either
-    typ_mesh = np.array([sh.type == "mesh" for sh in world.shapes])
-    ok &= ~(typ_mesh[i] & typ_mesh[j])
     if only is not None:
         sel = np.zeros(n, bool)
         sel[list(only)] = True
@@ -355,7 +335,11 @@ def earliest_event(world, motion, T, exclude, swept=False, only=None):
 
     Closed-form pairs are solved together (vectorised); the pairs that need the sampled search
     (``pair_toi``: bracket + Brent, inherently one root at a time) are searched only up to the
-    earliest closed-form time, nearest paths first."""
+    earliest closed-form time, nearest paths first. With ``swept`` the other pairs get the
+    swept-volume test first (``response.swept``: closed-form roots along separating directions,
+    for pairs that only translate), and the search only where it cannot decide;
+    ``motion.swept_pair`` is then the pair when the event came from a sweep (else ``None``)."""
+    motion.swept_pair = None
     i, j = candidate_pairs(world, motion, T, exclude, swept, only)
     if len(i) == 0:
         return np.inf, None
@@ -365,8 +349,12 @@ def earliest_event(world, motion, T, exclude, swept=False, only=None):
     if closed.any():
         k = int(np.argmin(np.where(closed, tau, np.inf)))
         best, pair = float(tau[k]), (int(i[k]), int(j[k]))
-    for k in np.flatnonzero(np.isnan(tau)):   # general shapes: the scalar root search
-        t = pair_toi(world, motion, int(i[k]), int(j[k]), min(T, best), swept)
+    for k in np.flatnonzero(np.isnan(tau)):   # general shapes: the sweep, else the scalar root search
+        t = swept_toi(world, motion, int(i[k]), int(j[k]), min(T, best)) if swept else np.nan
+        by_sweep = not np.isnan(t)
+        if not by_sweep:
+            t = pair_toi(world, motion, int(i[k]), int(j[k]), min(T, best))
         if t < best:
             best, pair = t, (int(i[k]), int(j[k]))
+            motion.swept_pair = pair if by_sweep else None
     return best, pair
