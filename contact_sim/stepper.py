@@ -27,9 +27,9 @@ penetration at the start of the step, contact and impact counts, and the models 
 """
 import numpy as np
 
-from . import dynamics, free_motion, quat
+from . import dynamics, quat
 from .contacts import Contacts
-from .kinds import DYNAMIC, KINEMATIC, STATIC
+from .kinds import DYNAMIC, STATIC
 from .memo import derived
 from .settings import combine
 from .stats import StepStats
@@ -38,13 +38,14 @@ from .response import models as _models
 from .collision import detect_world
 from .response import solver
 from .response import toi as toi_mod
+from .response.cache import local_points, merge_records, project_warm, record, warm_lookup, warm_record
+from .response.energy import energetic_cap, kinematic_work, kinetic_energy, potential_change, rotational_energy
 from .response import kinematic as kinematic_mod
 from .response import penalty_friction
 
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
-MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
 SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
 
 
@@ -189,99 +190,6 @@ def _closing_filter(world, c, rel_vel, dt, base):
     return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
 
 
-def _local_points(world, c, R, point=None):
-    """Contact points ``(K,3)`` (``c.point`` or the given ``point (K,3)``) in body A's frame (what
-    identifies a contact across steps); ``R (N,3,3)`` the bodies' rotation matrices."""
-    a = c.body_a
-    p = c.point if point is None else point
-    return np.einsum("kji,kj->ki", R[a], p - world.s.pos[a])
-
-
-def _match(world, a0, b0, p0, a1, b1, p1):
-    """For each new contact ``(a1, b1, p1 (K1,3))`` the index of the old contact ``(a0, b0, p0 (K0,3))``
-    of the same pair whose point in A's frame is nearest, within ``MATCH_FRACTION`` of the smaller
-    body's size; ``-1`` when none. Each old contact is claimed at most once (``(K1,) int``)."""
-    out = np.full(len(a1), -1, np.int64)
-    if len(a0) == 0 or len(a1) == 0:
-        return out
-    ext = toi_mod._extents(world)
-    n = len(world)
-    if len(a0) == len(a1) and np.array_equal(a0, a1) and np.array_equal(b0, b1):
-        # the same pairs in the same order, one contact each (strictly increasing keys): each new
-        # contact's only candidate is the old one in its row (what the k-d tree would find)
-        key = a1 * n + b1
-        if len(key) < 2 or np.all(key[1:] > key[:-1]):
-            d = np.sqrt(np.einsum("ij,ij->i", p1 - p0, p1 - p0))
-            ok = d <= MATCH_FRACTION * np.minimum(ext[a1], ext[b1])
-            out[ok] = np.flatnonzero(ok)
-            return out
-    from scipy.spatial import cKDTree
-
-    size = np.minimum(ext[a1], ext[b1])
-    scale = float(np.max(np.abs(np.concatenate([p0, p1])))) + 1.0
-    k0 = (a0 * n + b0).astype(float) * (8.0 * scale)
-    k1 = (a1 * n + b1).astype(float) * (8.0 * scale)
-    tree = cKDTree(np.column_stack([k0, p0]))
-    dist, idx = tree.query(np.column_stack([k1, p1]))
-    ok = np.isfinite(dist) & (dist <= MATCH_FRACTION * size)
-    cand = np.flatnonzero(ok)
-    if cand.size:
-        order = cand[np.argsort(dist[cand], kind="stable")]
-        _, first = np.unique(idx[order], return_index=True)
-        keep = order[first]
-        out[keep] = idx[keep]
-    return out
-
-
-def _carried(world, attr, a, b, local, fill, trailing=()):
-    """Per-contact values ``(K, *trailing)`` that the previous step stored under ``world.<attr>``
-    as ``(body_a, body_b, local points, values)``, for the contacts ``(a, b (K,), local (K,3))``
-    that match one of its contacts (same pair, nearest point); ``fill`` where none matches."""
-    out = np.full((len(a),) + trailing, fill)
-    old = getattr(world, attr, None)
-    if old is None or len(old[0]) == 0 or len(a) == 0:
-        return out
-    a0, b0, p0, values = old
-    hit = _match(world, a0, b0, p0, a, b, local)
-    ok = hit >= 0
-    out[ok] = values[hit[ok]]
-    return out
-
-
-def _warm_lookup(world, a, b, local):
-    """Previous step's resting impulses per unit time ``(K,4)`` (normal, then the world tangential
-    impulse vector) for the contacts ``(a, b, local)`` that match one (else 0)."""
-    return _carried(world, "_cs_warm", a, b, local, 0.0, (4,))
-
-
-def _merge_records(world, records):
-    """One row per contact point for the whole step: contacts of the sub-steps (``[(Contacts,
-    local (k,3))]``) that are the same point (same pair, same place on A) are merged, keeping the
-    latest geometry and the sum of the impulses."""
-    if not records:
-        return Contacts.empty()
-    acc, loc = records[0]
-    for c, local in records[1:]:
-        hit = _match(world, acc.body_a, acc.body_b, loc, c.body_a, c.body_b, local)
-        ok = hit >= 0
-        for name in ("normal_impulse", "friction_impulse", "impulse"):
-            getattr(c, name)[ok] += getattr(acc, name)[hit[ok]]
-        keep = np.ones(len(acc), bool)
-        keep[hit[ok]] = False
-        acc = Contacts.concat([acc.select(keep), c])
-        loc = np.concatenate([loc[keep], local])
-    return acc
-
-
-def _record(c, rows, lam, vn0):
-    """Fill the impulse columns of contacts ``c`` from accumulated ``lam (K,3)`` (n, t1, t2)."""
-    c.normal_impulse = lam[:, 0].copy()
-    c.friction_impulse = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
-    c.impulse = c.normal_impulse[:, None] * c.normal + c.friction_impulse
-    c.relative_normal_velocity = vn0.copy()
-    return c
-
-
 # ---------------------------------------------------------------------------- impulse / kinematic
 def _impulse_step(world, dt, m):
     """One step of the impulse (or kinematic) response. Per sub-step (split at times of impact):
@@ -335,7 +243,7 @@ def _impulse_step(world, dt, m):
                 max_pen = max(max_pen, float(c.depth.max()))
             R = quat.to_matrix(s.quat)
             rows = _rows(world, c, _inv_inertia(world, m, R), rel_vel, m)
-            local = _local_points(world, c, R)
+            local = local_points(world, c, R)
             e, mu_s, mu_d = _coefficients(world, c, m)
             fr = m.friction and m.response != "kinematic"
             vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
@@ -382,7 +290,7 @@ def _impulse_step(world, dt, m):
                 if bounces:
                     bodies0 = np.unique(np.concatenate([c.body_a[ti], c.body_b[ti]]))
                     bodies0 = bodies0[dyn[bodies0]]
-                    kinetic0 = _kinetic_energy(world, bodies0)
+                    kinetic0 = kinetic_energy(world, bodies0)
                 # compression: the pairs are stopped (touching) or slowed to arrive touching
                 # (speculative), with friction; inelastic, so it can only take energy away
                 target = np.where(touching[ti], 0.0, spec_target[ti] if spec else 0.0)
@@ -404,7 +312,7 @@ def _impulse_step(world, dt, m):
                     res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],
                                             iterations=st.solver_iterations, tolerance=st.solver_tolerance,
                                             method=st.solver_method, direct_max=st.direct_max_contacts)
-                    lam[hi, 0] += res.impulse[:, 0] * _energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
+                    lam[hi, 0] += res.impulse[:, 0] * energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
                     iters = max(iters, res.iterations)
                 vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
             else:
@@ -431,7 +339,7 @@ def _impulse_step(world, dt, m):
                 # displacement: the force then does no work (an end-velocity target of 0 made a force
                 # that held a separating body up, and added energy)
                 target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - vn1[ri], 0.0)
-                warm = _project_warm(_warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
+                warm = project_warm(warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
                                      mu_d[ri])
                 res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
                                         mu_d=mu_d[ri] if fr else None, iterations=st.solver_iterations,
@@ -448,7 +356,7 @@ def _impulse_step(world, dt, m):
                 dw_rest = w_end - w_start_end
                 # copies: stored across steps, never views of this step's contacts
                 warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), local[ri].copy(),
-                            _warm_record(res.impulse, r2) / t_left)
+                            warm_record(res.impulse, r2) / t_left)
             if first:
                 pseudo = _split_impulse(world, c, rows, dt)
             near = touching.copy()
@@ -473,7 +381,7 @@ def _impulse_step(world, dt, m):
         if k:
             if dv_rest is not None:
                 lam += lam2 * frac
-            rec = _record(c, rows, lam, vn0)
+            rec = record(c, rows, lam, vn0)
             if spec:   # speculative contacts that did nothing are not contacts of this step
                 used = touching | (lam[:, 0] > 0)
                 rec, loc_rec = (rec, local) if used.all() else (rec.select(used), local[used])
@@ -491,12 +399,12 @@ def _impulse_step(world, dt, m):
     if pseudo is not None:
         vp, wp = pseudo
         _move(world, vp * dt, wp * dt)
-        correction = _potential_change(world, vp * dt)
+        correction = potential_change(world, vp * dt)
     world._cs_warm = warm_out
-    world.contacts = _merge_records(world, records)
+    world.contacts = merge_records(world, records)
     world.last_solve = StepStats(iterations=iters, residual=residual, max_penetration=max_pen,
                                  contacts=len(world.contacts), impacts=events, toi=m.toi, response=m.response,
-                                 correction_energy=correction, kinematic_work=_kinematic_work(world, world.contacts),
+                                 correction_energy=correction, kinematic_work=kinematic_work(world, world.contacts),
                                  rotation_drift=drift, kick_error_bound=world.__dict__.pop("_cs_kick_error"),
                                  rest_work_bound=rest_bound)
 
@@ -512,56 +420,6 @@ def _kinematic_impacts(world, c, rel_vel, e, which):
     return lam, np.einsum("ij,ij->i", c.normal, rv)
 
 
-def _potential_change(world, dx):
-    """Gravitational potential energy (J) gained by moving the dynamic bodies' centres by
-    ``dx (N,3)``: what position correction may add to the total energy (it raises bodies out of
-    penetration; it never adds kinetic energy)."""
-    dyn = world.kind == DYNAMIC
-    return float(-np.sum(world.mass[dyn] * (dx[dyn] @ world.gravity)))
-
-
-def _kinematic_work(world, c):
-    """Work (J) done on the dynamic bodies by kinematic ones through the contacts ``c`` of a
-    step: impulse on the dynamic side · velocity of the kinematic body's material point. A
-    kinematic body is driven from outside, so this is energy the world may gain."""
-    if len(c) == 0:
-        return 0.0
-    s = world.s
-    total = 0.0
-    for side, sign in ((c.body_a, -1.0), (c.body_b, 1.0)):   # A gets +impulse, B its negative
-        k = world.kind[side] == KINEMATIC
-        if k.any():
-            i = side[k]
-            u = s.vel[i] + cross(s.omega[i], c.point[k] - s.pos[i])
-            total += float(np.sum(sign * c.impulse[k] * u))
-    return total
-
-
-def _warm_record(lam, rows):
-    """``(K,4)``: impulses ``lam (K,3)`` in ``rows``' (n, t1, t2) basis as the normal impulse and the
-    world tangential impulse vector (basis-free, so the next step's rows can take it whatever
-    tangents they pick)."""
-    out = np.empty((len(lam), 4))
-    out[:, 0] = lam[:, 0]
-    out[:, 1:] = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
-    return out
-
-
-def _project_warm(w, rows, mu):
-    """Warm impulses ``(K,3)`` in ``rows``' basis from the ``_warm_record`` form ``w (K,4)``: the
-    tangential vector projected on the contact's tangent plane, inside the cone."""
-    if not np.any(w):
-        return None
-    wt = w[:, 1:]
-    out = np.column_stack([np.maximum(w[:, 0], 0.0), np.einsum("ij,ij->i", wt, rows.t1),
-                           np.einsum("ij,ij->i", wt, rows.t2)])
-    mag = np.linalg.norm(out[:, 1:], axis=1)
-    lim = mu * out[:, 0]
-    scale = np.where(mag > lim, lim / np.maximum(mag, 1e-300), 1.0)
-    out[:, 1:] *= scale[:, None]
-    return out
-
-
 def _advance(world, tau, half_dv, half_dw):
     """Free motion over ``tau`` with a constant contact force whose velocity change over ``tau`` is
     ``2·half_dv (N,3)`` (angular ``2·half_dw``): kick half, drift exactly, kick half."""
@@ -569,7 +427,7 @@ def _advance(world, tau, half_dv, half_dw):
     s.vel += half_dv
     kicked = np.flatnonzero(np.any(half_dw != 0, axis=1))
     if kicked.size:
-        ke0 = _rotational_energy(world, kicked)
+        ke0 = rotational_energy(world, kicked)
     s.omega += half_dw
     drift = world._advance_free(tau)
     s.vel += half_dv
@@ -577,61 +435,10 @@ def _advance(world, tau, half_dv, half_dw):
     if kicked.size:
         # the torque's two half-kicks around a turning drift are exact to first order in the angle
         # turned: what they move of a body's rotational energy is right to within |ω|·τ of itself
-        moved = np.abs(_rotational_energy(world, kicked) - ke0)
+        moved = np.abs(rotational_energy(world, kicked) - ke0)
         turned = np.linalg.norm(s.omega[kicked], axis=1) * tau
         world._cs_kick_error = getattr(world, "_cs_kick_error", 0.0) + float(moved @ turned)
     return drift
-
-
-def _kinetic_energy(world, idx):
-    """Kinetic energy (J, a float) of the bodies ``idx (k,)``, linear plus rotational."""
-    s = world.s
-    rigid = idx[~world.particle[idx]]
-    return float(0.5 * np.sum(world.mass[idx] * np.einsum("ij,ij->i", s.vel[idx], s.vel[idx]))
-                 + _rotational_energy(world, rigid).sum())
-
-
-def _energetic_cap(world, idx, kinetic0, vel_c, omega_c):
-    """Scale the restitution stage's velocity change back so that the impact ends with no more
-    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx``); returns the
-    factor applied (1 when nothing was needed).
-
-    Newton's rule, one target ``−e·v_n0`` per contact, is exact for one contact and for contacts
-    that close at one speed; contacts closing at different speeds (a tumbling box meeting a wall
-    corner first, the others within the speculative margin) can be given more rebound than the
-    approach had: energy from nothing. Stronge's energetic view bounds the rebound by the energy the
-    compression stored; the velocities after restitution are ``v_c + s·Δv`` and the kinetic energy is
-    quadratic in ``s``, so the largest ``s ≤ 1`` that keeps it at ``kinetic0`` is a root."""
-    s = world.s
-    if idx.size == 0:
-        return 1.0
-    kinetic1 = _kinetic_energy(world, idx)
-    if kinetic1 <= kinetic0:
-        return 1.0
-    dv, dw = s.vel[idx] - vel_c, s.omega[idx] - omega_c
-    rigid = ~world.particle[idx]
-    iw = dynamics.rotate_inertia(quat.to_matrix(s.quat[idx]), world.inertia_body[idx])
-    iw[~rigid] = 0.0
-    m = world.mass[idx]
-    # K(s) = K_c + b s + a s², K_c the energy after compression
-    a = 0.5 * (np.sum(m * np.einsum("ij,ij->i", dv, dv)) + np.einsum("ni,nij,nj->", dw, iw, dw))
-    b = np.sum(m * np.einsum("ij,ij->i", vel_c, dv)) + np.einsum("ni,nij,nj->", omega_c, iw, dw)
-    kc = 0.5 * (np.sum(m * np.einsum("ij,ij->i", vel_c, vel_c)) + np.einsum("ni,nij,nj->", omega_c, iw, omega_c))
-    room = max(kinetic0 - kc, 0.0)
-    if a <= 0.0:
-        return 1.0
-    f = float(np.clip((-b + np.sqrt(max(b * b + 4.0 * a * room, 0.0))) / (2.0 * a), 0.0, 1.0))
-    s.vel[idx] = vel_c + f * dv
-    s.omega[idx] = omega_c + f * dw
-    return f
-
-
-def _rotational_energy(world, idx):
-    """Rotational kinetic energy ``(k,)`` (J) of the bodies ``idx``."""
-    s = world.s
-    out = np.empty(len(idx))
-    free_motion.rotational_energies(s.quat, world.inertia_body, s.omega, np.asarray(idx, dtype=np.int64), out)
-    return out
 
 
 def _move(world, dx, dtheta):
@@ -697,7 +504,7 @@ def _penalty_step(world, dt, m):
         if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
             penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
                                                  _coefficients(world, c, m)[2], st.penalty.friction_velocity)
-        world.contacts = _record(c, rows, res.impulse, vn0)
+        world.contacts = record(c, rows, res.impulse, vn0)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step
         touched = np.zeros(len(world), bool)
@@ -715,4 +522,4 @@ def _penalty_step(world, dt, m):
         iters, residual = 0, 0.0
     world.last_solve = StepStats(iterations=iters, residual=residual, max_penetration=max_pen, contacts=k,
                                  toi=m.toi, response=m.response,
-                                 kinematic_work=_kinematic_work(world, world.contacts), rotation_drift=drift)
+                                 kinematic_work=kinematic_work(world, world.contacts), rotation_drift=drift)

@@ -1,0 +1,130 @@
+"""The contact cache carried between steps: resting impulses (warm starts) and per-step contact
+records, matched from step to step by pair and by the contact point in body A's frame.
+
+What the World holds: ``world._cs_warm`` = ``(body_a (K,), body_b (K,), local points (K,3), impulses
+per unit time (K,4))`` of the last resting solve (``None`` before one); ``stepper.forget`` drops it
+(``World.reset``), ``World.remove_bodies`` remaps it."""
+import numpy as np
+
+from ..contacts import Contacts
+from . import toi as toi_mod
+
+MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
+
+
+def local_points(world, c, R, point=None):
+    """Contact points ``(K,3)`` (``c.point`` or the given ``point (K,3)``) in body A's frame (what
+    identifies a contact across steps); ``R (N,3,3)`` the bodies' rotation matrices."""
+    a = c.body_a
+    p = c.point if point is None else point
+    return np.einsum("kji,kj->ki", R[a], p - world.s.pos[a])
+
+
+def match(world, a0, b0, p0, a1, b1, p1):
+    """For each new contact ``(a1, b1, p1 (K1,3))`` the index of the old contact ``(a0, b0, p0 (K0,3))``
+    of the same pair whose point in A's frame is nearest, within ``MATCH_FRACTION`` of the smaller
+    body's size; ``-1`` when none. Each old contact is claimed at most once (``(K1,) int``)."""
+    out = np.full(len(a1), -1, np.int64)
+    if len(a0) == 0 or len(a1) == 0:
+        return out
+    ext = toi_mod._extents(world)
+    n = len(world)
+    if len(a0) == len(a1) and np.array_equal(a0, a1) and np.array_equal(b0, b1):
+        # the same pairs in the same order, one contact each (strictly increasing keys): each new
+        # contact's only candidate is the old one in its row (what the k-d tree would find)
+        key = a1 * n + b1
+        if len(key) < 2 or np.all(key[1:] > key[:-1]):
+            d = np.sqrt(np.einsum("ij,ij->i", p1 - p0, p1 - p0))
+            ok = d <= MATCH_FRACTION * np.minimum(ext[a1], ext[b1])
+            out[ok] = np.flatnonzero(ok)
+            return out
+    from scipy.spatial import cKDTree
+
+    size = np.minimum(ext[a1], ext[b1])
+    scale = float(np.max(np.abs(np.concatenate([p0, p1])))) + 1.0
+    k0 = (a0 * n + b0).astype(float) * (8.0 * scale)
+    k1 = (a1 * n + b1).astype(float) * (8.0 * scale)
+    tree = cKDTree(np.column_stack([k0, p0]))
+    dist, idx = tree.query(np.column_stack([k1, p1]))
+    ok = np.isfinite(dist) & (dist <= MATCH_FRACTION * size)
+    cand = np.flatnonzero(ok)
+    if cand.size:
+        order = cand[np.argsort(dist[cand], kind="stable")]
+        _, first = np.unique(idx[order], return_index=True)
+        keep = order[first]
+        out[keep] = idx[keep]
+    return out
+
+
+def carried(world, attr, a, b, local, fill, trailing=()):
+    """Per-contact values ``(K, *trailing)`` that the previous step stored under ``world.<attr>``
+    as ``(body_a, body_b, local points, values)``, for the contacts ``(a, b (K,), local (K,3))``
+    that match one of its contacts (same pair, nearest point); ``fill`` where none matches."""
+    out = np.full((len(a),) + trailing, fill)
+    old = getattr(world, attr, None)
+    if old is None or len(old[0]) == 0 or len(a) == 0:
+        return out
+    a0, b0, p0, values = old
+    hit = match(world, a0, b0, p0, a, b, local)
+    ok = hit >= 0
+    out[ok] = values[hit[ok]]
+    return out
+
+
+def warm_lookup(world, a, b, local):
+    """Previous step's resting impulses per unit time ``(K,4)`` (normal, then the world tangential
+    impulse vector) for the contacts ``(a, b, local)`` that match one (else 0)."""
+    return carried(world, "_cs_warm", a, b, local, 0.0, (4,))
+
+
+def merge_records(world, records):
+    """One row per contact point for the whole step: contacts of the sub-steps (``[(Contacts,
+    local (k,3))]``) that are the same point (same pair, same place on A) are merged, keeping the
+    latest geometry and the sum of the impulses."""
+    if not records:
+        return Contacts.empty()
+    acc, loc = records[0]
+    for c, local in records[1:]:
+        hit = match(world, acc.body_a, acc.body_b, loc, c.body_a, c.body_b, local)
+        ok = hit >= 0
+        for name in ("normal_impulse", "friction_impulse", "impulse"):
+            getattr(c, name)[ok] += getattr(acc, name)[hit[ok]]
+        keep = np.ones(len(acc), bool)
+        keep[hit[ok]] = False
+        acc = Contacts.concat([acc.select(keep), c])
+        loc = np.concatenate([loc[keep], local])
+    return acc
+
+
+def record(c, rows, lam, vn0):
+    """Fill the impulse columns of contacts ``c`` from accumulated ``lam (K,3)`` (n, t1, t2)."""
+    c.normal_impulse = lam[:, 0].copy()
+    c.friction_impulse = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
+    c.impulse = c.normal_impulse[:, None] * c.normal + c.friction_impulse
+    c.relative_normal_velocity = vn0.copy()
+    return c
+
+
+def warm_record(lam, rows):
+    """``(K,4)``: impulses ``lam (K,3)`` in ``rows``' (n, t1, t2) basis as the normal impulse and the
+    world tangential impulse vector (basis-free, so the next step's rows can take it whatever
+    tangents they pick)."""
+    out = np.empty((len(lam), 4))
+    out[:, 0] = lam[:, 0]
+    out[:, 1:] = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
+    return out
+
+
+def project_warm(w, rows, mu):
+    """Warm impulses ``(K,3)`` in ``rows``' basis from the ``_warm_record`` form ``w (K,4)``: the
+    tangential vector projected on the contact's tangent plane, inside the cone."""
+    if not np.any(w):
+        return None
+    wt = w[:, 1:]
+    out = np.column_stack([np.maximum(w[:, 0], 0.0), np.einsum("ij,ij->i", wt, rows.t1),
+                           np.einsum("ij,ij->i", wt, rows.t2)])
+    mag = np.linalg.norm(out[:, 1:], axis=1)
+    lim = mu * out[:, 0]
+    scale = np.where(mag > lim, lim / np.maximum(mag, 1e-300), 1.0)
+    out[:, 1:] *= scale[:, None]
+    return out
