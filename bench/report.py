@@ -146,7 +146,7 @@ def hard_cases():
         return []
     with open(path) as fh:
         lines = [ln.strip() for ln in fh if ln.strip()]
-    out = ["### Hard cases (`make test ARGS=\"-m hard -s\"`, each a test with its threshold)", "",
+    out = ["### Hard cases and stability scenes (`make test ARGS=\"-m hard -s\"`, `make stability`; each a test with its thresholds)", "",
            "| case | measured |", "|---|---|"]
     for ln in lines:
         case, _, value = ln.partition(": ")
