@@ -52,7 +52,7 @@ RANDOM = os.environ.get("CONTACT_SIM_FUZZ_RANDOM") == "1"
 PHASES = [Phase.explicit, Phase.generate]
 QUICK = settings(max_examples=12, deadline=None, derandomize=not RANDOM, database=None,
                  suppress_health_check=list(HealthCheck), phases=PHASES)
-LONG = settings(max_examples=40, deadline=None, derandomize=not RANDOM, database=None,
+LONG = settings(max_examples=100, deadline=None, derandomize=not RANDOM, database=None,
                 suppress_health_check=list(HealthCheck), phases=PHASES)
 
 
