@@ -152,3 +152,27 @@ def test_mesh_mesh_pairs_in_a_world_are_detected():
     w.add_body("ball", cs.Sphere(0.3), mass=1.0, position=(0, 0, 1.2))
     c, st = detect_world(w)
     assert st.unsupported_pairs == 0 and set(c.body_b) == {1, 2}
+
+
+@pytest.mark.parametrize("pen", [1e-3, 0.01, 0.05])
+@pytest.mark.parametrize("kind", ["box edge", "hull vertex"])
+def test_polyhedron_vertex_in_a_mesh_gets_the_same_contact_as_in_the_equal_box(kind, pen):
+    """A polyhedron's vertex inside a closed mesh: the contact point is midway between the vertex
+    and the mesh surface, as for the same pair against a Box of the mesh's shape (the exact
+    separating-axis answer); the point sat a whole depth off, on the far side of the vertex."""
+    big = trimesh.creation.box((2.0, 2.0, 2.0))
+    ident = (0.0, 0.0, 0.0, 1.0)
+    if kind == "box edge":     # an edge pointing down, its two end vertices inside
+        small = cs.Box([0.5, 0.3, 0.3])
+        pose = ((0.0, 0.0, 1.0 + 0.15 * np.sqrt(2) - pen), tuple(Q.from_rotvec(np.array([np.pi / 4, 0, 0]))))
+    else:                      # an icosahedron's bottom vertex inside
+        small = cs.Convex(trimesh.creation.icosphere(0, 0.2).vertices)
+        low = float(np.min(np.asarray(small.vertices)[:, 2]))
+        pose = ((0.1, 0.0, 1.0 - low - pen), ident)
+    got = cs.collide(cs.TriMesh(big.vertices, big.faces), ((0, 0, 0), ident), small, pose, margin=0.0)
+    ref = cs.collide(cs.Box([2, 2, 2]), ((0, 0, 0), ident), small, pose, margin=0.0)
+    i, j = np.argmax(got.depth), np.argmax(ref.depth)
+    assert got.depth[i] == pytest.approx(pen, abs=1e-12) and ref.depth[j] == pytest.approx(pen, abs=1e-12)
+    np.testing.assert_allclose(got.normal[i], [0, 0, -1], atol=1e-12)
+    assert got.point[i][2] == pytest.approx(1.0 - pen / 2, abs=1e-12)      # midway: surface z = 1, vertex 1 − pen
+    np.testing.assert_allclose(np.sort(got.point[:, 2]), np.sort(ref.point[:, 2])[: len(got)], atol=1e-12)

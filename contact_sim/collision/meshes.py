@@ -148,8 +148,8 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             else:
                 tn = tri_normal(VM, tris, t0 + j)
                 na = -tn / norm(tn)
-            for jj in range(3):
-                P[c, jj], Nn[c, jj] = VP[u, jj] - 0.5 * sep * na[jj], na[jj]
+            for jj in range(3):   # midway between the vertex and the mesh (na points from B to A)
+                P[c, jj], Nn[c, jj] = VP[u, jj] + 0.5 * sep * na[jj], na[jj]
             D[c], F[c], I[c] = -sep, F_VERTEX, fid(FID_MESH_VERTEX, u, j, 0)
             c += 1
         if c:
