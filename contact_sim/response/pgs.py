@@ -76,6 +76,28 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
     return x0 * s, x1 * s
 
 
+@njit(inline="always")   # a call per contact update costs more than its arithmetic
+def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv):
+    """Relative velocity of contact ``c``'s points in its (n, t1, t2) basis, written to ``rv (3,)``."""
+    for d in range(3):
+        s = 0.0
+        for x in range(3):
+            s += (dirs[c, d, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, d, x] * omega[ia, x]
+                  - ang_b[c, d, x] * omega[ib, x])
+        rv[d] = s
+
+
+@njit(inline="always")
+def _apply(c, ia, ib, d0, d1, d2, dirs, iang_a, iang_b, ima, imb, vel, omega):
+    """Apply the impulse change ``(d0, d1, d2)`` of contact ``c`` (on A; its negative on B)."""
+    for x in range(3):
+        p = d0 * dirs[c, 0, x] + d1 * dirs[c, 1, x] + d2 * dirs[c, 2, x]
+        vel[ia, x] += ima[c] * p
+        vel[ib, x] -= imb[c] * p
+        omega[ia, x] += d0 * iang_a[c, 0, x] + d1 * iang_a[c, 1, x] + d2 * iang_a[c, 2, x]
+        omega[ib, x] -= d0 * iang_b[c, 0, x] + d1 * iang_b[c, 1, x] + d2 * iang_b[c, 2, x]
+
+
 @njit
 def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, compliance, mu_s, mu_d, friction,
            lam, vel, omega, iterations, tolerance):
@@ -107,12 +129,7 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
         for c in range(k):
             ia = a[c]
             ib = b[c]
-            for d in range(3):
-                s = 0.0
-                for x in range(3):
-                    s += (dirs[c, d, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, d, x] * omega[ia, x]
-                          - ang_b[c, d, x] * omega[ib, x])
-                rv[d] = s
+            _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]
@@ -138,12 +155,7 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
             lam[c, 0] = new0
             lam[c, 1] = new1
             lam[c, 2] = new2
-            for x in range(3):
-                p = d0 * dirs[c, 0, x] + d1 * dirs[c, 1, x] + d2 * dirs[c, 2, x]
-                vel[ia, x] += ima[c] * p
-                vel[ib, x] -= imb[c] * p
-                omega[ia, x] += d0 * iang_a[c, 0, x] + d1 * iang_a[c, 1, x] + d2 * iang_a[c, 2, x]
-                omega[ib, x] -= d0 * iang_b[c, 0, x] + d1 * iang_b[c, 1, x] + d2 * iang_b[c, 2, x]
+            _apply(c, ia, ib, d0, d1, d2, dirs, iang_a, iang_b, ima, imb, vel, omega)
             residual = max(residual, abs(d0), abs(d1), abs(d2))
         done = it + 1
         if residual <= tolerance:
@@ -243,12 +255,7 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
         for c in range(k):
             ia = a[c]
             ib = b[c]
-            for d in range(3):
-                s = 0.0
-                for x in range(3):
-                    s += (dirs[c, d, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, d, x] * omega[ia, x]
-                          - ang_b[c, d, x] * omega[ib, x])
-                rv[d] = s
+            _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]
@@ -288,12 +295,7 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
             lam[c, 0] = new0
             lam[c, 1] = new1
             lam[c, 2] = new2
-            for x in range(3):
-                pv = d0 * dirs[c, 0, x] + d1 * dirs[c, 1, x] + d2 * dirs[c, 2, x]
-                vel[ia, x] += ima[c] * pv
-                vel[ib, x] -= imb[c] * pv
-                omega[ia, x] += d0 * iang_a[c, 0, x] + d1 * iang_a[c, 1, x] + d2 * iang_a[c, 2, x]
-                omega[ib, x] -= d0 * iang_b[c, 0, x] + d1 * iang_b[c, 1, x] + d2 * iang_b[c, 2, x]
+            _apply(c, ia, ib, d0, d1, d2, dirs, iang_a, iang_b, ima, imb, vel, omega)
             change = max(change, abs(d0), abs(d1), abs(d2))
         done = it + 1
         biggest = 1e-300
