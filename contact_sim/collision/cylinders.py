@@ -8,14 +8,12 @@ on its prism hull (registered at the end of this module), with the error bound o
 """
 import numpy as np
 
-from ..contacts import FID_PLANE, fid
 from ..jit import njit
 from .dispatch import collider
 from .geometry import BOX, CONVEX, CYLINDER, MESH, PLANE, SF_HALF, SF_RADIUS, SPHERE
-from .manifold import F_PLANE, put, reduce4
 from .meshes import mesh_poly
 from .polyhedra import poly_poly
-from .primitives import plane_world, sphere_row
+from .primitives import plane_contacts, plane_world, sphere_row
 from .vec3 import mv
 
 
@@ -45,7 +43,6 @@ def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a
         else:
             w = w / wl
         u = np.array([ax[1] * w[2] - ax[2] * w[1], ax[2] * w[0] - ax[0] * w[2], ax[0] * w[1] - ax[1] * w[0]])
-        hit = False
         for cap in range(2):
             s = hh if cap == 1 else -hh
             for j in range(4):
@@ -53,18 +50,7 @@ def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a
                 for q in range(3):
                     d = w[q] if j == 0 else (-w[q] if j == 1 else (u[q] if j == 2 else -u[q]))
                     pts[m, q] = c[q] + s * ax[q] + r * d
-                sep = nb[0] * pts[m, 0] + nb[1] * pts[m, 1] + nb[2] * pts[m, 2] - db
-                val[m] = sep <= margin
-                hit |= val[m]
-                for q in range(3):
-                    pts[m, q] -= 0.5 * sep * nb[q]
-                dep[m] = -sep
-        if not hit:
-            continue
-        reduce4(pts, dep, val, nb, keep)
-        for m in range(8):
-            if keep[m]:
-                k = put(out_i, out_f, k, i, pts[m], nb, dep[m], F_PLANE, fid(FID_PLANE, m, 0, 0))
+        k = plane_contacts(pts, dep, val, keep, nb, db, margin, out_i, out_f, k, i)
     return k
 
 

@@ -131,21 +131,30 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         v0, nv = si[sa, SI_V0], si[sa, SI_NV]
         Ra, pa = R[a[i]], pos[a[i]]
-        hit = False
         transform_rows(verts[v0:v0 + nv], pa, Ra, pts, nv)
-        for v in range(nv):
-            sep = dot(pts[v], nb) - db
-            val[v] = sep <= margin
-            hit |= val[v]
-            for j in range(3):
-                pts[v, j] -= 0.5 * sep * nb[j]
-            dep[v] = -sep
-        if not hit:
-            continue
-        reduce4(pts[:nv], dep[:nv], val[:nv], nb, keep[:nv])
-        for v in range(nv):
-            if keep[v]:
-                k = put(out_i, out_f, k, i, pts[v], nb, dep[v], F_PLANE, fid(FID_PLANE, v, 0, 0))
+        k = plane_contacts(pts[:nv], dep[:nv], val[:nv], keep[:nv], nb, db, margin, out_i, out_f, k, i)
+    return k
+
+
+@njit
+def plane_contacts(pts, dep, val, keep, nb, db, margin, out_i, out_f, k, i):
+    """Candidate points ``pts (n, 3)`` (world) of pair ``i`` against the plane ``nb·x = db``: those
+    within the margin, at most 4 spanning the patch (``reduce4``), become contacts at the midpoint
+    between the point and the plane; ``dep, val, keep (n,)`` scratch. Returns the new ``k``."""
+    hit = False
+    for v in range(pts.shape[0]):
+        sep = dot(pts[v], nb) - db
+        val[v] = sep <= margin
+        hit |= val[v]
+        for j in range(3):
+            pts[v, j] -= 0.5 * sep * nb[j]
+        dep[v] = -sep
+    if not hit:
+        return k
+    reduce4(pts, dep, val, nb, keep)
+    for v in range(pts.shape[0]):
+        if keep[v]:
+            k = put(out_i, out_f, k, i, pts[v], nb, dep[v], F_PLANE, fid(FID_PLANE, v, 0, 0))
     return k
 
 
