@@ -53,7 +53,7 @@ def shapes(draw, scale, kinds=SHAPES):
 
 def flat_tile(half, n=3):
     """An open flat triangle mesh (terrain tile) of ``n × n`` quads, ``2·half`` m across, faces up
-    (its scene mapping)."""
+    (its scene mapping; ``flat_tile_mesh`` gives the shape)."""
     g = np.linspace(-half, half, n + 1)
     x, y = np.meshgrid(g, g, indexing="ij")
     v = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
@@ -63,6 +63,12 @@ def flat_tile(half, n=3):
             a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
             f += [[a, b, c], [a, c, d]]
     return {"type": "mesh", "vertices": v.tolist(), "faces": f}
+
+
+def flat_tile_mesh(half, n=3):
+    """``flat_tile`` as a ``cs.TriMesh``."""
+    tile = flat_tile(half, n)
+    return cs.TriMesh(np.array(tile["vertices"]), np.array(tile["faces"]))
 
 
 @st.composite

@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 
 import contact_sim as cs
 from contact_sim.response import PenaltyStiffnessWarning
+from scenegen import flat_tile_mesh
 
 G = 9.81
 
@@ -137,21 +138,8 @@ def test_cube_dropped_onto_a_mesh_comes_to_rest_without_gaining_energy(xy):
     np.testing.assert_allclose(b.position[:2], xy, atol=1e-6)
 
 
-def _flat_tile(n=4, size=4.0):
-    """An open, flat triangle mesh (terrain tile) of n×n quads, faces up."""
-    g = np.linspace(-size / 2, size / 2, n + 1)
-    x, y = np.meshgrid(g, g, indexing="ij")
-    v = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
-    f = []
-    for i in range(n):
-        for j in range(n):
-            a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
-            f += [[a, b, c], [a, c, d]]
-    return cs.TriMesh(v, np.array(f))
-
-
 def test_flat_open_mesh_collides_as_a_one_sided_surface():
-    tile = _flat_tile()
+    tile = flat_tile_mesh(2.0, 4)
     c = cs.collide(tile, ([0, 0, 0], [0, 0, 0, 1]), cs.Sphere(0.1), ([0.3, 0.1, 0.05], [0, 0, 0, 1]))
     assert len(c) == 1
     np.testing.assert_allclose(c.depth, [0.05], rtol=1e-12)
@@ -165,7 +153,7 @@ def test_flat_open_mesh_collides_as_a_one_sided_surface():
 @pytest.mark.parametrize("shape", [cs.Sphere(0.1), cs.Box([0.2] * 3)])
 def test_bodies_rest_on_a_flat_terrain_mesh(shape):
     w = cs.World(settings=cs.Settings(dt=1 / 60))
-    w.add_body("terrain", _flat_tile(), kind="static")
+    w.add_body("terrain", flat_tile_mesh(2.0, 4), kind="static")
     w.add_body("body", shape, mass=1.0, position=[0.3, 0.1, 0.5])
     for _ in range(120):
         w.step()

@@ -15,6 +15,7 @@ import trimesh
 
 import contact_sim as cs
 from contact_sim.response import ContactModelWarning
+from scenegen import flat_tile_mesh
 
 pytestmark = pytest.mark.stability
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -127,15 +128,6 @@ def test_jammed_overlapping_boxes_separate_without_exploding():
     assert np.linalg.norm(w.s.vel[r.dyn], axis=1).max() < 1e-2
 
 
-def _flat_tile(half=2.0, n=4):
-    g = np.linspace(-half, half, n + 1)
-    x, y = np.meshgrid(g, g, indexing="ij")
-    v = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
-    f = [[i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1] for i in range(n) for j in range(n)]
-    f += [[i * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1] for i in range(n) for j in range(n)]
-    return cs.TriMesh(v, np.array(f))
-
-
 @pytest.mark.parametrize("support", ["concave mesh", "flat terrain mesh"])
 def test_box_rests_on_a_mesh_for_ten_seconds(support):
     w = cs.World(settings=cs.Settings(dt=1 / 60), materials={"wood": cs.Material(restitution=0.0, friction=0.6)})
@@ -145,7 +137,7 @@ def test_box_rests_on_a_mesh_for_ten_seconds(support):
         top = 0.5                                         # the L-step's lower tread: x in [0, 1], z = 0.5
         xy = [0.55, 0.0]
     else:
-        w.add_body("support", _flat_tile(), kind="static", material="wood")
+        w.add_body("support", flat_tile_mesh(2.0, 4), kind="static", material="wood")
         top, xy = 0.0, [0.3, 0.1]
     w.add_body("box", cs.Box([0.2] * 3), mass=1.0, position=[xy[0], xy[1], top + 0.1], material="wood")
     r = Run(w, 10.0).report(f"box on a {support}")
