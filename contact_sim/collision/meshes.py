@@ -19,7 +19,7 @@ from .inside import RAYS, parity_inside, plane_excess  # noqa: F401 (RAYS: older
 from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4, put
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
-from .vec3 import col_max, dotr, inside_loop, set_row, cross, dot, norm
+from .vec3 import col_max, cross, dot, edge_through_face, norm
 
 
 @njit
@@ -86,14 +86,9 @@ def _crossings(VX, EX, NY, dY, npl, facesY, loops, VY, sgn, tag, P, Nn, D, F, I,
     for e in range(EX.shape[0]):
         i0, i1 = EX[e, 0], EX[e, 1]
         for p in range(npl):
-            s0, s1 = dotr(NY, p, VX, i0) - dY[p], dotr(NY, p, VX, i1) - dY[p]
-            if not s0 * s1 < 0:
-                continue
-            t = s0 / (s0 - s1)
-            x = VX[i0, 0] + t * (VX[i1, 0] - VX[i0, 0])
-            y = VX[i0, 1] + t * (VX[i1, 1] - VX[i0, 1])
-            z = VX[i0, 2] + t * (VX[i1, 2] - VX[i0, 2])
-            if c < P.shape[0] and inside_loop(NY, p, VY, loops, facesY[p, 0], facesY[p, 1], x, y, z, eps):
+            crossed, s0, s1, x, y, z = edge_through_face(VX, i0, i1, NY, dY, p, VY, loops, facesY[p, 0],
+                                                         facesY[p, 1], eps)
+            if crossed and c < P.shape[0]:
                 P[c, 0], P[c, 1], P[c, 2] = x, y, z
                 for j in range(3):
                     Nn[c, j] = sgn * NY[p, j]

@@ -28,7 +28,7 @@ from .dispatch import collider
 from .inside import inside_planes
 from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
-from .vec3 import col_max, cross, dot, dotr, inside_loop, mv, norm, transform_rows
+from .vec3 import col_max, cross, dot, dotr, edge_through_face, mv, norm, transform_rows
 
 
 @njit
@@ -131,15 +131,7 @@ def edge_crosses_face(VX, EX, ne, NY, dY, npl, faces, loops, VY, eps=1e-12):
     for e in range(ne):
         i0, i1 = EX[e, 0], EX[e, 1]
         for p in range(npl):
-            s0 = dotr(NY, p, VX, i0) - dY[p]
-            s1 = dotr(NY, p, VX, i1) - dY[p]
-            if not s0 * s1 < 0:
-                continue
-            t = s0 / (s0 - s1)
-            x = VX[i0, 0] + t * (VX[i1, 0] - VX[i0, 0])
-            y = VX[i0, 1] + t * (VX[i1, 1] - VX[i0, 1])
-            z = VX[i0, 2] + t * (VX[i1, 2] - VX[i0, 2])
-            if inside_loop(NY, p, VY, loops, faces[p, 0], faces[p, 1], x, y, z, eps):
+            if edge_through_face(VX, i0, i1, NY, dY, p, VY, loops, faces[p, 0], faces[p, 1], eps)[0]:
                 return True
     return False
 

@@ -159,3 +159,19 @@ def inside_loop(N, p, V, loops, l0, m, x, y, z, eps):
         if sx * (x - V[i0, 0]) + sy * (y - V[i0, 1]) + sz * (z - V[i0, 2]) > eps:
             return False
     return True
+
+
+@njit(inline="always")   # called per edge-face pair in the kernels' inner loops
+def edge_through_face(VX, i0, i1, NY, dY, p, VY, loops, l0, m, eps):
+    """Does the edge ``VX[i0]–VX[i1]`` cross the plane of face ``p`` of Y (normal ``NY[p]``,
+    offset ``dY[p]``) inside its polygon ``loops[l0:l0 + m]`` of ``VY`` rows (within ``eps``)?
+    ``(crossed, s0, s1, x, y, z)``: the endpoints' signed distances to the plane and the crossing."""
+    s0 = dotr(NY, p, VX, i0) - dY[p]
+    s1 = dotr(NY, p, VX, i1) - dY[p]
+    if not s0 * s1 < 0:
+        return False, s0, s1, 0.0, 0.0, 0.0
+    t = s0 / (s0 - s1)
+    x = VX[i0, 0] + t * (VX[i1, 0] - VX[i0, 0])
+    y = VX[i0, 1] + t * (VX[i1, 1] - VX[i0, 1])
+    z = VX[i0, 2] + t * (VX[i1, 2] - VX[i0, 2])
+    return inside_loop(NY, p, VY, loops, l0, m, x, y, z, eps), s0, s1, x, y, z
