@@ -76,6 +76,13 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
     return x0 * s, x1 * s
 
 
+@njit
+def disc_rows(kt, vfree, radius, out):
+    """``disc`` for ``k`` contacts: ``kt (k,2,2)``, ``vfree (k,2)``, ``radius (k,)``; ``out (k,2)``."""
+    for c in range(kt.shape[0]):
+        out[c, 0], out[c, 1] = disc(kt[c, 0, 0], kt[c, 0, 1], kt[c, 1, 1], vfree[c, 0], vfree[c, 1], radius[c], 12)
+
+
 @njit(inline="always")   # a call per contact update costs more than its arithmetic
 def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv):
     """Relative velocity of contact ``c``'s points in its (n, t1, t2) basis, written to ``rv (3,)``."""

@@ -116,44 +116,14 @@ def _project_row(old, rv, tn, inv_kn, kk, inv_kt, mus, mud):
     return new
 
 
-def disc_projection(kt, vfree, radius, newton=12):
+def disc_projection(kt, vfree, radius):
     """Friction impulses ``(k,2)`` on the discs ``|λ| ≤ radius (k,)`` nearest, in the metric of the
     tangential blocks ``kt (k,2,2)``, to the sticking impulses ``−kt⁻¹ vfree`` (``vfree (k,2)`` the
-    sliding velocities without this friction), for contacts whose sticking impulse is outside:
-    ``λ = −(kt + νI)⁻¹ vfree`` with ``ν ≥ 0`` such that ``|λ| = radius`` (the secular equation of a
-    trust region, solved by Newton on ``1/|λ(ν)| − 1/radius``, which converges monotonically from
-    ``ν = 0``). Then ``vfree + kt λ = −ν λ``: friction opposes the resulting sliding velocity."""
-    out = np.zeros_like(vfree)
-    vmag = np.sqrt(np.einsum("ki,ki->k", vfree, vfree))
-    ok = (radius > 0) & (vmag > 0)
-    # a disc far smaller than the sticking impulse (a friction coefficient of 1e-300, a contact
-    # barely pressed): ν is then so large that λ = −radius·vfree/|vfree| to round-off (and the
-    # Newton iteration below would overflow on 1/radius)
-    far = ok & (radius * (kt[:, 0, 0] + kt[:, 1, 1]) <= 1e-14 * vmag)
-    out[far] = -(radius[far] / vmag[far])[:, None] * vfree[far]
-    ok &= ~far
-    if not ok.any():
-        return out
-    a, b, c = kt[ok, 0, 0], kt[ok, 0, 1], kt[ok, 1, 1]
-    f0, f1, r = vfree[ok, 0], vfree[ok, 1], radius[ok]
-    nu = np.zeros(len(a))
-    for _ in range(newton):
-        p, q = a + nu, c + nu
-        det = p * q - b * b
-        x0 = -(q * f0 - b * f1) / det              # x = −(kt + νI)⁻¹ vfree
-        x1 = -(p * f1 - b * f0) / det
-        y0 = (q * x0 - b * x1) / det               # y = (kt + νI)⁻¹ x
-        y1 = (p * x1 - b * x0) / det
-        n2 = x0 * x0 + x1 * x1
-        norm = np.sqrt(n2)
-        step = (1.0 / norm - 1.0 / r) * norm * n2 / (x0 * y0 + x1 * y1)
-        nu = np.maximum(nu - step, 0.0)
-    p, q = a + nu, c + nu
-    det = p * q - b * b
-    x = np.column_stack([-(q * f0 - b * f1) / det, -(p * f1 - b * f0) / det])
-    # the last Newton step leaves |x| = radius to round-off; scale onto the disc exactly
-    x *= (r / np.maximum(np.linalg.norm(x, axis=1), _TINY))[:, None]
-    out[ok] = x
+    sliding velocities without this friction): ``pgs.disc`` for each contact (the Gauss–Seidel
+    kernel's own projection, so both solvers slide alike)."""
+    out = np.zeros((len(vfree), 2))
+    c = np.ascontiguousarray
+    pgs.disc_rows(c(kt, dtype=float), c(vfree, dtype=float), c(radius, dtype=float), out)
     return out
 
 
