@@ -159,7 +159,9 @@ def _choose(world, dt, fast):
     # time of impact
     continuous = ()
     if st.toi == "auto":
-        if fast and len(world) <= FRACTIONAL_AUTO_MAX_BODIES and dyn.sum() <= 4:
+        # a few bodies: continuous time of impact for the whole world is cheap
+        few = len(world) <= FRACTIONAL_AUTO_MAX_BODIES and dyn.sum() <= 4
+        if fast and few:
             toi = "swept"
             reasons.append(f"time of impact swept: {fast[0][0]} moves {fast[0][1]:.3g} m per step, more than "
                            f"the thinnest size it can meet ({fast[0][2]:.3g} m)")
@@ -171,7 +173,7 @@ def _choose(world, dt, fast):
             reasons.append(f"time of impact next_step, continuous for {len(fast)} bod{'y' if len(fast) == 1 else 'ies'} "
                            f"that move more than the thinnest size they can meet in a step ({fast[0][0]} moves "
                            f"{fast[0][1]:.3g} m, more than {fast[0][2]:.3g} m)")
-        elif len(world) <= FRACTIONAL_AUTO_MAX_BODIES and dyn.sum() <= 4 and response != "penalty":
+        elif few and response != "penalty":
             toi = "fractional"
             reasons.append("time of impact fractional: a few bodies, exact impact times are cheap")
         else:
