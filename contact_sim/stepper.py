@@ -155,6 +155,12 @@ def _relative_velocity(world, c, m):
     return (s.vel[a] + cross(wa, c.point - s.pos[a])) - (s.vel[b] + cross(wb, c.point - s.pos[b]))
 
 
+def _solve(st, rows, vel, omega, **kw):
+    """``solver.solve_auto`` with the settings ``st``' solver choice, iterations and tolerance."""
+    return solver.solve_auto(rows, vel, omega, iterations=st.solver_iterations, tolerance=st.solver_tolerance,
+                             method=st.solver_method, direct_max=st.direct_max_contacts, **kw)
+
+
 def _gravity(world):
     return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
 
@@ -294,9 +300,8 @@ def _impulse_step(world, dt, m):
                 # compression: the pairs are stopped (touching) or slowed to arrive touching
                 # (speculative), with friction; inelastic, so it can only take energy away
                 target = np.where(touching[ti], 0.0, spec_target[ti] if spec else 0.0)
-                res = solver.solve_auto(r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
-                                        mu_d=mu_d[ti] if fr else None, iterations=st.solver_iterations,
-                                        tolerance=st.solver_tolerance, method=st.solver_method, direct_max=st.direct_max_contacts)
+                res = _solve(st, r1, s.vel, s.omega, target_n=target, mu_s=mu_s[ti] if fr else None,
+                             mu_d=mu_d[ti] if fr else None)
                 lam[ti] += res.impulse
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
@@ -309,9 +314,7 @@ def _impulse_step(world, dt, m):
                 hit = bounced & (lam[:, 0] > 0) & (e > 0)   # e = 0: the compression was the whole impact
                 if hit.any():
                     hi = np.flatnonzero(hit)
-                    res = solver.solve_auto(rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi],
-                                            iterations=st.solver_iterations, tolerance=st.solver_tolerance,
-                                            method=st.solver_method, direct_max=st.direct_max_contacts)
+                    res = _solve(st, rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi])
                     lam[hi, 0] += res.impulse[:, 0] * energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
                     iters = max(iters, res.iterations)
                 vn1 = solver.row_velocity(rows, s.vel, s.omega)[:, 0]
@@ -341,9 +344,8 @@ def _impulse_step(world, dt, m):
                 target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - vn1[ri], 0.0)
                 warm = project_warm(warm_lookup(world, c.body_a[ri], c.body_b[ri], local[ri]) * t_left, r2,
                                      mu_d[ri])
-                res = solver.solve_auto(r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
-                                        mu_d=mu_d[ri] if fr else None, iterations=st.solver_iterations,
-                                        tolerance=st.solver_tolerance, warm=warm, method=st.solver_method, direct_max=st.direct_max_contacts)
+                res = _solve(st, r2, v_end, w_end, target_n=target, mu_s=mu_s[ri] if fr else None,
+                             mu_d=mu_d[ri] if fr else None, warm=warm)
                 iters = max(iters, res.iterations)
                 residual = max(residual, res.residual)
                 lam2 = np.zeros((k, 3))
@@ -468,8 +470,7 @@ def _split_impulse(world, c, rows, dt):
     vp = np.zeros_like(world.s.vel)
     wp = np.zeros_like(world.s.omega)
     st = world.settings
-    solver.solve_auto(rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / dt,
-                      iterations=st.solver_iterations, tolerance=st.solver_tolerance, method=st.solver_method, direct_max=st.direct_max_contacts)
+    _solve(st, rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / dt)
     return vp, wp
 
 
