@@ -1,18 +1,13 @@
-"""The batched single-contact path of the direct solver."""
+"""The exact solve island by island (compiled, ``response.active_set``) against the sparse active
+set over the whole system (``direct._active_set``) and the batched single-contact path."""
 import numpy as np
 import pytest
 
-from contact_sim.response import solver
+from contact_sim.response import active_set, direct, solver
 
 
-@pytest.mark.parametrize("spin, converged", [(0.01, True), (1.0, False)])
-def test_single_contacts_batched_equal_the_active_set_answer(spin, converged):
-    """Spheres each touching only the ground (independent contacts): the batched 3×3 path gives the
-    active-set solver's impulses to round-off, separating contacts get none, sliding ones (outside
-    the static cone) are left to the general path and still come out the same."""
-
-    rng = np.random.default_rng(5)
-    k = 60                                             # > DIRECT_DENSE_MAX: the split path runs
+def _spheres_on_ground(k, spin, seed=5):
+    rng = np.random.default_rng(seed)
     n = k + 1
     pos = np.zeros((n, 3))
     pos[1:, :2] = rng.uniform(-5, 5, (k, 2))
@@ -29,18 +24,119 @@ def test_single_contacts_batched_equal_the_active_set_answer(spin, converged):
     b = np.zeros(k, np.int64)
     normal = np.tile([0.0, 0.0, 1.0], (k, 1))
     point = pos[1:] - 0.1 * normal
-    rows = solver.build_rows(a, b, point, normal, pos, inv_mass, inertia_inv, vel, omega)
+    return solver.build_rows(a, b, point, normal, pos, inv_mass, inertia_inv, vel, omega), vel, omega
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("spin, converged", [(0.01, True), (1.0, False)])
+def test_single_contacts_batched_equal_the_active_set_answer(spin, converged):
+    """Spheres each touching only the ground (independent contacts): the batched 3×3 path (which the
+    Gauss–Seidel method peels off first) gives the active set's impulses to round-off, separating
+    contacts get none, sliding ones (outside the static cone) are left to the general path."""
+    k = 60
+    rows, vel, omega = _spheres_on_ground(k, spin)
     mu = np.full(k, 0.5)
     target = np.zeros(k)
-    out = []
-    for split in (True, False):
-        v, w = vel.copy(), omega.copy()
-        res, ok = solver.solve_direct(rows, v, w, target_n=target, mu_s=mu, mu_d=mu, _split=split)
-        out.append((res.impulse, ok, v, w))
-    (l1, ok1, v1, w1), (l2, ok2, v2, w2) = out
-    assert ok1 == ok2 == converged
-    assert np.allclose(l1, l2, rtol=0, atol=1e-12)
-    if ok1:
-        assert np.allclose(v1, v2, atol=1e-12) and np.allclose(w1, w2, atol=1e-12)
+    lam, solved, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mu, mu_d=mu)
+    done, lam_s, rest = direct._peel_singles(rows, vel, omega, target, mu)
+    assert solved.all() == converged
+    assert np.array_equal(np.sort(np.r_[done, rest]), np.arange(k))
+    assert np.array_equal(done, np.flatnonzero(solved))     # sliding ones are left to the general path
+    assert np.allclose(lam_s, lam[done], rtol=0, atol=1e-12)
     separating = solver.row_velocity(rows, vel, omega)[:, 0] >= 0
-    assert separating.any() and np.all(l1[separating] == 0)
+    assert separating.any() and np.all(lam[separating] == 0)
+    if converged:   # velocities only change through the returned impulses
+        v, w = vel.copy(), omega.copy()
+        res, ok = direct.solve_direct(rows, v, w, target_n=target, mu_s=mu, mu_d=mu)
+        assert ok and np.array_equal(res.impulse, lam)
+        assert np.all(solver.row_velocity(rows, v, w)[~separating] == pytest.approx(0.0, abs=1e-12))
+
+
+def _box_stack(layers, seed=0):
+    """``layers`` unit-mass 0.2 m cubes stacked on a static ground (body 0), four corner contacts
+    per face, slightly perturbed velocities: one island of ``4·layers`` coupled contacts."""
+    rng = np.random.default_rng(seed)
+    n = layers + 1
+    h = 0.1
+    pos = np.zeros((n, 3))
+    pos[1:, 2] = h + 2 * h * np.arange(layers)
+    inv_mass = np.r_[0.0, np.ones(layers)]
+    inertia_inv = np.zeros((n, 3, 3))
+    inertia_inv[1:] = np.eye(3) / (1.0 * (0.2 ** 2 + 0.2 ** 2) / 12)
+    vel = rng.normal(0, 0.05, (n, 3))
+    vel[0] = 0.0
+    vel[:, :2] *= 0.2                      # slow sliding: every contact sticks under μ = 0.6
+    vel[1:, 2] -= 0.3
+    omega = rng.normal(0, 0.1, (n, 3))
+    omega[0] = 0.0
+    a, b, point = [], [], []
+    for i in range(1, n):
+        z = pos[i, 2] - h
+        for sx in (-h, h):
+            for sy in (-h, h):
+                a.append(i)
+                b.append(i - 1)
+                point.append((sx, sy, z))
+    k = len(a)
+    normal = np.tile([0.0, 0.0, 1.0], (k, 1))
+    rows = solver.build_rows(np.array(a), np.array(b), np.array(point), normal, pos, inv_mass, inertia_inv,
+                             vel, omega)
+    return rows, vel, omega
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("mu", [0.0, 0.6])
+def test_compiled_islands_equal_the_sparse_active_set(mu):
+    """Three separate stacks (three islands of 4–20 coupled contacts, four points on each face: a
+    redundant set the regularisation splits by least norm) with friction: the compiled dense kernel
+    and the sparse active set over the whole system give the same impulses to round-off."""
+    parts = [_box_stack(n, seed=n) for n in (1, 3, 5)]
+    # merge the three stacks into one system (bodies renumbered, one ground each)
+    from contact_sim.response.rows import Rows
+
+    offs = np.cumsum([0] + [len(p[1]) for p in parts])
+    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
+    cat = {f: np.concatenate([getattr(p[0], f) + (o if f in ("a", "b") else 0) for p, o in zip(parts, offs)])
+           for f in fields}
+    rows = Rows(**cat, movable=np.concatenate([p[0].movable for p in parts]))
+    vel = np.concatenate([p[1] for p in parts])
+    omega = np.concatenate([p[2] for p in parts])
+    k = len(rows)
+    mus = np.full(k, mu)
+    target = np.zeros(k)
+    lam, solved, residual = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
+    v0 = solver.row_velocity(rows, vel, omega)
+    ref, ok, _ = direct._active_set(rows, v0, target, mus if mu else None, mus if mu else None, None)
+    assert solved.all() and ok
+    assert residual < 1e-9
+    # four points on a face are redundant: the split among them is the regularisation's (least
+    # norm, to the precision of its refinement), what they do is determined. Same velocities after,
+    # and the same impulse per face
+    after = []
+    for x in (lam, ref):
+        v, w = vel.copy(), omega.copy()
+        solver.apply(rows, v, w, x)
+        after.append((v, w, solver.row_velocity(rows, v, w)))
+    assert np.allclose(after[0][0], after[1][0], rtol=0, atol=1e-12)
+    assert np.allclose(after[0][1], after[1][1], rtol=0, atol=1e-12)
+    face = lambda x: np.add.reduceat(np.einsum("kd,kdi->ki", x, rows.dirs), np.arange(0, k, 4))   # noqa: E731
+    assert np.allclose(face(lam), face(ref), rtol=0, atol=1e-12 * np.abs(face(ref)).max())
+    assert np.all(lam[:, 0] >= 0)
+    # the answer: every pushing contact at rest after the impulses (the stacks stop)
+    rv = after[0][2]
+    pushing = lam[:, 0] > 0
+    assert np.abs(rv[pushing, 0]).max() < 1e-12
+    if mu:
+        assert np.abs(rv[pushing, 1:]).max() < 1e-12
+
+
+@pytest.mark.exact
+def test_islands_group_contacts_through_movable_bodies():
+    """Contacts join an island through a movable body, never through a static one; a contact of
+    two immovable bodies is its own island; islands come in the order of their first contact."""
+    movable = np.array([False, True, True, True, False, True])
+    a = np.array([1, 3, 2, 5, 4, 1])
+    b = np.array([0, 0, 1, 0, 0, 2])
+    order, start = active_set.islands(a, b, movable, len(movable))
+    groups = [list(order[start[i]:start[i + 1]]) for i in range(len(start) - 1)]
+    assert groups == [[0, 2, 5], [1], [3], [4]]

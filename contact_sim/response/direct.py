@@ -2,6 +2,7 @@
 or sparse, with the batched path for independent single contacts."""
 import numpy as np
 
+from . import active_set
 from .rows import _TINY, SolveResult, apply, row_velocity
 
 DIRECT_MAX_CONTACTS = 500       # default of settings.direct_max_contacts: the active set up to this many contacts
@@ -9,6 +10,7 @@ DIRECT_FIRST = 200              # up to this many, the active set directly; abov
 DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
 DIRECT_CONSISTENCY = 1e-7       # active rows must hold to this × the largest right-hand side, else the set is inconsistent
 DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
+DIRECT_ISLAND_MAX = 128         # islands up to this many contacts: the compiled dense kernel (active_set); above, sparse
 DIRECT_DENSE_MAX = 16           # above this many contacts the Delassus matrix stays sparse (SuperLU): most
                                 # large sets are many small islands, and a threaded dense BLAS factorisation
                                 # of a few hundred rows costs tens of ms on a loaded 2-core machine
@@ -180,44 +182,74 @@ def _safest_start(A, rhs, *candidates):
     return best
 
 
-def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, A=None, _split=True):
-    """Exact contact impulses by an active-set method on the dense Delassus matrix.
+def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None):
+    """Exact contact impulses by the active-set method, island by island (``active_set``: compiled,
+    dense per island; an island larger than ``DIRECT_ISLAND_MAX`` contacts, or whose factorisation
+    fails, by the sparse ``_active_set`` below). Does not touch ``vel, omega (N,3)``.
 
-    Solves ``v_n + (Aλ)_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction (tangential velocity
-    zero) by linear solves on the active rows, moving contacts in and out of the active set until
-    every normal impulse is non-negative and every inactive contact is satisfied. When a sticking
-    impulse leaves the static friction cone (sliding), or the set does not settle in
-    ``DIRECT_MAX_ROUNDS``, it stops and returns ``converged False`` with the impulses clamped
-    to the cone, for ``solve`` to finish from (warm start). Returns ``(SolveResult, converged)``;
-    ``vel, omega`` are updated only when converged."""
+    Solves ``v_n + (Aλ)_n + compliance·λ_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction
+    (tangential velocity zero). Returns ``(lam (K,3), solved (K,) bool, residual)``: the impulses of
+    the solved islands, and for the others (a sticking impulse outside the static cone, an
+    inconsistent set, too many rounds) the start of lowest contact objective for Gauss–Seidel;
+    ``residual`` is the largest scaled row residual of the solved ones."""
     k = len(rows.a)
+    lam = np.zeros((k, 3))
     if k == 0:
-        return SolveResult(np.zeros((0, 3)), 0, 0.0), True
-    if _split and A is None:
-        # contacts that share no movable body with another contact are independent 3×3 problems:
-        # solved batched, whatever their number (cheaper than the dense active set even for a few);
-        # the rest (islands of several contacts) by the active set below
-        done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
-        if done.size:
-            lam = np.zeros((k, 3))
-            lam[done] = lam_s
-            res_r, conv = SolveResult(np.zeros((0, 3)), 1, 0.0), True
-            if rest.size:
-                res_r, conv = solve_direct(rows.select(rest), vel, omega, target_n=target_n[rest],
-                                           mu_s=None if mu_s is None else mu_s[rest],
-                                           mu_d=None if mu_d is None else mu_d[rest],
-                                           warm=None if warm is None else warm[rest], _split=False)
-                lam[rest] = res_r.impulse
-            if not conv:
-                return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
-            apply(rows.select(done), vel, omega, lam_s, unique=True)
-            return SolveResult(lam, 1, res_r.residual), True
-    dense = k <= DIRECT_DENSE_MAX
+        return lam, np.ones(0, bool), 0.0
+    c = np.ascontiguousarray
+    v0 = row_velocity(rows, vel, omega)
+    friction = mu_s is not None and bool(np.any(mu_s > 0))
+    zeros = np.zeros(k)
+    mus = c(mu_s, dtype=float) if friction else zeros
+    mud = c(mu_d, dtype=float) if friction else zeros
+    comp = zeros if compliance is None else c(compliance, dtype=float)
+    status = np.empty(k, np.int64)
+    residual = active_set.solve_islands(
+        c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.movable, dtype=np.bool_), c(rows.dirs),
+        c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
+        c(rows.imb, dtype=float), v0, c(target_n, dtype=float), comp, mus, mud, friction,
+        np.zeros((k, 3)) if warm is None else c(warm, dtype=float), warm is not None, DIRECT_ISLAND_MAX,
+        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, status)
+    solved = status == active_set.SOLVED
+    big = np.flatnonzero(status == active_set.TOO_LARGE)
+    if big.size:
+        sub = rows.select(big)
+        A = None
+        if compliance is not None:
+            from scipy import sparse
+
+            d = np.zeros(3 * big.size)
+            d[0::3] = compliance[big]
+            A = (delassus(sub, dense=False) + sparse.diags(d)).tocsr()
+        lam_b, ok, res_b = _active_set(sub, v0[big], target_n[big], None if not friction else mu_s[big],
+                                       None if not friction else mu_d[big], None if warm is None else warm[big], A)
+        lam[big] = lam_b
+        solved[big] = ok
+        if ok:
+            residual = max(residual, res_b)
+    return lam, solved, residual
+
+
+def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None):
+    """``solve_exact`` for the whole set: ``(SolveResult, converged)``, ``vel, omega`` updated only
+    when every island is solved (otherwise the result holds Gauss–Seidel's start)."""
+    k = len(rows.a)
+    lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
+                                        compliance=compliance)
+    if not solved.all():
+        return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
+    if k:
+        apply(rows, vel, omega, lam)
+    return SolveResult(lam, 1, residual), True
+
+
+def _active_set(rows, v0, target_n, mu_s, mu_d, warm, A=None):
+    """The active-set method on one sparse Delassus matrix ``A (3K,3K)`` (built from ``rows`` when
+    not given), for islands too large for the compiled dense kernel. ``v0 (K,3)`` row velocities.
+    Returns ``(lam (K,3), converged, residual)`` (Gauss–Seidel's start when not converged)."""
+    k = len(rows.a)
     if A is None:
-        A = delassus(rows, dense)
-    else:
-        dense = isinstance(A, np.ndarray)
-    v0 = row_velocity(rows, vel, omega)                  # (K,3)
+        A = delassus(rows, dense=False)
     rhs = -v0.copy()
     rhs[:, 0] += target_n
     rhs = rhs.ravel()
@@ -227,7 +259,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     act = v0[:, 0] <= target_n
     if warm is not None:
         act |= warm[:, 0] > 0
-    diag = np.diag(A) if dense else A.diagonal()
+    diag = A.diagonal()
     eps = DIRECT_REGULARISATION * max(float(diag.max()), _TINY)
     tol = 1e-12 + 1e-9 * float(np.abs(rhs).max())
     lam = np.zeros((k, 3))
@@ -240,10 +272,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
         S = np.flatnonzero(sel.ravel())
         x = np.zeros(3 * k)
         if S.size:
-            if dense:
-                x[S] = _regularised_solve(A[np.ix_(S, S)], rhs[S], eps)
-            else:
-                x[S] = _regularised_solve_sparse(A[S][:, S], rhs[S], eps)
+            x[S] = _regularised_solve_sparse(A[S][:, S], rhs[S], eps)
         lam = x.reshape(k, 3)
         ax = A @ x
         if S.size and np.abs(ax[S] - rhs[S]).max() > DIRECT_CONSISTENCY * (np.abs(rhs).max() + _TINY):
@@ -270,13 +299,10 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     else:
         lam[:, 1:] = 0.0
     if not converged:
-        return SolveResult(_safest_start(A, rhs, lam, warm), DIRECT_MAX_ROUNDS, np.inf), False
-    apply(rows, vel, omega, lam)
+        return _safest_start(A, rhs, lam, warm), False, np.inf
     resid = (A @ lam.ravel() - rhs).reshape(k, 3)
     resid[:, 0] = np.where(lam[:, 0] > 0, resid[:, 0], np.minimum(resid[:, 0], 0.0))
     if not friction:
         resid[:, 1:] = 0.0
     residual = float(np.max(np.abs(resid) / np.maximum(diag.reshape(k, 3), _TINY))) if k else 0.0
-    return SolveResult(lam, 1, residual), True
-
-
+    return lam, True, residual

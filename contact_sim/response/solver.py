@@ -25,7 +25,7 @@ Three uses of the same machinery:
 import numpy as np
 
 from . import pgs
-from .direct import DIRECT_DENSE_MAX, DIRECT_FIRST, DIRECT_MAX_CONTACTS, _peel_singles, delassus, solve_direct
+from .direct import DIRECT_DENSE_MAX, DIRECT_FIRST, DIRECT_MAX_CONTACTS, _peel_singles, delassus, solve_direct, solve_exact
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",
@@ -221,11 +221,20 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
             omega[...] = w0
         method = "direct" if k <= limit else "gs"
     if method == "direct":
-        res, ok = solve_direct(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm)
-        if ok:
-            return res
-        return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
-                     tolerance=tolerance, warm=res.impulse)
+        lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm)
+        if solved.all():
+            apply(rows, vel, omega, lam)
+            return SolveResult(lam, 1, residual)
+        # islands are independent: the solved ones keep their exact impulses, Gauss–Seidel finishes
+        # the others (sliding friction, an inconsistent set) from the start the active set left
+        si, ui = np.flatnonzero(solved), np.flatnonzero(~solved)
+        if si.size:
+            apply(rows.select(si), vel, omega, lam[si])
+        res = solve(rows.select(ui), vel, omega, target_n=target_n[ui], mu_s=None if mu_s is None else mu_s[ui],
+                    mu_d=None if mu_d is None else mu_d[ui], iterations=iterations, tolerance=tolerance,
+                    warm=lam[ui])
+        lam[ui] = res.impulse
+        return SolveResult(lam, res.iterations, max(res.residual, residual))
     if method == "gs" and k > DIRECT_DENSE_MAX:
         # independent single contacts exactly and batched; Gauss–Seidel for the coupled rest
         done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
@@ -265,17 +274,7 @@ def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, toleran
             return SolveResult(lam, res.iterations, res.residual)
         return SolveResult(lam, 0, 0.0)
     if 0 < k <= (DIRECT_MAX_CONTACTS if direct_max is None else direct_max):
-        dense = k <= DIRECT_DENSE_MAX
-        A = delassus(rows, dense)
-        if dense:
-            A[np.arange(0, 3 * k, 3), np.arange(0, 3 * k, 3)] += compliance
-        else:
-            from scipy import sparse
-
-            d = np.zeros(3 * k)
-            d[0::3] = compliance
-            A = (A + sparse.diags(d)).tocsr()
-        res, ok = solve_direct(rows, vel, omega, target_n=target_n, A=A)
+        res, ok = solve_direct(rows, vel, omega, target_n=target_n, compliance=compliance)
         if ok:
             return res
     return solve(rows, vel, omega, target_n=target_n, iterations=iterations, tolerance=tolerance,

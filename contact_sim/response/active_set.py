@@ -1,0 +1,346 @@
+"""Compiled exact contact solve: the active-set method of ``direct`` per island, in one kernel.
+
+Contacts that share no movable body never push on each other, so the Delassus matrix ``A = J M⁻¹ Jᵀ``
+is block diagonal over *islands* (connected components of the contact graph through movable
+bodies; Box2D's islands). Each island is solved on its own, dense: a resting box's four contacts
+are a 12 × 12 system, a 10-box stack's 40 contacts 120 × 120. The Cholesky factorisation skips the
+zeros of each column (a stack's matrix is banded in detection order), so its cost follows the
+island's coupling, not its size cubed.
+
+The method per island is ``direct.solve_direct``'s, row for row: rows of the active contacts
+(normal, and both tangents of a contact with friction, sticking) solved by regularised Cholesky
+``(A_SS + εI) x = r`` with two steps of iterative refinement (exact to rounding for full rank,
+least-norm for redundant contacts: four points on a face); contacts with a negative normal
+impulse leave the set, satisfied-but-violated ones join, until neither happens. A sticking
+impulse outside the static cone (sliding), an inconsistent set or too many rounds leaves the
+island unfinished, with the start of lowest contact objective for Gauss–Seidel to finish from.
+
+Shapes: ``K`` contacts, ``N`` bodies; rows as in ``rows.Rows``.
+"""
+import math
+
+import numpy as np
+
+from ..jit import njit
+
+_TINY = 1e-300
+
+#: island status (``status (K,)`` per contact)
+SOLVED, UNFINISHED, TOO_LARGE = 0, 1, 2
+
+
+@njit
+def _find(parent, x):
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
+@njit
+def islands(a, b, movable, n_bodies):
+    """Contacts grouped by island: ``(order (K,) int64, start (I+1,) int64)``, island ``i`` being
+    the contacts ``order[start[i]:start[i+1]]`` in their original order, islands in the order of
+    their first contact (deterministic). A contact between two immovable bodies is its own island."""
+    k = a.shape[0]
+    parent = np.arange(n_bodies)
+    for c in range(k):
+        if movable[a[c]] and movable[b[c]]:
+            ra = _find(parent, a[c])
+            rb = _find(parent, b[c])
+            if ra != rb:
+                parent[max(ra, rb)] = min(ra, rb)
+    label = np.empty(k, np.int64)       # island number of each contact, by first appearance
+    number = np.full(n_bodies, -1)
+    count = 0
+    sizes = np.zeros(k + 1, np.int64)
+    for c in range(k):
+        if movable[a[c]]:
+            r = _find(parent, a[c])
+        elif movable[b[c]]:
+            r = _find(parent, b[c])
+        else:
+            r = -1
+        if r < 0:
+            label[c] = count
+            count += 1
+        else:
+            if number[r] < 0:
+                number[r] = count
+                count += 1
+            label[c] = number[r]
+        sizes[label[c] + 1] += 1
+    start = np.cumsum(sizes[:count + 1])
+    fill = start[:count].copy()
+    order = np.empty(k, np.int64)
+    for c in range(k):
+        order[fill[label[c]]] = c
+        fill[label[c]] += 1
+    return order, start
+
+
+@njit
+def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A):
+    """Dense Delassus matrix of the island's contacts ``ids (m,)`` into ``A (3m,3m)``: block ``(p,q)``
+    sums, over each body the two contacts share, ``s_p s_q (m⁻¹ d_p d_qᵀ + (r_p×d_p)·I⁻¹(r_q×d_q)ᵀ)``
+    (``s`` = +1 on A, −1 on B; an immovable body's inverse mass and inertia are zero); the normal
+    rows' diagonal gets ``compliance``."""
+    m = ids.shape[0]
+    A[:, :] = 0.0
+    for p in range(m):
+        cp = ids[p]
+        for q in range(m):
+            cq = ids[q]
+            for side_p in range(2):
+                body_p = a[cp] if side_p == 0 else b[cp]
+                for side_q in range(2):
+                    body_q = a[cq] if side_q == 0 else b[cq]
+                    if body_p != body_q:
+                        continue
+                    s = 1.0 if side_p == side_q else -1.0
+                    im = ima[cq] if side_q == 0 else imb[cq]
+                    if im == 0.0:
+                        continue   # immovable (its inverse inertia is zero too)
+                    for d in range(3):
+                        for e in range(3):
+                            lin = 0.0
+                            ang = 0.0
+                            for x in range(3):
+                                lin += dirs[cp, d, x] * dirs[cq, e, x]
+                                if side_p == 0:
+                                    jp = ang_a[cp, d, x]
+                                else:
+                                    jp = ang_b[cp, d, x]
+                                if side_q == 0:
+                                    wq = iang_a[cq, e, x]
+                                else:
+                                    wq = iang_b[cq, e, x]
+                                ang += jp * wq
+                            A[3 * p + d, 3 * q + e] += s * (im * lin + ang)
+        A[3 * p, 3 * p] += compliance[cp]
+
+
+@njit
+def _cholesky(M, n, nz):
+    """In-place lower Cholesky factor of ``M[:n,:n]`` (right-looking, the update of each column
+    restricted to its non-zeros ``nz``: a banded island costs its band, not ``n³``). False when a
+    pivot is not positive (the caller falls back)."""
+    for j in range(n):
+        d = M[j, j]
+        if not (d > 0.0):
+            return False
+        d = math.sqrt(d)
+        M[j, j] = d
+        cnt = 0
+        for i in range(j + 1, n):
+            if M[i, j] != 0.0:
+                M[i, j] /= d
+                nz[cnt] = i
+                cnt += 1
+        for p in range(cnt):
+            i = nz[p]
+            lij = M[i, j]
+            for q in range(p + 1):
+                r = nz[q]
+                M[i, r] -= lij * M[r, j]
+    return True
+
+
+@njit
+def _cho_solve(L, n, x):
+    """Solve ``L Lᵀ y = x`` in place (``x (n,)``)."""
+    for i in range(n):
+        s = x[i]
+        for j in range(i):
+            s -= L[i, j] * x[j]
+        x[i] = s / L[i, i]
+    for i in range(n - 1, -1, -1):
+        s = x[i]
+        for j in range(i + 1, n):
+            s -= L[j, i] * x[j]
+        x[i] = s / L[i, i]
+
+
+@njit
+def _objective(A, rhs, x, n):
+    """Contact objective ``½ x·Ax − x·rhs`` (what Gauss–Seidel descends) over ``n`` rows."""
+    f = 0.0
+    for i in range(n):
+        if x[i] == 0.0:
+            continue
+        s = 0.0
+        for j in range(n):
+            s += A[i, j] * x[j]
+        f += x[i] * (0.5 * s - rhs[i])
+    return f
+
+
+@njit
+def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
+            friction, warm, use_warm, regularisation, consistency, max_rounds, lam):
+    """The active set on one island (contacts ``ids (m,)``); writes ``lam`` rows of ``ids``.
+    Returns ``(status, residual)``."""
+    m = ids.shape[0]
+    n = 3 * m
+    A = np.empty((n, n))
+    _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A)
+    rhs = np.empty(n)
+    act = np.empty(m, np.bool_)
+    rmax = 0.0
+    dmax = 0.0
+    for p in range(m):
+        c = ids[p]
+        for d in range(3):
+            rhs[3 * p + d] = -v0[c, d]
+            dmax = max(dmax, A[3 * p + d, 3 * p + d])
+        rhs[3 * p] += target[c]
+        # every contact that is not separating starts pushing (a resting stack starts with all
+        # its layers active: only the approaching ones would add one layer per round)
+        act[p] = v0[c, 0] <= target[c] or (use_warm and warm[c, 0] > 0.0)
+    for i in range(n):
+        rmax = max(rmax, abs(rhs[i]))
+    eps = regularisation * max(dmax, _TINY)
+    tol = 1e-12 + 1e-9 * rmax
+    S = np.empty(n, np.int64)
+    sub = np.empty((n, n))
+    L = np.empty((n, n))
+    nz = np.empty(n, np.int64)
+    y = np.empty(n)
+    r = np.empty(n)
+    x = np.zeros(n)
+    ax = np.zeros(n)
+    converged = False
+    for _ in range(max_rounds + m // 4):
+        ns = 0
+        for p in range(m):
+            if act[p]:
+                S[ns] = 3 * p
+                ns += 1
+                if friction and mu_s[ids[p]] > 0.0:
+                    S[ns] = 3 * p + 1
+                    S[ns + 1] = 3 * p + 2
+                    ns += 2
+        x[:] = 0.0
+        if ns:
+            for i in range(ns):
+                for j in range(ns):
+                    sub[i, j] = A[S[i], S[j]]
+                    L[i, j] = sub[i, j]
+                L[i, i] += eps
+            if not _cholesky(L, ns, nz):
+                return TOO_LARGE, 0.0
+            for i in range(ns):
+                y[i] = rhs[S[i]]
+            _cho_solve(L, ns, y)
+            for _refine in range(2):   # proximal point: removes ε's bias where the rows are independent
+                for i in range(ns):
+                    s = rhs[S[i]]
+                    for j in range(ns):
+                        s -= sub[i, j] * y[j]
+                    r[i] = s
+                _cho_solve(L, ns, r)
+                for i in range(ns):
+                    y[i] += r[i]
+            for i in range(ns):
+                x[S[i]] = y[i]
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += A[i, j] * x[j]
+            ax[i] = s
+        if ns:
+            worst = 0.0
+            for i in range(ns):
+                worst = max(worst, abs(ax[S[i]] - rhs[S[i]]))
+            if worst > consistency * (rmax + _TINY):
+                # the active rows cannot all hold (more sticking points than freedoms, pulling
+                # different ways): no set containing them is right; Gauss–Seidel takes over
+                break
+        change = False
+        for p in range(m):
+            if act[p] and x[3 * p] < 0.0:
+                act[p] = False
+                change = True
+            elif not act[p] and v0[ids[p], 0] + ax[3 * p] < target[ids[p]] - tol:
+                act[p] = True
+                change = True
+        if not change:
+            converged = True
+            break
+    for p in range(m):
+        c = ids[p]
+        x[3 * p] = max(x[3 * p], 0.0)
+        if friction:
+            mag = math.sqrt(x[3 * p + 1] ** 2 + x[3 * p + 2] ** 2)
+            if mag > mu_s[c] * x[3 * p] * (1 + 1e-12) + 1e-300:
+                converged = False
+                scale = mu_d[c] * x[3 * p] / max(mag, _TINY)
+                x[3 * p + 1] *= scale
+                x[3 * p + 2] *= scale
+        else:
+            x[3 * p + 1] = 0.0
+            x[3 * p + 2] = 0.0
+    if not converged:
+        # an unfinished answer can be far worse than no impulse: Gauss–Seidel starts from the
+        # candidate (this, the warm start, zero) with the lowest objective, which decides where it ends
+        best = 0.0
+        fx = _objective(A, rhs, x, n)
+        if fx < best:
+            best = fx
+            for p in range(m):
+                for d in range(3):
+                    lam[ids[p], d] = x[3 * p + d]
+        else:
+            for p in range(m):
+                for d in range(3):
+                    lam[ids[p], d] = 0.0
+        if use_warm:
+            for p in range(m):
+                for d in range(3):
+                    y[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
+            fw = _objective(A, rhs, y, n)
+            if fw < best:
+                for p in range(m):
+                    for d in range(3):
+                        lam[ids[p], d] = y[3 * p + d]
+        return UNFINISHED, math.inf
+    residual = 0.0
+    for i in range(n):
+        s = -rhs[i]
+        for j in range(n):
+            s += A[i, j] * x[j]
+        d = i % 3
+        if d == 0 and not (x[i] > 0.0):
+            s = min(s, 0.0)
+        if d != 0 and not friction:
+            s = 0.0
+        residual = max(residual, abs(s) / max(A[i, i], _TINY))
+        lam[ids[i // 3], d] = x[i]
+    return SOLVED, residual
+
+
+@njit
+def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
+                  friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, lam, status):
+    """The exact active set on every island of at most ``max_island`` contacts.
+
+    ``a, b (K,) int64``; ``movable (N,) bool``; ``dirs, ang_a, ang_b, iang_a, iang_b (K,3,3)``;
+    ``ima, imb (K,)``; ``v0 (K,3)`` row velocities before; ``target, compliance, mu_s, mu_d (K,)``;
+    ``warm (K,3)`` (read when ``use_warm``). Writes ``lam (K,3)`` (the impulses of a solved island,
+    the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``, ``UNFINISHED``,
+    ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to the caller).
+    Velocities are not touched. Returns the largest scaled residual of the solved islands."""
+    order, start = islands(a, b, movable, movable.shape[0])
+    residual = 0.0
+    for i in range(start.shape[0] - 1):
+        ids = order[start[i]:start[i + 1]]
+        if ids.shape[0] > max_island:
+            st = TOO_LARGE
+        else:
+            st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
+                              mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam)
+            if st == SOLVED:
+                residual = max(residual, res)
+        for c in ids:
+            status[c] = st
+    return residual
