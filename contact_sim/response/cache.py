@@ -4,9 +4,12 @@ records, matched from step to step by pair and by the contact point in body A's 
 What the World holds: ``world._cs_warm`` = ``(body_a (K,), body_b (K,), local points (K,3), impulses
 per unit time (K,4))`` of the last resting solve (``None`` before one); ``stepper.forget`` drops it
 (``World.reset``), ``World.remove_bodies`` remaps it."""
+import math
+
 import numpy as np
 
 from ..contacts import Contacts
+from ..jit import njit
 from . import toi as toi_mod
 
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
@@ -23,37 +26,44 @@ def local_points(world, c, R, point=None):
 def match(world, a0, b0, p0, a1, b1, p1):
     """For each new contact ``(a1, b1, p1 (K1,3))`` the index of the old contact ``(a0, b0, p0 (K0,3))``
     of the same pair whose point in A's frame is nearest, within ``MATCH_FRACTION`` of the smaller
-    body's size; ``-1`` when none. Each old contact is claimed at most once (``(K1,) int``)."""
+    body's size; ``-1`` when none. Each old contact is claimed at most once, nearest claims first
+    (``(K1,) int``)."""
     out = np.full(len(a1), -1, np.int64)
     if len(a0) == 0 or len(a1) == 0:
         return out
     ext = toi_mod._extents(world)
     n = len(world)
-    if len(a0) == len(a1) and np.array_equal(a0, a1) and np.array_equal(b0, b1):
-        # the same pairs in the same order, one contact each (strictly increasing keys): each new
-        # contact's only candidate is the old one in its row (what the k-d tree would find)
-        key = a1 * n + b1
-        if len(key) < 2 or np.all(key[1:] > key[:-1]):
-            d = np.sqrt(np.einsum("ij,ij->i", p1 - p0, p1 - p0))
-            ok = d <= MATCH_FRACTION * np.minimum(ext[a1], ext[b1])
-            out[ok] = np.flatnonzero(ok)
-            return out
-    from scipy.spatial import cKDTree
-
-    size = np.minimum(ext[a1], ext[b1])
-    scale = float(np.max(np.abs(np.concatenate([p0, p1])))) + 1.0
-    k0 = (a0 * n + b0).astype(float) * (8.0 * scale)
-    k1 = (a1 * n + b1).astype(float) * (8.0 * scale)
-    tree = cKDTree(np.column_stack([k0, p0]))
-    dist, idx = tree.query(np.column_stack([k1, p1]))
-    ok = np.isfinite(dist) & (dist <= MATCH_FRACTION * size)
-    cand = np.flatnonzero(ok)
-    if cand.size:
-        order = cand[np.argsort(dist[cand], kind="stable")]
-        _, first = np.unique(idx[order], return_index=True)
-        keep = order[first]
-        out[keep] = idx[keep]
+    c = np.ascontiguousarray
+    _match(c(a0 * n + b0, dtype=np.int64), c(p0, dtype=float), c(a1 * n + b1, dtype=np.int64), c(p1, dtype=float),
+           MATCH_FRACTION * np.minimum(ext[a1], ext[b1]), out)
     return out
+
+
+@njit
+def _match(key0, p0, key1, p1, reach, out):
+    """``match``'s kernel: pair keys ``key0 (K0,)``, ``key1 (K1,)``; ``reach (K1,)`` the largest
+    distance of a match; writes ``out (K1,)``. The old contacts sorted by key, each new contact's
+    candidates are its pair's (a handful: binary search, then a scan), ties to the lower index."""
+    order = np.argsort(key0, kind="mergesort")
+    sk = key0[order]
+    k1 = key1.shape[0]
+    best = np.full(k1, -1, np.int64)
+    dist = np.full(k1, np.inf)
+    for i in range(k1):
+        j = np.searchsorted(sk, key1[i])
+        while j < sk.shape[0] and sk[j] == key1[i]:
+            o = order[j]
+            d = math.sqrt((p1[i, 0] - p0[o, 0]) ** 2 + (p1[i, 1] - p0[o, 1]) ** 2 + (p1[i, 2] - p0[o, 2]) ** 2)
+            if d <= reach[i] and (d < dist[i] or (d == dist[i] and o < best[i])):
+                dist[i] = d
+                best[i] = o
+            j += 1
+    claimed = np.zeros(key0.shape[0], np.bool_)
+    for i in np.argsort(dist, kind="mergesort"):   # the nearest pairings claim first
+        o = best[i]
+        if o >= 0 and not claimed[o]:
+            claimed[o] = True
+            out[i] = o
 
 
 def carried(world, attr, a, b, local, fill, trailing=()):

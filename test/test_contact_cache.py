@@ -1,0 +1,52 @@
+"""The contact cache's matching of contacts from step to step (``response.cache.match``)."""
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim.response import cache
+
+
+def _reference(ext, n, a0, b0, p0, a1, b1, p1):
+    """Brute force: each new contact's nearest old contact of its pair within reach; claims by
+    increasing distance (ties: the earlier new contact), an old contact claimed once."""
+    reach = cache.MATCH_FRACTION * np.minimum(ext[a1], ext[b1])
+    cand = []
+    for i in range(len(a1)):
+        same = np.flatnonzero((a0 == a1[i]) & (b0 == b1[i]))
+        if same.size:
+            d = np.linalg.norm(p0[same] - p1[i], axis=1)
+            j = int(np.argmin(d))
+            if d[j] <= reach[i]:
+                cand.append((d[j], i, int(same[j])))
+    out = np.full(len(a1), -1)
+    taken = set()
+    for _, i, o in sorted(cand):
+        if o not in taken:
+            taken.add(o)
+            out[i] = o
+    return out
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("seed", range(5))
+def test_match_finds_the_nearest_unclaimed_point_of_the_same_pair(seed):
+    rng = np.random.default_rng(seed)
+    world = cs.World()
+    for i in range(6):
+        world.add_body(f"b{i}", cs.Sphere(0.5), position=(3.0 * i, 0, 0))
+    k0, k1 = 40, 35
+    a0, b0 = rng.integers(0, 3, k0), rng.integers(3, 6, k0)
+    a1, b1 = rng.integers(0, 3, k1), rng.integers(3, 6, k1)
+    p0 = rng.uniform(-0.2, 0.2, (k0, 3))
+    p1 = p0[rng.integers(0, k0, k1)] + rng.normal(0, 0.03, (k1, 3))   # near old points, some of other pairs
+    a1[:10], b1[:10] = a0[:10], b0[:10]
+    p1[:10] = p0[:10] + rng.normal(0, 0.01, (10, 3))
+    got = cache.match(world, a0, b0, p0, a1, b1, p1)
+    from contact_sim.response import toi
+
+    want = _reference(toi._extents(world), len(world), a0, b0, p0, a1, b1, p1)
+    assert np.array_equal(got, want)
+    assert (got >= 0).sum() >= 8                      # the ten moved-a-little contacts are found
+    ok = got >= 0
+    assert np.array_equal(a0[got[ok]], a1[ok]) and np.array_equal(b0[got[ok]], b1[ok])
+    assert len(set(got[ok])) == ok.sum()
