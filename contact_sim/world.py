@@ -13,6 +13,7 @@ from . import dynamics, quat
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
 from .kinds import DYNAMIC, KINDS, KINEMATIC
+from .response.cache import ContactCache
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .stats import StepStats
 from .shapes import Plane, Shape
@@ -108,6 +109,7 @@ class World(BodyInput):
             self.materials[key] = Nested(Material).check(mat, f"materials[{key!r}]")
         self.time = 0.0
         self.contacts = Contacts.empty()
+        self.contact_cache = ContactCache()   # what a step keeps for the next (warm starts)
         self._names = []
         self._index = {}
         self.shapes = []          # per body, geometry relative to the centre of mass
@@ -350,8 +352,7 @@ class World(BodyInput):
         c = c.select((new_index[c.body_a] >= 0) & (new_index[c.body_b] >= 0)) if len(c) else Contacts.empty()
         c.body_a, c.body_b = new_index[c.body_a], new_index[c.body_b]
         self.contacts = c
-        for attr in ("_cs_warm", "_cs_spec"):   # what the stepper carries: (body_a, body_b, per-contact arrays...)
-            setattr(self, attr, _remap_carried(getattr(self, attr, None), new_index))
+        self.contact_cache.remap(new_index)
         self.__dict__.pop("_cs_memo", None)       # every derived table is rebuilt for the new body set
         gone = set(names)
         self.disabled_pairs = {p for p in self.disabled_pairs if not (p[0] in gone or p[1] in gone)}
@@ -587,18 +588,4 @@ class World(BodyInput):
         self.contacts = Contacts.empty()
         for r in self.robots:
             r.q = {n: r.q_initial.get(n, x) for n, x in r.q.items()}
-        from . import stepper
-
-        stepper.forget(self)
-
-
-def _remap_carried(record, new_index):
-    """A per-contact record the stepper carries between steps, ``(body_a, body_b, arrays...)`` with
-    a row per contact, for the bodies left after a removal (``new_index`` old → new, -1 removed).
-    Anything else is dropped (``None``): carried data only speeds up the next step."""
-    try:
-        a, b = record[0], record[1]
-        keep = (new_index[a] >= 0) & (new_index[b] >= 0)
-        return (new_index[a][keep], new_index[b][keep]) + tuple(x[keep] for x in record[2:])
-    except Exception:
-        return None
+        self.contact_cache.reset()

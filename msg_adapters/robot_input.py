@@ -22,6 +22,8 @@ A mixin of ``ContactSimNode``:
   (an unknown link) is refused, counted and warned about.
 - After ``pose_timeout`` without joint states the links hold their last pose with zero velocity.
 """
+import dataclasses
+
 import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -115,9 +117,9 @@ class RobotInput:
             self._warn("robot_description_semantic", f"the SRDF does not fit this robot ({exc}); ignored")
             srdf = self._robot_srdf = None
             contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix)
-        carried = ("_cs_warm", "_cs_spec")     # what the stepper carries between steps (remapped by removal)
+        # the contact cache too: what the stepper carries between steps (renumbered by the removal)
         saved = (world._snapshot(), world.robots, world.disabled_pairs, world.contacts,
-                 {k: world.__dict__.get(k) for k in carried})
+                 dataclasses.replace(world.contact_cache))
         try:
             if self._robot is not None and self._robot in world.robots:
                 world.remove_bodies(self._robot.bodies)
@@ -125,7 +127,7 @@ class RobotInput:
         except BaseException:   # e.g. a link named like a scene body
             world._restore(saved[0])
             world.robots, world.disabled_pairs, world.contacts = saved[1:4]
-            world.__dict__.update(saved[4])
+            world.contact_cache = saved[4]
             world.__dict__.pop("_cs_memo", None)
             raise
         self._robot = world.robots[-1]

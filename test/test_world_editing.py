@@ -86,14 +86,14 @@ def test_removal_mid_run_keeps_the_others_and_remaps_contacts_and_warm_starts():
 
     names = w.body_names
     contacts = pairs(w.contacts.body_a, w.contacts.body_b, names)
-    warm = pairs(w._cs_warm[0], w._cs_warm[1], names)
+    warm = pairs(w.contact_cache.warm[0], w.contact_cache.warm[1], names)
     assert ("box", "ground") in contacts or ("ground", "box") in contacts
     box = w.body("box")
     w.remove_bodies("far")       # resting on the ground, before the others in index order
     names = w.body_names
     assert ("far", "ground") in contacts or ("ground", "far") in contacts
     assert pairs(w.contacts.body_a, w.contacts.body_b, names) == [p for p in contacts if "far" not in p]
-    assert pairs(w._cs_warm[0], w._cs_warm[1], names) == [p for p in warm if "far" not in p]
+    assert pairs(w.contact_cache.warm[0], w.contact_cache.warm[1], names) == [p for p in warm if "far" not in p]
     w.step(0.01)                 # the resting box, warm-started, stays at rest
     np.testing.assert_allclose(w.body("box").position, box.position, atol=1e-6)
     assert np.abs(w.body("box").velocity).max() < 1e-3

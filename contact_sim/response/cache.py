@@ -1,10 +1,8 @@
-"""The contact cache carried between steps: resting impulses (warm starts) and per-step contact
-records, matched from step to step by pair and by the contact point in body A's frame.
-
-What the World holds: ``world._cs_warm`` = ``(body_a (K,), body_b (K,), local points (K,3), impulses
-per unit time (K,4))`` of the last resting solve (``None`` before one); ``stepper.forget`` drops it
-(``World.reset``), ``World.remove_bodies`` remaps it."""
+"""The contact cache carried between steps (``ContactCache``, owned by ``World.contact_cache``):
+resting impulses (warm starts), matched from step to step by pair and by the contact point in
+body A's frame; and the per-step contact records merged the same way."""
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -13,6 +11,31 @@ from ..jit import njit
 from . import toi as toi_mod
 
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
+
+
+@dataclass
+class ContactCache:
+    """What the stepper keeps from one step for the next: the only state outside the bodies' that a
+    step reads. ``World.reset`` empties it and ``World.remove_bodies`` renumbers it; it only speeds
+    up the next step (warm starts) and decides when the preflight check reruns."""
+
+    #: the last resting solve's contacts: ``(body_a (K,), body_b (K,), points in A's frame (K,3),
+    #: impulses per unit time (K,4): normal, then the world tangential vector)``; ``None`` before one
+    warm: tuple = None
+    #: the step length the preflight warnings were last checked for
+    preflight_dt: float = None
+
+    def reset(self):
+        self.warm = None
+        self.preflight_dt = None
+
+    def remap(self, new_index):
+        """Keep the contacts of bodies left after a removal (``new_index (N_old,)`` old → new, −1
+        removed), renumbered."""
+        if self.warm is not None:
+            a, b = self.warm[0], self.warm[1]
+            keep = (new_index[a] >= 0) & (new_index[b] >= 0)
+            self.warm = (new_index[a][keep], new_index[b][keep]) + tuple(x[keep] for x in self.warm[2:])
 
 
 def local_points(world, c, R, point=None):
@@ -66,12 +89,12 @@ def _match(key0, p0, key1, p1, reach, out):
             out[i] = o
 
 
-def carried(world, attr, a, b, local, fill, trailing=()):
-    """Per-contact values ``(K, *trailing)`` that the previous step stored under ``world.<attr>``
-    as ``(body_a, body_b, local points, values)``, for the contacts ``(a, b (K,), local (K,3))``
-    that match one of its contacts (same pair, nearest point); ``fill`` where none matches."""
-    out = np.full((len(a),) + trailing, fill)
-    old = getattr(world, attr, None)
+def warm_lookup(world, a, b, local):
+    """Previous step's resting impulses per unit time ``(K,4)`` (normal, then the world tangential
+    impulse vector) for the contacts ``(a, b (K,), local (K,3))`` that match one of its contacts
+    (same pair, nearest point); 0 where none matches."""
+    out = np.zeros((len(a), 4))
+    old = world.contact_cache.warm
     if old is None or len(old[0]) == 0 or len(a) == 0:
         return out
     a0, b0, p0, values = old
@@ -79,12 +102,6 @@ def carried(world, attr, a, b, local, fill, trailing=()):
     ok = hit >= 0
     out[ok] = values[hit[ok]]
     return out
-
-
-def warm_lookup(world, a, b, local):
-    """Previous step's resting impulses per unit time ``(K,4)`` (normal, then the world tangential
-    impulse vector) for the contacts ``(a, b, local)`` that match one (else 0)."""
-    return carried(world, "_cs_warm", a, b, local, 0.0, (4,))
 
 
 def merge_records(world, records):

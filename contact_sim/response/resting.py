@@ -1,0 +1,63 @@
+"""The resting stage of a step: contacts that stay touching get the impulse that acts as a
+constant force over the rest of the step ``T`` (held against gravity).
+
+Warm started from the previous step's matched contacts (``cache.warm_lookup``). The constraints
+are on the velocity at the *end* of ``T``: the normal velocity at least ``min(depth, 0)/T``-ish
+(the force acts on the displacement ``(v_start + v_end)/2·T``, which may close a gap exactly,
+never more, and never asks a pair to separate; an approaching pair ends at rest, a separating one
+may come back by its own displacement, so the force does no work: an end-velocity target of 0 held
+a separating body up, and added energy), friction sticking at the end or kinetic.
+"""
+import numpy as np
+
+from . import solver
+from .cache import project_warm, warm_lookup, warm_record
+
+
+def resting_solve(ctx):
+    """Writes ``ctx.rest_impulse (K,3)``, ``ctx.rest_mask (K,) bool`` (the contacts that rest),
+    ``ctx.dv_rest, ctx.dw_rest (N,3)`` (the force's velocity change over ``ctx.t_left``) and what
+    the contact cache keeps (``ctx.warm_out``); the bodies' velocities are not changed here (the
+    advance stage applies the force as two half-kicks)."""
+    m = ctx.models
+    if not m.resting or not (ctx.touching.any() or not ctx.exact_toi) \
+            or (ctx.bounced.any() and np.all(ctx.vn1 > ctx.impact_speed)):
+        return
+    world = ctx.world
+    s = world.s
+    c = ctx.contacts
+    t_left = ctx.t_left
+    v_end = s.vel + ctx.gravity * t_left
+    w_end = s.omega.copy()
+    v_start_end = v_end.copy()
+    w_start_end = w_end.copy()
+    # a contact that just rebounded is leaving: no resting force may hold it back. With exact times
+    # of impact only touching or slowly approaching contacts rest (a fast one within the margin gets
+    # its impact time); with next_step every contact within the margin is a speculative one
+    leaving = ctx.bounced & (ctx.vn1 > ctx.impact_speed)
+    if ctx.exact_toi:
+        rmask = (ctx.touching | (ctx.vn0 >= -ctx.gdt)) & ~leaving
+    else:
+        rmask = ~leaving
+    # every contact rests (the usual case): read the arrays as they are, no gathers
+    ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
+    r2 = ctx.rows.select(rmask)
+    target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - ctx.vn1[ri], 0.0)
+    warm = project_warm(warm_lookup(world, c.body_a[ri], c.body_b[ri], ctx.local[ri]) * t_left, r2, ctx.mu_d[ri])
+    fr = ctx.friction
+    res = ctx.solve(r2, v_end, w_end, target_n=target, mu_s=ctx.mu_s[ri] if fr else None,
+                    mu_d=ctx.mu_d[ri] if fr else None, warm=warm)
+    ctx.note(res)
+    lam2 = np.zeros((len(c), 3))
+    lam2[ri] = res.impulse
+    # the constant-force model is first order in what the force does while the contact point moves
+    # during the interval: its work is right to within ½|λ|·|v_point|
+    vs_rows = solver.row_velocity(r2, s.vel, s.omega)
+    ctx.rest_bound += 0.5 * float(np.sum(np.linalg.norm(res.impulse, axis=1) * np.linalg.norm(vs_rows, axis=1)))
+    ctx.rest_impulse = lam2
+    ctx.rest_mask = rmask
+    ctx.dv_rest = v_end - v_start_end
+    ctx.dw_rest = w_end - w_start_end
+    # copies: kept across steps, never views of this step's contacts
+    ctx.warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), ctx.local[ri].copy(),
+                    warm_record(res.impulse, r2) / t_left)
