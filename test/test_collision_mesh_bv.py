@@ -44,6 +44,38 @@ def test_mesh_crossed_edges_need_edge_face():
     assert np.all(c.depth > 0)
 
 
+@pytest.mark.exact
+@pytest.mark.parametrize("sink", [0.01, 1e-6, 0.2])
+def test_mesh_box_edge_crossings_get_the_separating_axis_answer(sink):
+    """A polyhedron crossing a mesh edge-first (no vertex of either inside the other) gets the
+    separating-axis depth and normal, the box–box kernel's exact answer for the same two boxes:
+    two crossed bars (edge on edge: depth ``sink`` along z), and a tilted 4 m bar lying across the
+    top edge of a 2 m mesh cube (depth ``sink`` along the bar's face normal, (1, 0, 1)/√2; an
+    endpoint's distance to a face plane was 1.4 m here, and the normal pointed into B)."""
+    lb, lb_box = box_mesh((4, 0.5, 0.5)), cs.Box((4, 0.5, 0.5))
+    bx = cs.Box((4, 0.5, 0.5))
+    qx = Q.axis_rotation(0, [np.pi / 4])[0]
+    qy = Q.mul(Q.axis_rotation(2, [np.pi / 2])[0], qx)
+    d = 0.5 * np.sqrt(2) - sink
+    c, st = collide(lb, ((0, 0, 0), qx), bx, ((0, 0, d), qy), stats=True)
+    ref = collide(lb_box, ((0, 0, 0), qx), bx, ((0, 0, d), qy))
+    assert st.needed_edge_face == 1 and len(c) >= 1
+    assert np.allclose(c.depth, sink, rtol=1e-9, atol=1e-12) and np.allclose(ref.depth.max(), sink, rtol=1e-9)
+    assert np.allclose(c.normal, [0, 0, -1], atol=1e-12) and np.allclose(ref.normal, [0, 0, -1], atol=1e-12)
+    c = collide(bx, ((0, 0, d), qy), lb, ((0, 0, 0), qx))       # swapped: the normal flips
+    assert np.allclose(c.depth, sink, rtol=1e-9, atol=1e-12) and np.allclose(c.normal, [0, 0, 1], atol=1e-12)
+
+    cube, bar = box_mesh((2, 2, 2)), cs.Box((4, 0.1, 0.1))
+    q = Q.axis_rotation(1, [np.pi / 4])[0]                      # the bar along (1, 0, −1)/√2
+    out = np.array([1.0, 0.0, 1.0]) / np.sqrt(2)                # its lower face's normal, reversed
+    pose = (tuple(np.array([1.0, 0.0, 1.0]) + out * (0.05 - sink)), tuple(q))
+    c, st = collide(cube, ((0, 0, 0), I), bar, pose, stats=True)
+    ref = collide(cs.Box((2, 2, 2)), ((0, 0, 0), I), bar, pose)
+    assert st.settled_by_vertex == 0 and st.needed_edge_face == 1 and len(c) >= 1
+    assert np.allclose(c.depth, sink, rtol=1e-9, atol=1e-12) and np.allclose(ref.depth.max(), sink, rtol=1e-9)
+    assert np.allclose(c.normal, -out, atol=1e-12) and np.allclose(ref.normal, -out, atol=1e-12)
+
+
 def test_mesh_sphere_and_plane():
     mesh = box_mesh((2, 2, 2))
     c = collide(mesh, ((0, 0, 0), I), cs.Sphere(0.3), ((0, 0, 1.2), I))

@@ -97,6 +97,88 @@ def _crossings(VX, EX, NY, dY, npl, facesY, loops, VY, sgn, tag, P, Nn, D, F, I,
     return c
 
 
+@njit
+def _project(V, idx, n0, n1, n2, count):
+    """``(min, max)`` of ``V[idx[j]]·n`` over ``j < count`` (``idx`` None-like: ``V``'s first rows)."""
+    lo, hi = np.inf, -np.inf
+    for j in range(count):
+        r = idx[j] if idx.shape[0] else j
+        x = V[r, 0] * n0 + V[r, 1] * n1 + V[r, 2] * n2
+        lo = min(lo, x)
+        hi = max(hi, x)
+    return lo, hi
+
+
+@njit
+def _face_sat(VP, nvp, NP, npp, EP, VM, loop, nf, df):
+    """Separating axes between convex polyhedron P (world vertices ``VP[:nvp]``, face normals
+    ``NP[:npp]``, edges ``EP``) and one planar face polygon of a mesh (vertex rows ``loop`` of
+    ``VM``, outward normal ``nf (3,)``, plane offset ``df``), the face's solid side behind it.
+
+    Returns ``(overlap, a0, a1, a2)``: the smallest translation of P along unit ``a`` that separates
+    it from the face (the face normal one-sided: P must get out in front; P's face normals and the
+    edge-pair cross products either way), or a negative overlap when an axis separates them."""
+    none = np.empty(0, np.int64)
+    lo, _ = _project(VP, none, nf[0], nf[1], nf[2], nvp)
+    best, b0, b1, b2 = df - lo, nf[0], nf[1], nf[2]
+    if best < 0:
+        return best, b0, b1, b2
+    m = loop.shape[0]
+    for q in range(npp + EP.shape[0] * m):
+        if q < npp:
+            a0, a1, a2 = NP[q, 0], NP[q, 1], NP[q, 2]
+        else:   # edge of P × edge of the face
+            e, j = divmod(q - npp, m)
+            u0 = VP[EP[e, 1], 0] - VP[EP[e, 0], 0]
+            u1 = VP[EP[e, 1], 1] - VP[EP[e, 0], 1]
+            u2 = VP[EP[e, 1], 2] - VP[EP[e, 0], 2]
+            w0 = VM[loop[(j + 1) % m], 0] - VM[loop[j], 0]
+            w1 = VM[loop[(j + 1) % m], 1] - VM[loop[j], 1]
+            w2 = VM[loop[(j + 1) % m], 2] - VM[loop[j], 2]
+            a0, a1, a2 = u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
+            ln = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            if ln <= 1e-12 * np.sqrt((u0 * u0 + u1 * u1 + u2 * u2) * (w0 * w0 + w1 * w1 + w2 * w2)):
+                continue   # parallel edges: their plane's normal is a face axis already tried
+            a0, a1, a2 = a0 / ln, a1 / ln, a2 / ln
+        plo, phi = _project(VP, none, a0, a1, a2, nvp)
+        flo, fhi = _project(VM, loop, a0, a1, a2, m)
+        up, down = fhi - plo, phi - flo      # P moved along +a, or along −a
+        o = min(up, down)
+        if o < 0:
+            return o, a0, a1, a2
+        if o < best:
+            best = o
+            if up <= down:
+                b0, b1, b2 = a0, a1, a2
+            else:
+                b0, b1, b2 = -a0, -a1, -a2
+    return best, b0, b1, b2
+
+
+@njit
+def _crossing_sat(VP, nvp, NP, npp, EP, VM, NM, dM, npm, fM, loops, lo, hi):
+    """For a polyhedron crossing a mesh's faces edge-first (no vertex of either inside the other):
+    the separating-axis answer of P against each mesh face polygon whose box overlaps P's box
+    (``lo, hi (3,)``), and of those the binding one (the largest overlap). Returns ``(depth, a0, a1,
+    a2)``, ``a`` the unit direction that moves P out; depth ≤ 0 when no face overlaps."""
+    depth, b0, b1, b2 = 0.0, 0.0, 0.0, 0.0
+    for p in range(npm):
+        loop = loops[fM[p, 0]:fM[p, 0] + fM[p, 1]]
+        out = False
+        for x in range(3):
+            flo, fhi = np.inf, -np.inf
+            for j in range(loop.shape[0]):
+                flo = min(flo, VM[loop[j], x])
+                fhi = max(fhi, VM[loop[j], x])
+            out = out or flo > hi[x] or fhi < lo[x]
+        if out:
+            continue
+        o, a0, a1, a2 = _face_sat(VP, nvp, NP, npp, EP, VM, loop, NM[p], dM[p])
+        if o > depth:
+            depth, b0, b1, b2 = o, a0, a1, a2
+    return depth, b0, b1, b2
+
+
 @collider((MESH, BOX), (MESH, CONVEX))
 @njit
 def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
@@ -158,6 +240,21 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             # an edge of B through a face of A: push A along its face normal; and the reverse
             c = _crossings(VP, EP, NM, dM, npm, fM, loops, VM, 1.0, 0, P, Nn, D, F, I, c)
             c = _crossings(VM, EM, NP, dP, npp, fP, loops, VP, -1.0, 1, P, Nn, D, F, I, c)
+            if c:
+                # the crossings say where they touch; how deep and which way out is the separating
+                # axis test of the polyhedron against the mesh faces it overlaps (an endpoint's
+                # distance to a face plane can be the whole length of a long edge). The binding
+                # face decides: exact for a convex mesh, an estimate in a concave corner
+                lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+                for v in range(nvp):
+                    for x in range(3):
+                        lo[x] = min(lo[x], VP[v, x])
+                        hi[x] = max(hi[x], VP[v, x])
+                depth, a0, a1, a2 = _crossing_sat(VP, nvp, NP, npp, EP, VM, NM, dM, npm, fM, loops, lo, hi)
+                if depth > 0:
+                    for r in range(c):   # the normal from B to A: A moves opposite to P's way out
+                        Nn[r, 0], Nn[r, 1], Nn[r, 2] = -a0, -a1, -a2
+                        D[r] = depth
             counters[2] += c > 0
         k = emit_deepest4(out_i, out_f, k, i, P, Nn, D, F, I, c)
     return k
