@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .pgs import _apply, _row_velocity
 
 _TINY = 1e-300
 
@@ -320,16 +321,25 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
 
 
 @njit
-def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
-                  friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, lam, status):
+def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s, mu_d,
+                  friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, vel, omega, apply,
+                  lam, status):
     """The exact active set on every island of at most ``max_island`` contacts.
 
     ``a, b (K,) int64``; ``movable (N,) bool``; ``dirs, ang_a, ang_b, iang_a, iang_b (K,3,3)``;
-    ``ima, imb (K,)``; ``v0 (K,3)`` row velocities before; ``target, compliance, mu_s, mu_d (K,)``;
-    ``warm (K,3)`` (read when ``use_warm``). Writes ``lam (K,3)`` (the impulses of a solved island,
-    the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``, ``UNFINISHED``,
-    ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to the caller).
-    Velocities are not touched. Returns the largest scaled residual of the solved islands."""
+    ``ima, imb (K,)``; ``target, compliance, mu_s, mu_d (K,)``; ``warm (K,3)`` (read when
+    ``use_warm``); ``vel, omega (N,3)`` the velocities before. Writes ``lam (K,3)`` (the impulses of
+    a solved island, the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``,
+    ``UNFINISHED``, ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to
+    the caller). With ``apply`` the solved islands' impulses are applied to ``vel, omega`` (islands
+    share no movable body, so each sees the velocities before). Returns the largest scaled
+    residual of the solved islands."""
+    k = a.shape[0]
+    v0 = np.empty((k, 3))
+    rv = np.empty(3)
+    for c in range(k):
+        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
+        v0[c, 0], v0[c, 1], v0[c, 2] = rv[0], rv[1], rv[2]
     order, start = islands(a, b, movable, movable.shape[0])
     residual = 0.0
     for i in range(start.shape[0] - 1):
@@ -341,6 +351,10 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v
                               mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam)
             if st == SOLVED:
                 residual = max(residual, res)
+                if apply:
+                    for c in ids:
+                        _apply(c, a[c], b[c], lam[c, 0], lam[c, 1], lam[c, 2], dirs, iang_a, iang_b, ima, imb, vel,
+                               omega)
         for c in ids:
             status[c] = st
     return residual

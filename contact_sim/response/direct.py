@@ -182,34 +182,42 @@ def _safest_start(A, rhs, *candidates):
     return best
 
 
-def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None):
+def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None, apply_solved=False):
     """Exact contact impulses by the active-set method, island by island (``active_set``: compiled,
     dense per island; an island larger than ``DIRECT_ISLAND_MAX`` contacts, or whose factorisation
-    fails, by the sparse ``_active_set`` below). Does not touch ``vel, omega (N,3)``.
+    fails, by the sparse ``_active_set`` below).
 
     Solves ``v_n + (Aλ)_n + compliance·λ_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction
     (tangential velocity zero). Returns ``(lam (K,3), solved (K,) bool, residual)``: the impulses of
     the solved islands, and for the others (a sticking impulse outside the static cone, an
     inconsistent set, too many rounds) the start of lowest contact objective for Gauss–Seidel;
-    ``residual`` is the largest scaled row residual of the solved ones."""
+    ``residual`` is the largest scaled row residual of the solved ones. ``vel, omega (N,3)`` are
+    left as they are, or with ``apply_solved`` get the solved islands' impulses."""
     k = len(rows.a)
     lam = np.zeros((k, 3))
     if k == 0:
         return lam, np.ones(0, bool), 0.0
     c = np.ascontiguousarray
-    v0 = row_velocity(rows, vel, omega)
     friction = mu_s is not None and bool(np.any(mu_s > 0))
     zeros = np.zeros(k)
     mus = c(mu_s, dtype=float) if friction else zeros
     mud = c(mu_d, dtype=float) if friction else zeros
     comp = zeros if compliance is None else c(compliance, dtype=float)
     status = np.empty(k, np.int64)
+    # the kernel reads (and with apply_solved writes) the velocity arrays: contiguous float64 views
+    v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
+    w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
     residual = active_set.solve_islands(
         c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.movable, dtype=np.bool_), c(rows.dirs),
         c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
-        c(rows.imb, dtype=float), v0, c(target_n, dtype=float), comp, mus, mud, friction,
-        np.zeros((k, 3)) if warm is None else c(warm, dtype=float), warm is not None, DIRECT_ISLAND_MAX,
-        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, status)
+        c(rows.imb, dtype=float), c(target_n, dtype=float), comp, mus, mud, friction,
+        zeros.reshape(k, 1) if warm is None else c(warm, dtype=float), warm is not None, DIRECT_ISLAND_MAX,
+        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v, w, apply_solved, lam, status)
+    if apply_solved:
+        if v is not vel:
+            vel[...] = v
+        if w is not omega:
+            omega[...] = w
     solved = status == active_set.SOLVED
     big = np.flatnonzero(status == active_set.TOO_LARGE)
     if big.size:
@@ -221,12 +229,15 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
             d = np.zeros(3 * big.size)
             d[0::3] = compliance[big]
             A = (delassus(sub, dense=False) + sparse.diags(d)).tocsr()
-        lam_b, ok, res_b = _active_set(sub, v0[big], target_n[big], None if not friction else mu_s[big],
+        v0 = row_velocity(rows, vel, omega, big)
+        lam_b, ok, res_b = _active_set(sub, v0, target_n[big], None if not friction else mu_s[big],
                                        None if not friction else mu_d[big], None if warm is None else warm[big], A)
         lam[big] = lam_b
         solved[big] = ok
         if ok:
             residual = max(residual, res_b)
+            if apply_solved:
+                apply(sub, vel, omega, lam_b)
     return lam, solved, residual
 
 

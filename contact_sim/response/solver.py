@@ -221,15 +221,13 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
             omega[...] = w0
         method = "direct" if k <= limit else "gs"
     if method == "direct":
-        lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm)
+        # islands are independent: the solved ones keep their exact impulses (applied), Gauss–Seidel
+        # finishes the others (sliding friction, an inconsistent set) from the start the active set left
+        lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
+                                            apply_solved=True)
         if solved.all():
-            apply(rows, vel, omega, lam)
             return SolveResult(lam, 1, residual)
-        # islands are independent: the solved ones keep their exact impulses, Gauss–Seidel finishes
-        # the others (sliding friction, an inconsistent set) from the start the active set left
-        si, ui = np.flatnonzero(solved), np.flatnonzero(~solved)
-        if si.size:
-            apply(rows.select(si), vel, omega, lam[si])
+        ui = np.flatnonzero(~solved)
         res = solve(rows.select(ui), vel, omega, target_n=target_n[ui], mu_s=None if mu_s is None else mu_s[ui],
                     mu_d=None if mu_d is None else mu_d[ui], iterations=iterations, tolerance=tolerance,
                     warm=lam[ui])
