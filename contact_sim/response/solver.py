@@ -24,8 +24,8 @@ Three uses of the same machinery:
 """
 import numpy as np
 
-from . import pgs
-from .direct import DIRECT_DENSE_MAX, DIRECT_FIRST, DIRECT_MAX_CONTACTS, _peel_singles, delassus, solve_direct, solve_exact
+from . import active_set, pgs
+from .direct import DIRECT_DENSE_MAX, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, _peel_singles, delassus, solve_direct, solve_exact
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",
@@ -208,10 +208,11 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
         return SolveResult(lam, 0, 0.0)
     if method == "auto":
         limit = DIRECT_MAX_CONTACTS if direct_max is None else direct_max
-        if DIRECT_FIRST < k <= limit:
-            # Gauss–Seidel first, the active set only when it does not converge: a resting floor of
-            # independent bodies (many small islands) converges in a sweep or two, where one sparse
-            # active-set solve over all of them cost 10× more; a pyramid does not, and gets the exact answer
+        if DIRECT_FIRST < k <= limit and _largest_island(rows) > DIRECT_ISLAND_MAX:
+            # Gauss–Seidel first, the active set only when it does not converge: one large island
+            # (a pyramid of 55 boxes, 400 contacts) costs tens of ms to factorise and Gauss–Seidel
+            # warm-started usually converges; many small islands (a resting floor) take the compiled
+            # dense kernel, as fast as Gauss–Seidel and exact
             v0, w0 = vel.copy(), omega.copy()
             res = solve_auto(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                              tolerance=tolerance, warm=warm, method="gs")
@@ -252,6 +253,14 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
                             tolerance=tolerance, warm=warm)
     return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                  tolerance=tolerance, warm=warm)
+
+
+def _largest_island(rows):
+    """Contacts in the largest island of ``rows`` (contacts linked through movable bodies)."""
+    c = np.ascontiguousarray
+    _, start = active_set.islands(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64),
+                                  c(rows.movable, dtype=np.bool_), len(rows.movable))
+    return int(np.diff(start).max()) if len(start) > 1 else 0
 
 
 def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, tolerance=1e-9, direct_max=None):
