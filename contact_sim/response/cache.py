@@ -137,21 +137,44 @@ def warm_record(lam, rows):
     world tangential impulse vector (basis-free, so the next step's rows can take it whatever
     tangents they pick)."""
     out = np.empty((len(lam), 4))
-    out[:, 0] = lam[:, 0]
-    out[:, 1:] = lam[:, 1:2] * rows.t1 + lam[:, 2:3] * rows.t2
+    _warm_record(np.ascontiguousarray(lam, dtype=float), np.ascontiguousarray(rows.dirs), out)
     return out
+
+
+@njit
+def _warm_record(lam, dirs, out):
+    for c in range(lam.shape[0]):
+        out[c, 0] = lam[c, 0]
+        for x in range(3):
+            out[c, 1 + x] = lam[c, 1] * dirs[c, 1, x] + lam[c, 2] * dirs[c, 2, x]
 
 
 def project_warm(w, rows, mu):
-    """Warm impulses ``(K,3)`` in ``rows``' basis from the ``_warm_record`` form ``w (K,4)``: the
-    tangential vector projected on the contact's tangent plane, inside the cone."""
-    if not np.any(w):
+    """Warm impulses ``(K,3)`` in ``rows``' basis from the ``warm_record`` form ``w (K,4)``: the
+    tangential vector projected on the contact's tangent plane, inside the cone (``mu (K,)``);
+    ``None`` when every warm impulse is zero."""
+    out = np.empty((len(w), 3))
+    if not _project_warm(np.ascontiguousarray(w, dtype=float), np.ascontiguousarray(rows.dirs), np.ascontiguousarray(mu, dtype=float),
+                         out):
         return None
-    wt = w[:, 1:]
-    out = np.column_stack([np.maximum(w[:, 0], 0.0), np.einsum("ij,ij->i", wt, rows.t1),
-                           np.einsum("ij,ij->i", wt, rows.t2)])
-    mag = np.linalg.norm(out[:, 1:], axis=1)
-    lim = mu * out[:, 0]
-    scale = np.where(mag > lim, lim / np.maximum(mag, 1e-300), 1.0)
-    out[:, 1:] *= scale[:, None]
     return out
+
+
+@njit
+def _project_warm(w, dirs, mu, out):
+    """``project_warm``'s kernel; returns whether any warm impulse is non-zero."""
+    anything = False
+    for c in range(w.shape[0]):
+        for x in range(4):
+            anything = anything or w[c, x] != 0.0
+        n = max(w[c, 0], 0.0)
+        t1 = w[c, 1] * dirs[c, 1, 0] + w[c, 2] * dirs[c, 1, 1] + w[c, 3] * dirs[c, 1, 2]
+        t2 = w[c, 1] * dirs[c, 2, 0] + w[c, 2] * dirs[c, 2, 1] + w[c, 3] * dirs[c, 2, 2]
+        mag = math.sqrt(t1 * t1 + t2 * t2)
+        lim = mu[c] * n
+        if mag > lim:
+            scale = lim / max(mag, 1e-300)
+            t1 *= scale
+            t2 *= scale
+        out[c, 0], out[c, 1], out[c, 2] = n, t1, t2
+    return anything

@@ -8,9 +8,12 @@ never more, and never asks a pair to separate; an approaching pair ends at rest,
 may come back by its own displacement, so the force does no work: an end-velocity target of 0 held
 a separating body up, and added energy), friction sticking at the end or kinetic.
 """
+import math
+
 import numpy as np
 
-from . import solver
+from ..jit import njit
+from .pgs import _row_velocity
 from .cache import project_warm, warm_lookup, warm_record
 
 
@@ -52,8 +55,10 @@ def resting_solve(ctx):
     lam2[ri] = res.impulse
     # the constant-force model is first order in what the force does while the contact point moves
     # during the interval: its work is right to within ½|λ|·|v_point|
-    vs_rows = solver.row_velocity(r2, s.vel, s.omega)
-    ctx.rest_bound += 0.5 * float(np.sum(np.linalg.norm(res.impulse, axis=1) * np.linalg.norm(vs_rows, axis=1)))
+    c_ = np.ascontiguousarray
+    ctx.rest_bound += _work_bound(c_(r2.a, dtype=np.int64), c_(r2.b, dtype=np.int64), c_(r2.dirs), c_(r2.ang_a),
+                                  c_(r2.ang_b), c_(s.vel, dtype=float), c_(s.omega, dtype=float),
+                                  c_(res.impulse, dtype=float))
     ctx.rest_impulse = lam2
     ctx.rest_mask = rmask
     ctx.dv_rest = v_end - v_start_end
@@ -61,3 +66,16 @@ def resting_solve(ctx):
     # copies: kept across steps, never views of this step's contacts
     ctx.warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), ctx.local[ri].copy(),
                     warm_record(res.impulse, r2) / t_left)
+
+
+@njit
+def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, lam):
+    """``½ Σ |λ_c|·|v_c|`` (J): the resting force's first-order work error bound, ``v_c`` the
+    contact points' relative velocity ``(K,3)`` at the start, ``lam (K,3)`` the impulses."""
+    total = 0.0
+    rv = np.empty(3)
+    for c in range(a.shape[0]):
+        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
+        total += math.sqrt(lam[c, 0] ** 2 + lam[c, 1] ** 2 + lam[c, 2] ** 2) * math.sqrt(
+            rv[0] ** 2 + rv[1] ** 2 + rv[2] ** 2)
+    return 0.5 * total
