@@ -1,4 +1,4 @@
-"""Free-motion integration between contacts, vectorised over bodies.
+"""Free-motion integration between contacts (the kernel is ``free_motion.advance``): the method.
 
 Translation: ``x += v dt + g dt²/2``, ``v += g dt`` — exact for constant acceleration, so ballistic
 flight carries no integration error at any step size.
@@ -38,43 +38,6 @@ def rotate_inertia(R, inertia_body):
     """``R I Rᵀ (N, 3, 3)``: body-frame (inverse) inertia tensors ``(N, 3, 3)`` in the world frame of
     rotation matrices ``R (N, 3, 3)``."""
     return R @ inertia_body @ np.swapaxes(R, -1, -2)
-
-
-def integrate_free(state, dt, gravity, moving, rotating):
-    """Advance ``state`` by ``dt`` without contacts, in place.
-
-    ``moving (N,) bool`` selects dynamic bodies (gravity applies) — kinematic bodies translate at
-    constant velocity; ``rotating (N,) bool`` selects bodies whose orientation changes.
-    ``state`` has arrays ``pos vel quat omega (N, 3|4)`` and ``principal_q (N, 4)``,
-    ``principal_moments (N, 3)``. Returns the change (J) of rotational kinetic energy the
-    splitting made for tumbling bodies (a bounded oscillation; 0 for every other motion, which is
-    exact).
-    """
-    accel = np.where(moving[:, None], gravity, 0.0)
-    state.pos += state.vel * dt + 0.5 * accel * dt * dt
-    state.vel += accel * dt
-    # a body that does not spin keeps its orientation exactly (L = 0: every factor is the identity)
-    spin = rotating & state.omega.any(axis=1)
-    if not spin.any():
-        return 0.0
-    # equal principal moments (spheres, cubes; equal to 1e-12 relative, the round-off of a mesh's
-    # inertia): no split term and L = I ω is parallel to ω, so the exact turn is the whole motion:
-    # q ← exp(ω dt) ⊗ q with ω unchanged
-    m = state.principal_moments
-    iso = m[:, 0] >= (1.0 - ISOTROPIC_TOLERANCE) * m[:, 2]   # ascending moments: smallest vs largest
-    idx = np.flatnonzero(spin & iso)
-    if idx.size:
-        state.quat[idx] = quat.normalize(quat.mul(quat.from_rotvec(state.omega[idx] * dt), state.quat[idx]))
-    idx = np.flatnonzero(spin & ~iso)
-    if idx.size:
-        # the splitting keeps L exactly and the energy up to a bounded oscillation, reported as
-        # drift (KE = ½ ω·L with L unchanged, so the change is ½ L·Δω)
-        q, w, drift = free_motion.rotate(state.quat[idx], state.omega[idx], state.principal_q[idx],
-                                         state.principal_moments[idx], dt, MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
-        state.quat[idx] = q
-        state.omega[idx] = w
-        return drift
-    return 0.0
 
 
 ISOTROPIC_TOLERANCE = 1e-12  # relative spread of principal moments below which a body spins as a sphere

@@ -76,6 +76,58 @@ def _cone(p0, p1, p2, m0, m1, m2):
 
 
 @njit
+def _rotate_body(q, omega, principal_q, moments, i, dt, max_split_angle, max_substeps):
+    """Torque-free rotation of body ``i`` over ``dt`` (``rotate_free``'s loop body): ``(qx, qy, qz,
+    qw, wx, wy, wz, drift)``."""
+    # principal frame orientation qp = q ⊗ principal_q
+    px, py, pz, pw = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3],
+                           principal_q[i, 0], principal_q[i, 1], principal_q[i, 2], principal_q[i, 3])
+    m0, m1, m2 = moments[i, 0], moments[i, 1], moments[i, 2]
+    i0, i1, i2 = 1.0 / m0, 1.0 / m1, 1.0 / m2
+    bx, by, bz = _qrot(-px, -py, -pz, pw, omega[i, 0], omega[i, 1], omega[i, 2])
+    pi0, pi1, pi2 = m0 * bx, m1 * by, m2 * bz
+    lx, ly, lz = _qrot(px, py, pz, pw, pi0, pi1, pi2)       # world L, fixed in free flight
+    r0, r2 = i0 - i1, i2 - i1
+    s0, s1, s2 = pi0 * pi0, pi1 * pi1, pi2 * pi2
+    theta1 = math.sqrt(s0 + s1) * abs(r0) * dt
+    theta3 = math.sqrt(s1 + s2) * abs(r2) * dt
+    big_theta = max(theta1, theta3)
+    if big_theta > 0.0:
+        alone = min(theta1, theta3) <= 1e-12 * big_theta
+        if alone:
+            n_sub = 1
+        else:
+            norm_l = math.sqrt(lx * lx + ly * ly + lz * lz)
+            big = norm_l * max(abs(r0), 0.0, abs(r2)) * dt
+            cone = _cone(s0, s1, s2, m0, m1, m2)
+            need = big / max_split_angle * min(1.0, cone / max_split_angle)
+            n_sub = int(min(max(math.ceil(need), 1.0), max_substeps))
+        h = dt / n_sub
+        for _ in range(n_sub):
+            for axis, frac in ((0, 0.5), (2, 1.0), (0, 0.5)):
+                bl = _qrot(-px, -py, -pz, pw, lx, ly, lz)
+                if axis == 0:
+                    angle = bl[0] * r0 * frac * h
+                    sx, sw = math.sin(0.5 * angle), math.cos(0.5 * angle)
+                    px, py, pz, pw = _qmul(px, py, pz, pw, sx, 0.0, 0.0, sw)
+                else:
+                    angle = bl[2] * r2 * frac * h
+                    sz, sw = math.sin(0.5 * angle), math.cos(0.5 * angle)
+                    px, py, pz, pw = _qmul(px, py, pz, pw, 0.0, 0.0, sz, sw)
+    # the |L| turn commutes: one exact turn for the whole step
+    tx, ty, tz, tw = _rotvec_quat(lx * (i1 * dt), ly * (i1 * dt), lz * (i1 * dt))
+    px, py, pz, pw = _qmul(tx, ty, tz, tw, px, py, pz, pw)
+    n = math.sqrt(px * px + py * py + pz * pz + pw * pw)   # round-off only: every factor is unit
+    px, py, pz, pw = px / n, py / n, pz / n, pw / n
+    bl = _qrot(-px, -py, -pz, pw, lx, ly, lz)
+    wx, wy, wz = _qrot(px, py, pz, pw, bl[0] * i0, bl[1] * i1, bl[2] * i2)
+    drift = 0.5 * (lx * (wx - omega[i, 0]) + ly * (wy - omega[i, 1]) + lz * (wz - omega[i, 2]))
+    qx, qy, qz, qw = _qmul(px, py, pz, pw, -principal_q[i, 0], -principal_q[i, 1], -principal_q[i, 2],
+                           principal_q[i, 3])
+    return qx, qy, qz, qw, wx, wy, wz, drift
+
+
+@njit
 def rotate_free(q, omega, principal_q, moments, dt, max_split_angle, max_substeps, q_out, omega_out):
     """Torque-free rotation over ``dt`` of ``N`` bodies, written to ``q_out (N,4)`` and
     ``omega_out (N,3)``. ``q (N,4)`` orientations (x, y, z, w), ``omega (N,3)`` world angular
@@ -85,54 +137,87 @@ def rotate_free(q, omega, principal_q, moments, dt, max_split_angle, max_substep
     oscillation; 0 where the step is exact)."""
     drift = 0.0
     for i in range(q.shape[0]):
-        # principal frame orientation qp = q ⊗ principal_q
-        px, py, pz, pw = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3],
-                               principal_q[i, 0], principal_q[i, 1], principal_q[i, 2], principal_q[i, 3])
-        m0, m1, m2 = moments[i, 0], moments[i, 1], moments[i, 2]
-        i0, i1, i2 = 1.0 / m0, 1.0 / m1, 1.0 / m2
-        bx, by, bz = _qrot(-px, -py, -pz, pw, omega[i, 0], omega[i, 1], omega[i, 2])
-        pi0, pi1, pi2 = m0 * bx, m1 * by, m2 * bz
-        lx, ly, lz = _qrot(px, py, pz, pw, pi0, pi1, pi2)       # world L, fixed in free flight
-        r0, r2 = i0 - i1, i2 - i1
-        s0, s1, s2 = pi0 * pi0, pi1 * pi1, pi2 * pi2
-        theta1 = math.sqrt(s0 + s1) * abs(r0) * dt
-        theta3 = math.sqrt(s1 + s2) * abs(r2) * dt
-        big_theta = max(theta1, theta3)
-        if big_theta > 0.0:
-            alone = min(theta1, theta3) <= 1e-12 * big_theta
-            if alone:
-                n_sub = 1
-            else:
-                norm_l = math.sqrt(lx * lx + ly * ly + lz * lz)
-                big = norm_l * max(abs(r0), 0.0, abs(r2)) * dt
-                cone = _cone(s0, s1, s2, m0, m1, m2)
-                need = big / max_split_angle * min(1.0, cone / max_split_angle)
-                n_sub = int(min(max(math.ceil(need), 1.0), max_substeps))
-            h = dt / n_sub
-            for _ in range(n_sub):
-                for axis, frac in ((0, 0.5), (2, 1.0), (0, 0.5)):
-                    bl = _qrot(-px, -py, -pz, pw, lx, ly, lz)
-                    if axis == 0:
-                        angle = bl[0] * r0 * frac * h
-                        sx, sw = math.sin(0.5 * angle), math.cos(0.5 * angle)
-                        px, py, pz, pw = _qmul(px, py, pz, pw, sx, 0.0, 0.0, sw)
-                    else:
-                        angle = bl[2] * r2 * frac * h
-                        sz, sw = math.sin(0.5 * angle), math.cos(0.5 * angle)
-                        px, py, pz, pw = _qmul(px, py, pz, pw, 0.0, 0.0, sz, sw)
-        # the |L| turn commutes: one exact turn for the whole step
-        tx, ty, tz, tw = _rotvec_quat(lx * (i1 * dt), ly * (i1 * dt), lz * (i1 * dt))
-        px, py, pz, pw = _qmul(tx, ty, tz, tw, px, py, pz, pw)
-        n = math.sqrt(px * px + py * py + pz * pz + pw * pw)   # round-off only: every factor is unit
-        px, py, pz, pw = px / n, py / n, pz / n, pw / n
-        bl = _qrot(-px, -py, -pz, pw, lx, ly, lz)
-        wx, wy, wz = _qrot(px, py, pz, pw, bl[0] * i0, bl[1] * i1, bl[2] * i2)
-        drift += 0.5 * (lx * (wx - omega[i, 0]) + ly * (wy - omega[i, 1]) + lz * (wz - omega[i, 2]))
+        qx, qy, qz, qw, wx, wy, wz, d = _rotate_body(q, omega, principal_q, moments, i, dt, max_split_angle,
+                                                     max_substeps)
+        drift += d
         omega_out[i, 0], omega_out[i, 1], omega_out[i, 2] = wx, wy, wz
-        qx, qy, qz, qw = _qmul(px, py, pz, pw, -principal_q[i, 0], -principal_q[i, 1], -principal_q[i, 2],
-                               principal_q[i, 3])
         q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = qx, qy, qz, qw
     return drift
+
+
+@njit
+def _turn(quat, omega, i, dt):
+    """``quat[i] ← normalize(exp(ω dt) ⊗ quat[i])``: the exact turn of a body whose ω is constant
+    (equal principal moments, or a kinematic body)."""
+    tx, ty, tz, tw = _rotvec_quat(omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt)
+    x, y, z, w = _qmul(tx, ty, tz, tw, quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3])
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = x / n, y / n, z / n, w / n
+
+
+@njit
+def _rot_energy(quat, inertia_body, omega, i):
+    bx, by, bz = _qrot(-quat[i, 0], -quat[i, 1], -quat[i, 2], quat[i, 3], omega[i, 0], omega[i, 1], omega[i, 2])
+    e = 0.0
+    for r in range(3):
+        wr = bx if r == 0 else (by if r == 1 else bz)
+        e += wr * (inertia_body[i, r, 0] * bx + inertia_body[i, r, 1] * by + inertia_body[i, r, 2] * bz)
+    return 0.5 * e
+
+
+@njit
+def advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
+            half_dv, half_dw, kick, dt, iso_tolerance, max_split_angle, max_substeps):
+    """Every body's motion over ``dt`` without contacts, in place: dynamic bodies ballistically
+    (``x += v dt + g dt²/2``, exact) with torque-free rotation (an exact turn for equal principal
+    moments, ``_rotate_body``'s splitting otherwise), kinematic bodies at constant velocity and
+    spin. With ``kick`` the drift sits between two half-kicks ``half_dv, half_dw (N,3)`` of a
+    constant contact force (kick, drift, kick).
+
+    ``pos, vel, omega (N,3)``, ``quat (N,4)``, ``principal_q (N,4)``, ``moments (N,3)``,
+    ``inertia_body (N,3,3)``, ``gravity (3,)``, ``dynamic, rotating, kinematic (N,) bool``.
+    Returns ``(drift, kick_error)`` (J): the splitting's rotational energy change, and the half-kicks'
+    first-order error bound ``Σ |ΔE_rot|·|ω|·dt`` over the bodies the torque kicked."""
+    drift = 0.0
+    kick_error = 0.0
+    for i in range(pos.shape[0]):
+        kicked = False
+        ke0 = 0.0
+        if kick:
+            for x in range(3):
+                vel[i, x] += half_dv[i, x]
+            kicked = half_dw[i, 0] != 0.0 or half_dw[i, 1] != 0.0 or half_dw[i, 2] != 0.0
+            if kicked:
+                ke0 = _rot_energy(quat, inertia_body, omega, i)
+            for x in range(3):
+                omega[i, x] += half_dw[i, x]
+        for x in range(3):
+            g = gravity[x] if dynamic[i] else 0.0
+            pos[i, x] += vel[i, x] * dt + 0.5 * g * dt * dt
+            vel[i, x] += g * dt
+        spins = omega[i, 0] != 0.0 or omega[i, 1] != 0.0 or omega[i, 2] != 0.0
+        if spins and rotating[i]:
+            if moments[i, 0] >= (1.0 - iso_tolerance) * moments[i, 2]:
+                _turn(quat, omega, i, dt)   # no split term, L ∥ ω: the exact turn is the whole motion
+            else:
+                qx, qy, qz, qw, wx, wy, wz, d = _rotate_body(quat, omega, principal_q, moments, i, dt,
+                                                             max_split_angle, max_substeps)
+                drift += d
+                quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = qx, qy, qz, qw
+                omega[i, 0], omega[i, 1], omega[i, 2] = wx, wy, wz
+        elif spins and kinematic[i]:
+            _turn(quat, omega, i, dt)
+        if kick:
+            for x in range(3):
+                vel[i, x] += half_dv[i, x]
+                omega[i, x] += half_dw[i, x]
+            if kicked:
+                # the torque's two half-kicks around a turning drift are exact to first order in the
+                # angle turned: what they move of the rotational energy is right to within |ω|·dt of it
+                moved = abs(_rot_energy(quat, inertia_body, omega, i) - ke0)
+                turned = math.sqrt(omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2) * dt
+                kick_error += moved * turned
+    return drift, kick_error
 
 
 def rotate(q, omega, principal_q, moments, dt, max_split_angle, max_substeps):
@@ -151,10 +236,4 @@ def rotational_energies(q, inertia_body, omega, idx, out):
     ``inertia_body (N,3,3)``, ``omega (N,3)`` world angular velocities. The body-frame ``ω`` is
     ``Rᵀ ω`` (the conjugate turn), so no matrix is formed."""
     for k in range(idx.shape[0]):
-        i = idx[k]
-        bx, by, bz = _qrot(-q[i, 0], -q[i, 1], -q[i, 2], q[i, 3], omega[i, 0], omega[i, 1], omega[i, 2])
-        e = 0.0
-        for r in range(3):
-            wr = bx if r == 0 else (by if r == 1 else bz)
-            e += wr * (inertia_body[i, r, 0] * bx + inertia_body[i, r, 1] * by + inertia_body[i, r, 2] * bz)
-        out[k] = 0.5 * e
+        out[k] = _rot_energy(q, inertia_body, omega, idx[k])

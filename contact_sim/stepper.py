@@ -46,7 +46,7 @@ from .response import toi as toi_mod
 from .response import correction, impact, penalty_friction, resting
 from .response.cache import local_points, merge_records, record
 from .response.context import REST_REBOUND_FRACTION, StepContext
-from .response.energy import kinematic_work, rotational_energy
+from .response.energy import kinematic_work
 
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
@@ -348,24 +348,11 @@ def _finish(ctx, correction_energy):
 
 def _advance(ctx, tau, half_dv, half_dw):
     """Free motion over ``tau`` with a constant contact force whose velocity change over ``tau`` is
-    ``2·half_dv (N,3)`` (angular ``2·half_dw``): kick half, drift exactly, kick half. Returns the
-    free rotation's drift (J); the half-kicks' error bound goes to ``ctx.kick_error``."""
-    world = ctx.world
-    s = world.s
-    s.vel += half_dv
-    kicked = np.flatnonzero(np.any(half_dw != 0, axis=1))
-    if kicked.size:
-        ke0 = rotational_energy(world, kicked)
-    s.omega += half_dw
-    drift = world._advance_free(tau)
-    s.vel += half_dv
-    s.omega += half_dw
-    if kicked.size:
-        # the torque's two half-kicks around a turning drift are exact to first order in the angle
-        # turned: what they move of a body's rotational energy is right to within |ω|·τ of itself
-        moved = np.abs(rotational_energy(world, kicked) - ke0)
-        turned = np.linalg.norm(s.omega[kicked], axis=1) * tau
-        ctx.kick_error += float(moved @ turned)
+    ``2·half_dv (N,3)`` (angular ``2·half_dw``): kick half, drift exactly, kick half (one kernel,
+    ``free_motion.advance``). Returns the free rotation's drift (J); the half-kicks' error bound
+    goes to ``ctx.kick_error``."""
+    drift, kick_error = ctx.world._advance_free(tau, half_dv, half_dw)
+    ctx.kick_error += kick_error
     return drift
 
 

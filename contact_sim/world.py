@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import dynamics, quat
+from . import dynamics, free_motion, quat
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
 from .kinds import DYNAMIC, KINDS, KINEMATIC
@@ -511,19 +511,24 @@ class World(BodyInput):
             return self.settings.dt
         return float(Settings.rule("dt").check(dt, "step.dt", self.settings))
 
-    def _advance_free(self, dt):
+    def _advance_free(self, dt, half_dv=None, half_dw=None):
         """Move every body as if nothing touched for ``dt``: dynamic bodies ballistically with
-        torque-free rotation, kinematic bodies at their constant linear and angular velocity.
-        Returns the rotational energy change (J) of the splitting for tumbling bodies (see
-        ``dynamics.integrate_free``)."""
+        torque-free rotation, kinematic bodies at their constant linear and angular velocity
+        (``free_motion.advance``); with ``half_dv, half_dw (N,3)`` between two half-kicks of a
+        constant contact force. Returns the rotational energy change (J) of the splitting for
+        tumbling bodies (see ``dynamics``), and with the kicks also their
+        first-order error bound (J): ``(drift, kick_error)``."""
+        s = self.s
         dynamic = self.kind == DYNAMIC
-        drift = dynamics.integrate_free(self.s, dt, self.gravity, dynamic, dynamic & ~self.particle)
-        kin = np.flatnonzero((self.kind == KINEMATIC) & self.s.omega.any(axis=1))
-        if kin.size:
-            s = self.s
-            turn = quat.from_rotvec(s.omega[kin] * dt)
-            s.quat[kin] = quat.normalize(quat.mul(turn, s.quat[kin]))
-        return drift
+        kick = half_dv is not None
+        z = np.zeros((0, 3))
+        c = np.ascontiguousarray
+        drift, kick_error = free_motion.advance(
+            s.pos, s.vel, s.quat, s.omega, c(s.principal_q), c(s.principal_moments), c(self.inertia_body),
+            c(self.gravity, dtype=float), dynamic, dynamic & ~self.particle, self.kind == KINEMATIC,
+            c(half_dv, dtype=float) if kick else z, c(half_dw, dtype=float) if kick else z, kick, float(dt),
+            dynamics.ISOTROPIC_TOLERANCE, dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
+        return (drift, kick_error) if kick else drift
 
     # ------------------------------------------------------------------ reporting
     def _spin(self, mask):
