@@ -87,7 +87,7 @@ def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, complianc
     (``s`` = +1 on A, −1 on B; an immovable body's inverse mass and inertia are zero); the normal
     rows' diagonal gets ``compliance``."""
     m = ids.shape[0]
-    A[:, :] = 0.0
+    A[:3 * m, :3 * m] = 0.0
     for p in range(m):
         cp = ids[p]
         for q in range(m):
@@ -178,15 +178,14 @@ def _objective(A, rhs, x, n):
 
 @njit
 def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
-            friction, warm, use_warm, regularisation, consistency, max_rounds, lam):
+            friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, sub, L, vecs, S, nz, act):
     """The active set on one island (contacts ``ids (m,)``); writes ``lam`` rows of ``ids``.
-    Returns ``(status, residual)``."""
+    ``A, sub, L (≥3m, ≥3m)``, ``vecs (5, ≥3m)``, ``S, nz (≥3m,) int64``, ``act (≥m,) bool`` are
+    workspace (allocated once for all islands). Returns ``(status, residual)``."""
     m = ids.shape[0]
     n = 3 * m
-    A = np.empty((n, n))
     _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A)
-    rhs = np.empty(n)
-    act = np.empty(m, np.bool_)
+    rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
     rmax = 0.0
     dmax = 0.0
     for p in range(m):
@@ -202,14 +201,6 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
         rmax = max(rmax, abs(rhs[i]))
     eps = regularisation * max(dmax, _TINY)
     tol = 1e-12 + 1e-9 * rmax
-    S = np.empty(n, np.int64)
-    sub = np.empty((n, n))
-    L = np.empty((n, n))
-    nz = np.empty(n, np.int64)
-    y = np.empty(n)
-    r = np.empty(n)
-    x = np.zeros(n)
-    ax = np.zeros(n)
     converged = False
     for _ in range(max_rounds + m // 4):
         ns = 0
@@ -221,7 +212,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                     S[ns] = 3 * p + 1
                     S[ns + 1] = 3 * p + 2
                     ns += 2
-        x[:] = 0.0
+        x[:n] = 0.0
         if ns:
             for i in range(ns):
                 for j in range(ns):
@@ -341,6 +332,15 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, t
         _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
         v0[c, 0], v0[c, 1], v0[c, 2] = rv[0], rv[1], rv[2]
     order, start = islands(a, b, movable, movable.shape[0])
+    m_max = 0
+    for i in range(start.shape[0] - 1):
+        size = start[i + 1] - start[i]
+        if size <= max_island:
+            m_max = max(m_max, size)
+    n_max = 3 * m_max   # workspace for the largest island solved here, shared by all
+    A, sub, L = np.empty((n_max, n_max)), np.empty((n_max, n_max)), np.empty((n_max, n_max))
+    vecs = np.empty((5, n_max))
+    S, nz, act = np.empty(n_max, np.int64), np.empty(n_max, np.int64), np.empty(m_max, np.bool_)
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
@@ -348,7 +348,8 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, t
             st = TOO_LARGE
         else:
             st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
-                              mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam)
+                              mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,
+                              A, sub, L, vecs, S, nz, act)
             if st == SOLVED:
                 residual = max(residual, res)
                 if apply:
