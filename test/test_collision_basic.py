@@ -136,6 +136,12 @@ def test_crossed_boxes_edge_face():
     assert np.allclose(c.point[0], [0, 0, d / 2])
     assert FEATURES[c.feature[0]] == "edge_face"
     assert st.settled_by_vertex == 0 and st.needed_edge_face == 1 and st.edge_face_hits == 1
+    # 1 cm apart, within a 2 cm margin: an edge axis separates them, so no edge crosses a face
+    # (counted without running the crossing test); the contact is the edges' gap
+    d = 0.5 * np.sqrt(2) + 0.01
+    c, st = collide(lb, ((0, 0, d), qy), lb, ((0, 0, 0), qx), margin=0.02, stats=True)
+    assert len(c) == 1 and np.isclose(c.depth[0], -0.01, rtol=1e-9) and np.allclose(c.normal[0], [0, 0, 1])
+    assert st.settled_by_vertex == 0 and st.needed_edge_face == 1 and st.edge_face_hits == 0
 
 
 def test_parallel_edges():
