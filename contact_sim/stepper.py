@@ -32,24 +32,18 @@ energy terms the step declares.
 """
 import numpy as np
 
-from . import dynamics, quat
+from . import quat
 from .contacts import Contacts
-from .kinds import DYNAMIC, STATIC
-from .memo import derived
-from .settings import combine
+from .kinds import DYNAMIC
 from .stats import StepStats
-from .vec import cross
 from .response import models as _models
 from .collision import detect_world
 from .response import solver
 from .response import toi as toi_mod
-from .response import correction, impact, penalty_friction, resting
-from .response.cache import local_points, merge_records, record
-from .response.context import REST_REBOUND_FRACTION, StepContext
+from .response import correction, impact, penalty_friction, prepare, resting
+from .response.cache import merge_records, record
+from .response.context import StepContext
 from .response.energy import kinematic_work
-
-SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
-SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
 
 
 def describe_models(world):
@@ -78,115 +72,6 @@ def _detect(world, margin):
     return contacts
 
 
-def _inv_inertia(world, m, R):
-    """World inverse inertia ``R I⁻¹ Rᵀ (N,3,3)`` from the bodies' rotation matrices ``R (N,3,3)``
-    (zeros when the models skip rotation)."""
-    if not m.rotation:
-        return np.zeros((len(world), 3, 3))
-    ib = world.inv_inertia_body
-    # c·I (spheres, cubes, and the zeros of static/kinematic bodies) is the same in every frame
-    turn = derived(world, "anisotropic_inertia", (ib,),
-                   lambda: np.flatnonzero(~np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))))
-    if turn.size == len(ib):
-        return dynamics.rotate_inertia(R, ib)
-    out = ib.copy()
-    if turn.size:
-        out[turn] = dynamics.rotate_inertia(R[turn], ib[turn])
-    return out
-
-
-def _coefficients(world, c, m):
-    """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``."""
-    rule = world.settings.combine
-    a, b = c.body_a, c.body_b
-    k = len(a)
-    kinetic = m.friction and m.response != "kinematic"
-    uniform = _uniform_material(world)
-    if uniform is not None:   # one material everywhere: every rule gives its own values
-        e, mu_s, mu_d = uniform
-        z = np.zeros(k)
-        return (np.full(k, e), np.full(k, mu_s), np.full(k, mu_d)) if kinetic else (np.full(k, e), z, z)
-    e = combine(world.restitution[a], world.restitution[b], rule)
-    if not kinetic:
-        z = np.zeros(k)
-        return e, z, z
-    mu_d = combine(world.friction[a], world.friction[b], rule)
-    mu_s = np.maximum(combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
-    return e, mu_s, mu_d
-
-
-def _uniform_material(world):
-    """``(restitution, static friction, dynamic friction)`` when every body has the same
-    coefficients, else ``None`` (cached; the arrays are replaced when a body is added)."""
-    r, f, sf = world.restitution, world.friction, world.static_friction
-
-    def build():
-        same = len(r) and (r == r[0]).all() and (f == f[0]).all() and (sf == sf[0]).all()
-        # combine() keeps equal coefficients exactly; static friction is at least the dynamic one
-        return (float(r[0]), max(float(sf[0]), float(f[0])), float(f[0])) if same else None
-
-    return derived(world, "uniform_material", (r, f, sf), build)
-
-
-def _rows(world, c, inv_inertia, rel_vel, m):
-    return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, world.s.pos, world.inv_mass, inv_inertia,
-                             movable=world.kind == DYNAMIC, rel_vel=rel_vel,
-                             dynamic_levers=m.response != "kinematic")
-
-
-def _relative_velocity(world, c, m):
-    """Velocity ``(K,3)`` of A's material point at each contact relative to B's, ``ṗ_A − ṗ_B``
-    (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it).
-    Under the kinematic response a dynamic body is a particle, ``v ← v − (1+k)(N·v)N`` acts on the
-    velocity of its centre: its spin is neither seen nor changed (counting it made a spinning box
-    bounce higher than it fell)."""
-    s = world.s
-    a, b = c.body_a, c.body_b
-    if not s.omega.any():   # nothing spins: the points move with their bodies' centres
-        return s.vel[a] - s.vel[b]
-    wa, wb = s.omega[a], s.omega[b]
-    if m.response == "kinematic":
-        dyn = world.kind == DYNAMIC
-        wa = np.where(dyn[a][:, None], 0.0, wa)
-        wb = np.where(dyn[b][:, None], 0.0, wb)
-    return (s.vel[a] + cross(wa, c.point - s.pos[a])) - (s.vel[b] + cross(wb, c.point - s.pos[b]))
-
-
-def _gravity(world):
-    return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
-
-
-def _speculative_margin(world, dt):
-    """Detection margin (m) of a ``next_step`` step with speculative contacts: the largest closing
-    distance of any pair in ``dt`` (twice the fastest body's speed, including spin × size, times
-    ``dt``, plus ``|g| dt²``), at least ``settings.contact_margin`` and at most
-    ``SPECULATIVE_MAX_FRACTION`` × the thinnest finite body (a body moving farther than that in a
-    step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
-    s = world.s
-    base = world.settings.contact_margin
-    moving = world.kind != STATIC
-    if not moving.any():
-        return base
-    vmax = 0.0   # everything at rest: only gravity closes gaps
-    if s.vel.any() or s.omega.any():
-        ext = toi_mod._extents(world)
-        v2 = np.einsum("ij,ij->i", s.vel, s.vel)
-        w2 = np.einsum("ij,ij->i", s.omega, s.omega)
-        speed = np.sqrt(v2) + np.sqrt(w2) * np.where(np.isfinite(ext), ext, 0.0)
-        vmax = float(speed[moving].max())
-    reach = 2.0 * vmax * dt + float(np.linalg.norm(world.gravity)) * dt * dt
-    return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
-
-
-def _closing_filter(world, c, rel_vel, dt, base):
-    """Keep the contacts of ``c`` within ``base`` (touching) and the separated ones whose gap can
-    close within ``dt`` at the current normal velocity (``(K,) bool``): ``gap ≤ max(−v_n, 0)·dt +
-    |g|·dt² + base``, with ``v_n = n·rel_vel`` (``rel_vel (K,3)`` from ``_relative_velocity``)."""
-    vn = np.einsum("ij,ij->i", c.normal, rel_vel)
-    g = float(np.linalg.norm(world.gravity))
-    return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
-
-
 # ---------------------------------------------------------------------------- impulse / kinematic
 def _impulse_step(world, dt, m):
     """One step of the impulse (or kinematic) response, as named stages around a ``StepContext``
@@ -198,7 +83,7 @@ def _impulse_step(world, dt, m):
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
         if ctx.k:
-            _prepare_contacts(ctx)       # rows, coefficients, approach speeds; which touch, close, bounce
+            prepare.prepare_contacts(ctx)  # rows, coefficients, approach speeds; which touch, close, bounce
             impact.impact_solve(ctx)     # compression with friction, then restitution (its own stage)
             resting.resting_solve(ctx)   # warm-started constant force over the rest of the step
             if ctx.first:
@@ -221,65 +106,16 @@ def _detect_stage(ctx):
     of the step); the sub-step's other fields are reset."""
     world, m = ctx.world, ctx.models
     margin = world.settings.contact_margin
-    det_margin = _speculative_margin(world, ctx.t_left) if ctx.speculative else margin
+    det_margin = prepare.speculative_margin(world, ctx.t_left) if ctx.speculative else margin
     c = toi_mod.mark_swept(_detect(world, det_margin), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
-    rel_vel = _relative_velocity(world, c, m)
+    rel_vel = prepare.relative_velocity(world, c, m)
     if ctx.speculative and det_margin > margin and len(c):
-        near = _closing_filter(world, c, rel_vel, ctx.t_left, margin)
+        near = prepare.closing_filter(world, c, rel_vel, ctx.t_left, margin)
         if not near.all():
             c, rel_vel = c.select(near), rel_vel[near]
     ctx.contacts, ctx.rel_vel = c, rel_vel
     ctx.rest_impulse = ctx.rest_mask = ctx.dv_rest = ctx.dw_rest = None
-
-
-def _prepare_contacts(ctx):
-    """Rows, contact points in A's frame, coefficients, and the sub-step's contact classes from the
-    approach speed ``vn0``: touching (within the margin, or the time of impact's tolerance), impact
-    (touching and approaching faster than ``IMPACT_SPEED_FRACTION·|g|·dt``), closing (speculative:
-    apart, and overlapping by the end unless slowed) and bounced (impact, or closing with e > 0).
-    A rebound slower than ``REST_REBOUND_FRACTION·|g|·dt`` rests instead (e = 0)."""
-    world, m = ctx.world, ctx.models
-    s = world.s
-    c = ctx.contacts
-    margin = world.settings.contact_margin
-    if ctx.first:
-        ctx.max_penetration = max(ctx.max_penetration, float(c.depth.max()))
-    R = quat.to_matrix(s.quat)
-    ctx.rows = _rows(world, c, _inv_inertia(world, m, R), ctx.rel_vel, m)
-    ctx.local = local_points(world, c, R)
-    e, ctx.mu_s, ctx.mu_d = _coefficients(world, c, m)
-    ctx.friction = m.friction and m.response != "kinematic"
-    vn0 = np.einsum("ij,ij->i", c.normal, ctx.rel_vel)
-    if ctx.exact_toi:   # within the time-of-impact search's tolerance of touching, relative to size
-        ext = toi_mod._extents(world)
-        touching = c.depth >= -toi_mod.TOI_TOLERANCE * np.minimum(ext[c.body_a], ext[c.body_b])
-        # contacts that close within a millionth of a step of the impact found are hit in the same
-        # instant (a box landing flat, tilted by round-off, hits all four corners at once; one
-        # corner alone would kick it into a spin)
-        touching |= c.depth >= vn0 * (SIMULTANEOUS_FRACTION * ctx.dt)
-    else:
-        touching = c.depth >= -margin
-    if m.resting:   # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
-        e = np.where(e * np.maximum(-vn0, 0.0) < REST_REBOUND_FRACTION * ctx.gdt, 0.0, e)
-    impact = touching & (vn0 < (-ctx.impact_speed if m.resting else 0.0))
-    closing = np.zeros(len(c), bool)
-    if ctx.speculative:
-        # speculative contacts (apart, within the look-ahead): the impulse leaves the normal velocity
-        # at what closes exactly the gap over the step under gravity, v_n ≥ (−gap − g_n T²/2)/T, so
-        # the pair arrives touching instead of overlapping; one that bounces (e > 0) does so in this
-        # step from the approach speed it has now (Box2D's restitution rule: the rebound starts up
-        # to one gap early, and e = 1 loses nothing)
-        g = ctx.gravity
-        g_n = np.einsum("ij,ij->i", c.normal, g[c.body_a] - g[c.body_b])
-        # never positive: a pair nearer than gravity's sag over the step is only stopped here
-        # (pushing it apart to arrive touching would be work done by the contact); the resting
-        # stage's constant force then lands it exactly
-        t = ctx.t_left
-        ctx.spec_target = np.minimum((c.depth - 0.5 * g_n * t * t) / t, 0.0)
-        closing = ~touching & (vn0 < ctx.spec_target)
-    ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing = e, vn0, touching, impact, closing
-    ctx.bounced = impact | (closing & (e > 0))
 
 
 def _time_of_impact(ctx):
@@ -372,13 +208,13 @@ def _penalty_step(world, dt, m):
     k = len(c)
     max_pen = float(c.depth.max()) if k else 0.0
     if k:
-        rel_vel = _relative_velocity(world, c, m)
-        rows = _rows(world, c, _inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel, m)
+        rel_vel = prepare.relative_velocity(world, c, m)
+        rows = prepare.rows(world, c, prepare.inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel, m)
         vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
         stiff, damp = st.penalty.stiffness, st.penalty.damping
         gamma = np.full(k, 1.0 / (dt * (dt * stiff + damp)))
         target = stiff * np.maximum(c.depth, 0.0) / (dt * stiff + damp)
-        g = _gravity(world)
+        g = prepare.gravity(world)
         v_end = s.vel + g * dt          # the velocity the step would end with without contact
         w_end = s.omega.copy()
         res = solver.solve_soft(rows, v_end, w_end, target_n=target, compliance=gamma,
@@ -386,7 +222,7 @@ def _penalty_step(world, dt, m):
                                 direct_max=st.direct_max_contacts)
         if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
             penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
-                                                 _coefficients(world, c, m)[2], st.penalty.friction_velocity)
+                                                 prepare.coefficients(world, c, m)[2], st.penalty.friction_velocity)
         world.contacts = record(c, rows, res.impulse, vn0)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step

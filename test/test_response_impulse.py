@@ -234,8 +234,7 @@ def test_batched_3x3_solve_matches_lapack_and_flags_singular_blocks():
 
 
 def test_world_inverse_inertia_skips_only_isotropic_bodies_and_follows_new_bodies():
-    from contact_sim import stepper
-    from contact_sim.response import models
+    from contact_sim.response import models, prepare
 
     w = cs.World()
     w.add_body("ground", cs.Plane((0, 0, 1), 0.0), kind="static")
@@ -247,30 +246,29 @@ def test_world_inverse_inertia_skips_only_isotropic_bodies_and_follows_new_bodie
     def check():
         R = quat.to_matrix(w.s.quat)
         ref = dynamics.world_inverse_inertia(w.s.quat, w.inv_inertia_body)
-        np.testing.assert_allclose(stepper._inv_inertia(w, m, R), ref, rtol=0, atol=1e-15 * np.abs(ref).max())
+        np.testing.assert_allclose(prepare.inv_inertia(w, m, R), ref, rtol=0, atol=1e-15 * np.abs(ref).max())
 
     check()
     w.add_body("rod", cs.Box((0.05, 0.05, 0.8)), mass=1.0, position=(4, 0, 1),
                orientation=quat.normalize([0.5, 0.1, -0.2, 0.7]))
     check()
-    assert stepper._inv_inertia(w, m, quat.to_matrix(w.s.quat)).shape == (4, 3, 3)
+    assert prepare.inv_inertia(w, m, quat.to_matrix(w.s.quat)).shape == (4, 3, 3)
 
 
 def test_per_contact_coefficients_with_one_material_and_after_a_second_one_is_added():
-    from contact_sim import stepper
-    from contact_sim.response import models
+    from contact_sim.response import models, prepare
 
     w = cs.World(materials={"rubber": cs.Material(restitution=0.9, friction=0.8, static_friction=1.0)})
     w.add_body("ground", cs.Plane((0, 0, 1), 0.0), kind="static")
     w.add_body("a", cs.Sphere(0.1), mass=1.0, position=(0, 0, 0.1))
     c = w.detect()
     m = models.choose(w, 0.01)
-    e, mu_s, mu_d = stepper._coefficients(w, c, m)
+    e, mu_s, mu_d = prepare.coefficients(w, c, m)
     mat = w.materials["default"]
     assert np.all(e == mat.restitution) and np.all(mu_d == mat.friction) and np.all(mu_s == mat.static_friction)
     w.add_body("b", cs.Sphere(0.1), mass=1.0, position=(1, 0, 0.1), material="rubber")
     c = w.detect()
-    e, mu_s, mu_d = stepper._coefficients(w, c, models.choose(w, 0.01))
+    e, mu_s, mu_d = prepare.coefficients(w, c, models.choose(w, 0.01))
     rule = w.settings.combine
     from contact_sim.settings import combine
     np.testing.assert_array_equal(e, combine(w.restitution[c.body_a], w.restitution[c.body_b], rule))

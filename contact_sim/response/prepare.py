@@ -1,0 +1,241 @@
+"""Preparing a step's contacts: the stage between detection and the solves.
+
+What the stages after detection need of each contact: the velocity of A's material point relative
+to B's (``relative_velocity``; with speculative contacts, the look-ahead margin and the filter of
+the gaps that can close in the step), the constraint rows, the point in A's frame (its identity
+across steps), the combined coefficients, and the contact's class from its approach speed
+(``classify``: touching, impact, closing, bounced). The per-contact arithmetic is kernels over
+the contacts; numpy sets them up.
+
+Shapes: ``N`` bodies, ``K`` contacts.
+"""
+import math
+
+import numpy as np
+
+from .. import dynamics, quat
+from ..jit import njit
+from ..kinds import DYNAMIC, STATIC
+from ..memo import derived
+from ..settings import combine
+from . import models as _models
+from . import solver
+from . import toi as toi_mod
+from .cache import local_points
+from .context import REST_REBOUND_FRACTION
+
+SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
+SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
+
+
+def prepare_contacts(ctx):
+    """Rows, contact points in A's frame, coefficients, and the sub-step's contact classes from the
+    approach speed ``vn0``: touching (within the margin, or the time of impact's tolerance), impact
+    (touching and approaching faster than ``IMPACT_SPEED_FRACTION·|g|·dt``), closing (speculative:
+    apart, and overlapping by the end unless slowed) and bounced (impact, or closing with e > 0).
+    A rebound slower than ``REST_REBOUND_FRACTION·|g|·dt`` rests instead (e = 0)."""
+    world, m = ctx.world, ctx.models
+    s = world.s
+    c = ctx.contacts
+    k = len(c)
+    if ctx.first:
+        ctx.max_penetration = max(ctx.max_penetration, float(c.depth.max()))
+    R = quat.to_matrix(s.quat)
+    ctx.rows = rows(world, c, inv_inertia(world, m, R), ctx.rel_vel, m)
+    ctx.local = local_points(world, c, R)
+    e, ctx.mu_s, ctx.mu_d = coefficients(world, c, m)
+    ctx.friction = m.friction and m.response != "kinematic"
+    ext = toi_mod._extents(world) if ctx.exact_toi else np.zeros(0)
+    cc = np.ascontiguousarray
+    a, b = cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64)
+    ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.bounced = (
+        np.empty(k), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool))
+    ctx.spec_target = np.empty(k)
+    ctx.restitution = cc(e, dtype=float).copy()
+    classify(a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
+             cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
+             world.settings.contact_margin, m.resting, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
+             ctx.speculative, ctx.t_left, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing,
+             ctx.spec_target, ctx.bounced)
+
+
+@njit
+def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_tolerance, simultaneous, margin, resting,
+             rebound_speed, impact_speed, speculative, t, e, vn0, touching, impact, closing, spec_target, bounced):
+    """The contact classes of ``prepare_contacts``, per contact: writes ``vn0`` (the approach speed
+    ``n·rel_vel``), ``touching``, ``impact``, ``closing``, ``bounced (K,) bool``, ``spec_target
+    (K,)`` and zeroes ``e (K,)`` where the rebound rests. ``gravity (N,3)`` per body; ``ext (N,)``
+    the bodies' extents (read with ``exact_toi``)."""
+    for c in range(a.shape[0]):
+        ia, ib = a[c], b[c]
+        v = normal[c, 0] * rel_vel[c, 0] + normal[c, 1] * rel_vel[c, 1] + normal[c, 2] * rel_vel[c, 2]
+        vn0[c] = v
+        if exact_toi:
+            # within the time-of-impact search's tolerance of touching, relative to size; and contacts
+            # that close within a millionth of a step of the impact found are hit in the same instant
+            # (a box landing flat, tilted by round-off, hits all four corners at once; one corner alone
+            # would kick it into a spin)
+            touch = depth[c] >= -toi_tolerance * min(ext[ia], ext[ib]) or depth[c] >= v * simultaneous
+        else:
+            touch = depth[c] >= -margin
+        touching[c] = touch
+        # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
+        if resting and e[c] * max(-v, 0.0) < rebound_speed:
+            e[c] = 0.0
+        impact[c] = touch and v < (-impact_speed if resting else 0.0)
+        close = False
+        spec_target[c] = 0.0
+        if speculative:
+            # speculative contacts (apart, within the look-ahead): the impulse leaves the normal
+            # velocity at what closes exactly the gap over the step under gravity, v_n ≥ (−gap −
+            # g_n T²/2)/T, so the pair arrives touching instead of overlapping; one that bounces
+            # (e > 0) does so in this step from the approach speed it has now (Box2D's restitution
+            # rule: the rebound starts up to one gap early, and e = 1 loses nothing). Never
+            # positive: a pair nearer than gravity's sag over the step is only stopped here (pushing
+            # it apart to arrive touching would be work done by the contact); the resting stage's
+            # constant force then lands it exactly
+            g_n = (normal[c, 0] * (gravity[ia, 0] - gravity[ib, 0]) + normal[c, 1] * (gravity[ia, 1] - gravity[ib, 1])
+                   + normal[c, 2] * (gravity[ia, 2] - gravity[ib, 2]))
+            st = min((depth[c] - 0.5 * g_n * t * t) / t, 0.0)
+            spec_target[c] = st
+            close = not touch and v < st
+        closing[c] = close
+        bounced[c] = impact[c] or (close and e[c] > 0)
+
+
+def relative_velocity(world, c, m):
+    """Velocity ``(K,3)`` of A's material point at each contact relative to B's, ``ṗ_A − ṗ_B``
+    (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it).
+    Under the kinematic response a dynamic body is a particle, ``v ← v − (1+k)(N·v)N`` acts on the
+    velocity of its centre: its spin is neither seen nor changed (counting it made a spinning box
+    bounce higher than it fell)."""
+    s = world.s
+    out = np.empty((len(c), 3))
+    spin = (world.kind != DYNAMIC) if m.response == "kinematic" else np.ones(len(world), bool)
+    cc = np.ascontiguousarray
+    _relative_velocity(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+                       cc(s.pos, dtype=float), cc(s.vel, dtype=float), cc(s.omega, dtype=float), spin, out)
+    return out
+
+
+@njit
+def _relative_velocity(a, b, point, pos, vel, omega, spin, out):
+    """``out[c] = (v_a + ω_a × (p − x_a)) − (v_b + ω_b × (p − x_b))``, ω counted where ``spin``."""
+    for c in range(a.shape[0]):
+        ia, ib = a[c], b[c]
+        for side in range(2):
+            i = ia if side == 0 else ib
+            sgn = 1.0 if side == 0 else -1.0
+            rx, ry, rz = point[c, 0] - pos[i, 0], point[c, 1] - pos[i, 1], point[c, 2] - pos[i, 2]
+            wx, wy, wz = (omega[i, 0], omega[i, 1], omega[i, 2]) if spin[i] else (0.0, 0.0, 0.0)
+            vx = vel[i, 0] + (wy * rz - wz * ry)
+            vy = vel[i, 1] + (wz * rx - wx * rz)
+            vz = vel[i, 2] + (wx * ry - wy * rx)
+            if side == 0:
+                out[c, 0], out[c, 1], out[c, 2] = vx, vy, vz
+            else:
+                out[c, 0] += sgn * vx
+                out[c, 1] += sgn * vy
+                out[c, 2] += sgn * vz
+
+
+def speculative_margin(world, dt):
+    """Detection margin (m) of a ``next_step`` step with speculative contacts: the largest closing
+    distance of any pair in ``dt`` (twice the fastest body's speed, including spin × size, times
+    ``dt``, plus ``|g| dt²``), at least ``settings.contact_margin`` and at most
+    ``SPECULATIVE_MAX_FRACTION`` × the thinnest finite body (a body moving farther than that in a
+    step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
+    s = world.s
+    base = world.settings.contact_margin
+    moving = world.kind != STATIC
+    vmax = _fastest(s.vel, s.omega, toi_mod._extents(world), moving)
+    if vmax < 0:   # nothing moves
+        return base
+    reach = 2.0 * vmax * dt + float(np.linalg.norm(world.gravity)) * dt * dt
+    return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
+
+
+@njit
+def _fastest(vel, omega, ext, moving):
+    """Largest ``|v| + |ω|·extent`` (m/s) over the ``moving`` bodies (an infinite extent counts as
+    0); −1 when none moves."""
+    best = -1.0
+    for i in range(vel.shape[0]):
+        if moving[i]:
+            e = ext[i] if math.isfinite(ext[i]) else 0.0
+            speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) + math.sqrt(
+                omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2) * e
+            best = max(best, speed)
+    return best
+
+
+def closing_filter(world, c, rel_vel, dt, base):
+    """Keep the contacts of ``c`` within ``base`` (touching) and the separated ones whose gap can
+    close within ``dt`` at the current normal velocity (``(K,) bool``): ``gap ≤ max(−v_n, 0)·dt +
+    |g|·dt² + base``, with ``v_n = n·rel_vel`` (``rel_vel (K,3)`` from ``relative_velocity``)."""
+    vn = np.einsum("ij,ij->i", c.normal, rel_vel)
+    g = float(np.linalg.norm(world.gravity))
+    return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
+
+
+def inv_inertia(world, m, R):
+    """World inverse inertia ``R I⁻¹ Rᵀ (N,3,3)`` from the bodies' rotation matrices ``R (N,3,3)``
+    (zeros when the models skip rotation)."""
+    if not m.rotation:
+        return np.zeros((len(world), 3, 3))
+    ib = world.inv_inertia_body
+    # c·I (spheres, cubes, and the zeros of static/kinematic bodies) is the same in every frame
+    turn = derived(world, "anisotropic_inertia", (ib,),
+                   lambda: np.flatnonzero(~np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))))
+    if turn.size == len(ib):
+        return dynamics.rotate_inertia(R, ib)
+    out = ib.copy()
+    if turn.size:
+        out[turn] = dynamics.rotate_inertia(R[turn], ib[turn])
+    return out
+
+
+def coefficients(world, c, m):
+    """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``."""
+    rule = world.settings.combine
+    a, b = c.body_a, c.body_b
+    k = len(a)
+    kinetic = m.friction and m.response != "kinematic"
+    uniform = _uniform_material(world)
+    if uniform is not None:   # one material everywhere: every rule gives its own values
+        e, mu_s, mu_d = uniform
+        z = np.zeros(k)
+        return (np.full(k, e), np.full(k, mu_s), np.full(k, mu_d)) if kinetic else (np.full(k, e), z, z)
+    e = combine(world.restitution[a], world.restitution[b], rule)
+    if not kinetic:
+        z = np.zeros(k)
+        return e, z, z
+    mu_d = combine(world.friction[a], world.friction[b], rule)
+    mu_s = np.maximum(combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
+    return e, mu_s, mu_d
+
+
+def _uniform_material(world):
+    """``(restitution, static friction, dynamic friction)`` when every body has the same
+    coefficients, else ``None`` (cached; the arrays are replaced when a body is added)."""
+    r, f, sf = world.restitution, world.friction, world.static_friction
+
+    def build():
+        same = len(r) and (r == r[0]).all() and (f == f[0]).all() and (sf == sf[0]).all()
+        # combine() keeps equal coefficients exactly; static friction is at least the dynamic one
+        return (float(r[0]), max(float(sf[0]), float(f[0])), float(f[0])) if same else None
+
+    return derived(world, "uniform_material", (r, f, sf), build)
+
+
+def rows(world, c, inv_inertia_w, rel_vel, m):
+    """Constraint rows (``solver.build_rows``) of contacts ``c``; under the kinematic response a
+    movable body's contact acts at its centre."""
+    return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, world.s.pos, world.inv_mass, inv_inertia_w,
+                             movable=world.kind == DYNAMIC, rel_vel=rel_vel,
+                             dynamic_levers=m.response != "kinematic")
+
+
+def gravity(world):
+    """Gravity ``(N,3)`` of the dynamic bodies, 0 for the others."""
+    return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
