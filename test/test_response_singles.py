@@ -29,27 +29,38 @@ def _spheres_on_ground(k, spin, seed=5):
 
 @pytest.mark.exact
 @pytest.mark.parametrize("spin, converged", [(0.01, True), (1.0, False)])
-def test_single_contacts_batched_equal_the_active_set_answer(spin, converged):
-    """Spheres each touching only the ground (independent contacts): the batched 3×3 path (which the
-    Gauss–Seidel method peels off first) gives the active set's impulses to round-off, separating
-    contacts get none, sliding ones (outside the static cone) are left to the general path."""
+def test_single_contacts_get_the_exact_3x3_answer_in_both_paths(spin, converged):
+    """Spheres each touching only the ground (islands of one contact): the island kernel's answer is
+    LAPACK's solve of the contact's 3×3 block where it sticks (``K λ = −v``), zero where it
+    separates; a sliding one (outside the static cone) is left unsolved, for Gauss–Seidel. The
+    Gauss–Seidel method peels the same singles off first and gets the same impulses."""
     k = 60
     rows, vel, omega = _spheres_on_ground(k, spin)
     mu = np.full(k, 0.5)
     target = np.zeros(k)
+    v0 = solver.row_velocity(rows, vel, omega)
     lam, solved, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mu, mu_d=mu)
-    done, lam_s, rest = direct._peel_singles(rows, vel, omega, target, mu)
-    assert solved.all() == converged
-    assert np.array_equal(np.sort(np.r_[done, rest]), np.arange(k))
-    assert np.array_equal(done, np.flatnonzero(solved))     # sliding ones are left to the general path
-    assert np.allclose(lam_s, lam[done], rtol=0, atol=1e-12)
-    separating = solver.row_velocity(rows, vel, omega)[:, 0] >= 0
-    assert separating.any() and np.all(lam[separating] == 0)
-    if converged:   # velocities only change through the returned impulses
-        v, w = vel.copy(), omega.copy()
-        res, ok = direct.solve_direct(rows, v, w, target_n=target, mu_s=mu, mu_d=mu)
-        assert ok and np.array_equal(res.impulse, lam)
-        assert np.all(solver.row_velocity(rows, v, w)[~separating] == pytest.approx(0.0, abs=1e-12))
+    separating = v0[:, 0] >= 0
+    ref = np.zeros((k, 3))
+    approach = np.flatnonzero(~separating)
+    ref[approach] = np.linalg.solve(rows.K[approach], -v0[approach][:, :, None])[:, :, 0]
+    sticks = np.linalg.norm(ref[:, 1:], axis=1) <= 0.5 * ref[:, 0]
+    assert separating.any() and np.all(lam[separating] == 0) and solved[separating].all()
+    assert np.array_equal(solved, separating | sticks) and solved.all() == converged
+    scale = np.abs(ref).max()
+    assert np.allclose(lam[solved], ref[solved], rtol=0, atol=1e-13 * scale)
+    v, w = vel.copy(), omega.copy()
+    res = solver.solve_auto(rows, v, w, target_n=target, mu_s=mu, mu_d=mu, method="gs", iterations=200,
+                            tolerance=1e-14)
+    assert np.allclose(res.impulse[solved], ref[solved], rtol=0, atol=1e-13 * scale)
+    if converged:   # every contact exact: no sweep needed, the velocities change only through λ
+        assert res.iterations == 1
+        rv = solver.row_velocity(rows, v, w)
+        assert np.abs(rv[~separating]).max() < 1e-12
+    else:           # the sliding ones: on their kinetic disc
+        sl = ~solved
+        t = np.linalg.norm(res.impulse[sl, 1:], axis=1)
+        assert np.allclose(t, 0.5 * res.impulse[sl, 0], rtol=1e-9)
 
 
 def _box_stack(layers, seed=0):

@@ -1,43 +1,25 @@
-"""The exact contact solve: an active-set method on the Delassus (contact coupling) matrix, dense
-or sparse, with the batched path for independent single contacts."""
+"""The exact contact solve: an active-set method on the Delassus (contact coupling) matrix, island
+by island: dense in the compiled kernel (``active_set``) up to ``DIRECT_ISLAND_MAX`` contacts an
+island, sparse (SciPy's SuperLU) above."""
 import numpy as np
 
 from . import active_set
 from .rows import _TINY, SolveResult, apply, row_velocity
 
 DIRECT_MAX_CONTACTS = 500       # default of settings.direct_max_contacts: the active set up to this many contacts
-DIRECT_FIRST = 200              # up to this many, the active set directly; above, only if Gauss–Seidel does not converge
+DIRECT_FIRST = 200              # above this many contacts in an island larger than DIRECT_ISLAND_MAX: Gauss–Seidel first
 DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
 DIRECT_CONSISTENCY = 1e-7       # active rows must hold to this × the largest right-hand side, else the set is inconsistent
 DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
 DIRECT_ISLAND_MAX = 128         # islands up to this many contacts: the compiled dense kernel (active_set); above, sparse
-DIRECT_DENSE_MAX = 16           # above this many contacts the Delassus matrix stays sparse (SuperLU): most
-                                # large sets are many small islands, and a threaded dense BLAS factorisation
-                                # of a few hundred rows costs tens of ms on a loaded 2-core machine
-
-
-def _regularised_solve(sub, r, eps, refine=2):
-    """``x`` with ``sub @ x = r`` for a symmetric positive semi-definite ``sub (m,m)``: Cholesky of
-    ``sub + eps·I`` followed by ``refine`` steps of iterative refinement (proximal point), which
-    remove the shift's bias on the well-determined part (exact to rounding for full rank) and leave
-    redundant directions at their least-norm value."""
-    from scipy.linalg import LinAlgError, cho_factor, cho_solve
-
-    reg = sub.copy()
-    reg[np.diag_indices_from(reg)] += eps
-    try:
-        f = cho_factor(reg, check_finite=False)
-    except LinAlgError:
-        return np.linalg.lstsq(sub, r, rcond=None)[0]
-    x = cho_solve(f, r, check_finite=False)
-    for _ in range(refine):
-        x += cho_solve(f, r - sub @ x, check_finite=False)
-    return x
 
 
 def _regularised_solve_sparse(sub, r, eps, refine=2):
-    """``_regularised_solve`` for a sparse ``sub (m,m)`` (CSR/CSC): SuperLU of ``sub + eps·I``
-    with the same iterative refinement; dense least squares if the factorisation fails."""
+    """``x`` with ``sub @ x = r`` for a sparse symmetric positive semi-definite ``sub (m,m)``
+    (CSR/CSC): SuperLU of ``sub + eps·I`` followed by ``refine`` steps of iterative refinement
+    (proximal point), which remove the shift's bias on the well-determined part (exact to rounding
+    for full rank) and leave redundant directions at their least-norm value; dense least squares
+    if the factorisation fails."""
     from scipy import sparse
     from scipy.sparse.linalg import splu
 
@@ -52,30 +34,15 @@ def _regularised_solve_sparse(sub, r, eps, refine=2):
     return x
 
 
-def delassus(rows, dense=True):
-    """Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)``, rows ordered (n, t1, t2) per contact:
+def delassus(rows):
+    """Delassus matrix ``A = J M⁻¹ Jᵀ (3K,3K)`` as CSR, rows ordered (n, t1, t2) per contact:
     ``A @ λ.ravel()`` is the change of the contacts' relative velocities made by impulses ``λ (K,3)``.
-    Built as a sparse product (12 non-zeros per row of ``J``), returned dense (or CSR when
-    ``dense`` is false)."""
-    k = len(rows.a)
-    d = rows.dirs
-    if dense:   # small: dense J and W over the bodies involved, one small matrix product
-        _, inv = np.unique(np.concatenate([rows.a, rows.b]), return_inverse=True)
-        nb = int(inv.max()) + 1 if k else 0
-        ca = (6 * inv[:k])[:, None] + np.arange(6)                      # (K,6) columns of A's body
-        cb = (6 * inv[k:])[:, None] + np.arange(6)
-        r3 = np.arange(k)[:, None, None]
-        d3 = np.arange(3)[None, :, None]
-        J = np.zeros((k, 3, 6 * nb))
-        W = np.zeros((k, 3, 6 * nb))
-        J[r3, d3, ca[:, None, :]] = np.concatenate([d, rows.ang_a], axis=2)
-        J[r3, d3, cb[:, None, :]] = -np.concatenate([d, rows.ang_b], axis=2)
-        W[r3, d3, ca[:, None, :]] = np.concatenate([rows.ima[:, None, None] * d, rows.iang_a], axis=2)
-        W[r3, d3, cb[:, None, :]] = -np.concatenate([rows.imb[:, None, None] * d, rows.iang_b], axis=2)
-        J = J.reshape(3 * k, 6 * nb)
-        return J @ W.reshape(3 * k, 6 * nb).T
+    Built as a sparse product (12 non-zeros per row of ``J``); the islands the compiled kernel
+    solves build their dense blocks themselves (``active_set._delassus``)."""
     from scipy import sparse
 
+    k = len(rows.a)
+    d = rows.dirs
     r = np.repeat(np.arange(3 * k), 12)
     cols_a = 6 * rows.a[:, None] + np.arange(6)                          # (K,6)
     cols_b = 6 * rows.b[:, None] + np.arange(6)
@@ -88,81 +55,6 @@ def delassus(rows, dense=True):
     J = sparse.csr_matrix((jv, (r, cols)), shape=(3 * k, n6))
     W = sparse.csr_matrix((wv, (r, cols)), shape=(3 * k, n6))
     return (J @ W.T).tocsr()
-
-
-_NEXT = np.array([1, 2, 0])
-_PREV = np.array([2, 0, 1])
-
-
-def _solve3(m, r):
-    """Batched 3×3 solves ``m (k,3,3) x = r (k,3)`` by the adjugate (Cramer's rule: a handful of
-    vectorised products instead of LAPACK's per-call setup, which dominates at this size), and a
-    ``(k,) bool`` of the systems that are not singular (``|det|`` above round-off of the entries'
-    scale, the trace for these positive semi-definite Delassus blocks; ``x = 0`` for the others).
-    The blocks solved here are symmetric positive definite (sticking contacts), where the adjugate
-    is as accurate as pivoted LU."""
-    # row j of the adjugate's transpose is r_{j+1} × r_{j+2}: all three cross products at once
-    r1, r2 = m[:, _NEXT, :], m[:, _PREV, :]
-    adj = r1[:, :, _NEXT] * r2[:, :, _PREV] - r1[:, :, _PREV] * r2[:, :, _NEXT]
-    det = np.einsum("ki,ki->k", m[:, 0], adj[:, 0])
-    scale = np.einsum("kii->k", m)
-    good = np.abs(det) > 1e-300 * np.maximum(scale ** 3, 1e-300)
-    x = np.einsum("kji,kj->ki", adj, r) / np.where(good, det, 1.0)[:, None]
-    x[~good] = 0.0
-    return x, good
-
-
-def _solve_singles(rows, v0, target_n, mu_s, friction):
-    """Exact impulses ``(k,3)`` of contacts that share no movable body with any other contact
-    (each its own 3×3 problem, batched) and a ``(k,) bool`` of those whose answer is consistent:
-    separating (λ = 0), or active with λ_n ≥ 0 and sticking inside the static cone (a sliding one
-    is left to the general path). ``v0 (k,3)`` row velocities, ``target_n (k,)``."""
-    k = len(v0)
-    lam = np.zeros((k, 3))
-    act = v0[:, 0] < target_n
-    ok = ~act
-    if not act.any():
-        return lam, ok
-    i = np.flatnonzero(act)
-    kk = rows.K[i]
-    rhs = -v0[i]
-    rhs[:, 0] += target_n[i]
-    fr = (mu_s[i] > 0) if friction else np.zeros(i.size, bool)
-    kn = kk[:, 0, 0]
-    # frictionless: normal row only; sticking: the full 3×3 block
-    x = np.zeros((i.size, 3))
-    x[:, 0] = np.where(kn > 0, rhs[:, 0] / np.where(kn > 0, kn, 1.0), 0.0)
-    bad = np.zeros(i.size, bool)
-    if fr.any():
-        f = np.flatnonzero(fr)
-        xs, good = _solve3(kk[f], rhs[f])
-        x[f] = xs
-        bad[f] = ~good
-    good_n = (kn > 0) & (x[:, 0] >= 0) & ~bad
-    if friction:
-        good_n &= np.sqrt(np.einsum("ij,ij->i", x[:, 1:], x[:, 1:])) <= mu_s[i] * x[:, 0] * (1 + 1e-12) + 1e-300
-    lam[i] = np.where(good_n[:, None], x, 0.0)
-    ok[i] = good_n
-    return lam, ok
-
-
-def _peel_singles(rows, vel, omega, target_n, mu_s):
-    """Contacts that share no movable body with any other contact, solved exactly and batched
-    (``_solve_singles``), without touching ``vel, omega``. Returns ``(done (d,) int, lam (d,3),
-    rest (r,) int)``: the consistent singles, their impulses, and every other contact."""
-    k = len(rows.a)
-    mov = rows.movable
-    n = len(mov)
-    cnt = np.bincount(rows.a[mov[rows.a]], minlength=n) + np.bincount(rows.b[mov[rows.b]], minlength=n)
-    single = (~mov[rows.a] | (cnt[rows.a] == 1)) & (~mov[rows.b] | (cnt[rows.b] == 1))
-    if not single.any():
-        return np.zeros(0, np.int64), np.zeros((0, 3)), np.arange(k)
-    friction = mu_s is not None and bool((mu_s > 0).any())
-    si = np.flatnonzero(single)
-    v0s = row_velocity(rows, vel, omega, slice(None) if si.size == k else si)
-    lam_s, ok = _solve_singles(rows.select(si), v0s, target_n[si], mu_s[si] if friction else None, friction)
-    single[si[~ok]] = False
-    return si[ok], lam_s[ok], np.flatnonzero(~single)
 
 
 def _safest_start(A, rhs, *candidates):
@@ -182,7 +74,8 @@ def _safest_start(A, rhs, *candidates):
     return best
 
 
-def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None, apply_solved=False):
+def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None, apply_solved=False,
+                island_max=None, sparse=True):
     """Exact contact impulses by the active-set method, island by island (``active_set``: compiled,
     dense per island; an island larger than ``DIRECT_ISLAND_MAX`` contacts, or whose factorisation
     fails, by the sparse ``_active_set`` below).
@@ -192,7 +85,9 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
     the solved islands, and for the others (a sticking impulse outside the static cone, an
     inconsistent set, too many rounds) the start of lowest contact objective for Gauss–Seidel;
     ``residual`` is the largest scaled row residual of the solved ones. ``vel, omega (N,3)`` are
-    left as they are, or with ``apply_solved`` get the solved islands' impulses."""
+    left as they are, or with ``apply_solved`` get the solved islands' impulses. ``island_max``
+    (default ``DIRECT_ISLAND_MAX``) bounds the islands the kernel takes; larger ones go through the
+    sparse path, or with ``sparse`` false are left unsolved (zero impulse)."""
     k = len(rows.a)
     lam = np.zeros((k, 3))
     if k == 0:
@@ -211,7 +106,8 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
         c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.movable, dtype=np.bool_), c(rows.dirs),
         c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
         c(rows.imb, dtype=float), c(target_n, dtype=float), comp, mus, mud, friction,
-        zeros.reshape(k, 1) if warm is None else c(warm, dtype=float), warm is not None, DIRECT_ISLAND_MAX,
+        zeros.reshape(k, 1) if warm is None else c(warm, dtype=float), warm is not None,
+        DIRECT_ISLAND_MAX if island_max is None else island_max,
         DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v, w, apply_solved, lam, status)
     if apply_solved:
         if v is not vel:
@@ -220,7 +116,9 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
             omega[...] = w
     solved = status == active_set.SOLVED
     big = np.flatnonzero(status == active_set.TOO_LARGE)
-    if big.size:
+    if big.size and not sparse:
+        lam[big] = 0.0
+    elif big.size:
         sub = rows.select(big)
         A = None
         if compliance is not None:
@@ -228,7 +126,7 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
 
             d = np.zeros(3 * big.size)
             d[0::3] = compliance[big]
-            A = (delassus(sub, dense=False) + sparse.diags(d)).tocsr()
+            A = (delassus(sub) + sparse.diags(d)).tocsr()
         v0 = row_velocity(rows, vel, omega, big)
         lam_b, ok, res_b = _active_set(sub, v0, target_n[big], None if not friction else mu_s[big],
                                        None if not friction else mu_d[big], None if warm is None else warm[big], A)
@@ -260,7 +158,7 @@ def _active_set(rows, v0, target_n, mu_s, mu_d, warm, A=None):
     Returns ``(lam (K,3), converged, residual)`` (Gauss–Seidel's start when not converged)."""
     k = len(rows.a)
     if A is None:
-        A = delassus(rows, dense=False)
+        A = delassus(rows)
     rhs = -v0.copy()
     rhs[:, 0] += target_n
     rhs = rhs.ravel()

@@ -25,7 +25,7 @@ Three uses of the same machinery:
 import numpy as np
 
 from . import active_set, pgs
-from .direct import DIRECT_DENSE_MAX, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, _peel_singles, delassus, solve_direct, solve_exact
+from .direct import DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, delassus, solve_direct, solve_exact
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",
@@ -234,20 +234,19 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
                     warm=lam[ui])
         lam[ui] = res.impulse
         return SolveResult(lam, res.iterations, max(res.residual, residual))
-    if method == "gs" and k > DIRECT_DENSE_MAX:
-        # independent single contacts exactly and batched; Gauss–Seidel for the coupled rest
-        done, lam_s, rest = _peel_singles(rows, vel, omega, target_n, mu_s)
-        if done.size:
-            lam = np.zeros((k, 3))
-            lam[done] = lam_s
-            apply(rows.select(done), vel, omega, lam_s, unique=True)
-            if rest.size == 0:
-                return SolveResult(lam, 1, 0.0)
-            res = solve(rows.select(rest), vel, omega, target_n=target_n[rest],
-                        mu_s=None if mu_s is None else mu_s[rest], mu_d=None if mu_d is None else mu_d[rest],
-                        iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[rest])
-            lam[rest] = res.impulse
-            return SolveResult(lam, res.iterations, res.residual)
+    if method == "gs":
+        # islands of one contact (a body touching only static geometry) exactly, by the island kernel;
+        # Gauss–Seidel for the coupled rest and for a single contact that slides
+        lam, solved, _ = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
+                                     apply_solved=True, island_max=1, sparse=False)
+        if solved.all():
+            return SolveResult(lam, 1, 0.0)
+        rest = np.flatnonzero(~solved)
+        res = solve(rows.select(rest), vel, omega, target_n=target_n[rest],
+                    mu_s=None if mu_s is None else mu_s[rest], mu_d=None if mu_d is None else mu_d[rest],
+                    iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[rest])
+        lam[rest] = res.impulse
+        return SolveResult(lam, res.iterations, res.residual)
     if method == "jacobi":
         return solve_jacobi(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                             tolerance=tolerance, warm=warm)
