@@ -1,5 +1,6 @@
 """The exact solve island by island (compiled, ``response.active_set``) against the sparse active
-set over the whole system (``direct._active_set``) and the batched single-contact path."""
+set over the whole system (``direct._active_set``), single contacts against LAPACK, and the
+choice between the exact solve and Gauss–Seidel above 200 contacts."""
 import numpy as np
 import pytest
 
