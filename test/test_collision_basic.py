@@ -196,3 +196,22 @@ def test_detect_world_filters_and_stats():
     assert len(top) == 4 and np.allclose(top.depth, -0.005)
     assert len(w.detect()) == len(c) - 4  # default margin 1e-4 does not reach
 
+
+
+@pytest.mark.exact
+def test_collide_takes_poses_as_lists_tuples_arrays_or_numpy_scalars_alike():
+    """The one-pair query gives the same contacts whatever holds the pose's numbers (a tuple of
+    numpy scalars, e.g. from iterating an array, is as plain as one of floats), and refuses a NaN
+    in any of them by name."""
+    q = np.array([0.1, 0.2, 0.3, 0.9])
+    q = q / np.linalg.norm(q)
+    a, b = cs.Box((0.2, 0.2, 0.2)), cs.Box((0.2, 0.2, 0.2))
+    ref = collide(a, (np.zeros(3), np.array(I)), b, (np.array([0.0, 0.0, 0.22]), q))
+    assert len(ref) >= 1
+    for pose in (((0.0, 0.0, 0.22), tuple(float(x) for x in q)), ((0, 0, 0.22), tuple(q)),
+                 ([np.float64(0), np.int64(0), np.float64(0.22)], list(q))):
+        c = collide(a, ((0, 0, 0), I), b, pose)
+        assert np.array_equal(c.point, ref.point) and np.array_equal(c.depth, ref.depth)
+        assert np.array_equal(c.normal, ref.normal)
+    with pytest.raises(cs.ContactSimError, match="position"):
+        collide(a, ((0, 0, 0), I), b, ((np.float64("nan"), 0.0, 0.22), tuple(q)))

@@ -26,7 +26,8 @@ def _plain(v, n):
     if (t is tuple or t is list) and len(v) == n:
         for x in v:
             tx = type(x)
-            if tx is not float and tx is not int:
+            # numpy scalars too (a tuple made from an array's elements): not numpy's bool
+            if tx is not float and tx is not int and tx is not np.float64 and tx is not np.int64:
                 return None
         return v
     return None
