@@ -87,25 +87,14 @@ def row_velocity(rows, vel, omega, idx=slice(None)):
             - np.einsum("kdi,ki->kd", rows.ang_b[idx], omega[b]))
 
 
-def apply(rows, vel, omega, lam, idx=slice(None), unique=False):
+def apply(rows, vel, omega, lam):
     """Apply impulses ``lam (k,3)`` (n, t1, t2 components, on A; −on B) to the velocity arrays in
-    place. When ``unique`` says so (or for an index array ``idx``), no movable body
-    repeats, so plain fancy indexing is exact (a repeated static or kinematic body gets zero from
-    every contact); otherwise the contributions are accumulated."""
-    a, b = rows.a[idx], rows.b[idx]
-    imp = np.einsum("kd,kdi->ki", lam, rows.dirs[idx])
-    dwa = np.einsum("kd,kdi->ki", lam, rows.iang_a[idx])
-    dwb = np.einsum("kd,kdi->ki", lam, rows.iang_b[idx])
-    if isinstance(idx, slice) and not unique:
-        np.add.at(vel, a, rows.ima[:, None] * imp)
-        np.add.at(vel, b, -rows.imb[:, None] * imp)
-        np.add.at(omega, a, dwa)
-        np.add.at(omega, b, -dwb)
-        return
-    vel[a] += rows.ima[idx][:, None] * imp
-    vel[b] -= rows.imb[idx][:, None] * imp
-    omega[a] += dwa
-    omega[b] -= dwb
+    place, accumulating the contributions of contacts that share a body."""
+    imp = np.einsum("kd,kdi->ki", lam, rows.dirs)
+    np.add.at(vel, rows.a, rows.ima[:, None] * imp)
+    np.add.at(vel, rows.b, -rows.imb[:, None] * imp)
+    np.add.at(omega, rows.a, np.einsum("kd,kdi->ki", lam, rows.iang_a))
+    np.add.at(omega, rows.b, -np.einsum("kd,kdi->ki", lam, rows.iang_b))
 
 
 @dataclass
