@@ -86,6 +86,7 @@ class _Bodies:
         sf = self.geom.sf[self.shape_of]
         self.rank = self.geom.si[self.shape_of, SI_RANK]
         self.is_plane = self.rank == 0
+        self.planes = np.flatnonzero(self.is_plane)
         self.finite = np.flatnonzero(~self.is_plane)
         self.aabb_c = sf[:, SF_BOX:SF_BOX + 3]
         self.aabb_h = sf[:, SF_BOX + 3:SF_BOX + 6]
@@ -172,36 +173,37 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
 
 
 def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
+    """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``."""
     if R is None:
         R = np.empty((len(quat), 3, 3))
         rotations(np.ascontiguousarray(quat, float), R)
-    # canonical order: A has the higher rank; remember to flip normals back
-    swap = bodies.rank[ia] < bodies.rank[ib]
-    a = np.where(swap, ib, ia)
-    b = np.where(swap, ia, ib)
     t1 = time.perf_counter()
-    keep = _bv_keep(bodies, bv, a, b, pos, R, margin)
-    kk = np.flatnonzero(keep)
-    stats.rejected_by_bounding_volume = len(a) - len(kk)
+    ia, ib = np.ascontiguousarray(ia, np.int64), np.ascontiguousarray(ib, np.int64)
+    if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank) and filter
+        swap, kk, a, b = bounding.kept_pairs(ia, ib, bodies.rank, bv != "obb", bv != "sphere", bodies.shape_of,
+                                             bodies.geom.sf, pos, R, margin)
+    else:
+        swap = bodies.rank[ia] < bodies.rank[ib]
+        a, b = np.where(swap, ib, ia), np.where(swap, ia, ib)
+        kk = np.flatnonzero(_bv_keep(bodies, bv, a, b, pos, R, margin))
+        a, b = a[kk], b[kk]
+    stats.rejected_by_bounding_volume = len(ia) - len(kk)
     t2 = time.perf_counter()
     timings["bounding"] = t2 - t1
     counters = np.zeros(3, np.int64)
-    rows_i, rows_f, unsupported = dispatch.run(bodies.geom, bodies.shape_of, bodies.rank, a[kk], b[kk], pos, R,
-                                               margin, counters)
-    pair = kk[rows_i[:, 0]]
-    nrm = rows_f[:, 3:6]
-    flip = swap[pair]
-    if flip.any():
-        nrm = np.where(flip[:, None], -nrm, nrm)
+    rows_i, rows_f, unsupported = dispatch.run(bodies.geom, bodies.shape_of, bodies.rank, a, b, pos, R, margin,
+                                               counters)
+    body_a, body_b, normal, pairs = dispatch.contact_columns(rows_i, rows_f, kk, ia, ib, swap)
     t3 = time.perf_counter()
     timings["narrow"] = t3 - t2
-    k = len(pair)
-    c = Contacts(body_a=ia[pair], body_b=ib[pair], point=rows_f[:, 0:3], normal=nrm, depth=rows_f[:, 6],
-                 impulse=np.zeros((k, 3)), normal_impulse=np.zeros(k), friction_impulse=np.zeros((k, 3)),
-                 relative_normal_velocity=np.zeros(k), feature=rows_i[:, 1], feature_id=rows_i[:, 2])
-    stats.settled_by_vertex, stats.needed_edge_face, stats.edge_face_hits = (int(x) for x in counters)
+    k = len(body_a)
+    vec, num = np.zeros((2, k, 3)), np.zeros((2, k))   # the response columns, filled by the step
+    c = Contacts(body_a=body_a, body_b=body_b, point=rows_f[:, 0:3], normal=normal, depth=rows_f[:, 6],
+                 impulse=vec[0], normal_impulse=num[0], friction_impulse=vec[1], relative_normal_velocity=num[1],
+                 feature=rows_i[:, 1], feature_id=rows_i[:, 2])
+    stats.settled_by_vertex, stats.needed_edge_face, stats.edge_face_hits = counters.tolist()
     stats.unsupported_pairs = unsupported
-    stats.colliding_pairs = int(np.count_nonzero(np.bincount(pair))) if k else 0
+    stats.colliding_pairs = pairs
     stats.contacts = k
     timings["total"] = time.perf_counter() - t0
     stats.seconds = timings
@@ -243,30 +245,39 @@ def detect_world(world, margin=None):
     else:
         R = np.empty((bodies.n, 3, 3))
         rotations(quat, R)
-        fin = bodies.finite
-        c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
-        broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
-        i, j = bodies.pair_cache.pairs(c, h, margin)
-        i, j = fin[i], fin[j]
-        pl = np.flatnonzero(bodies.is_plane)
-        if pl.size:
-            nw = np.einsum("nij,nj->ni", R[pl], bodies.plane_n[pl])
-            dw = bodies.plane_d[pl] + np.einsum("ni,ni->n", nw, pos[pl])
-            p, f = broadphase.plane_pairs(pl, nw, dw, fin, c, h, margin)
-            i, j = np.concatenate([i, np.minimum(p, f)]), np.concatenate([j, np.maximum(p, f)])
-            order = np.lexsort((j, i))
-            i, j = i[order], j[order]
-        ia, ib = np.empty_like(i), np.empty_like(j)
-        n = broadphase.body_filter(i, j, world.kind, world.group, world.mask, ia, ib)
-        ia, ib = ia[:n], ib[:n]
-        if world.disabled_pairs and n:
-            keys = disabled_keys(world)
-            if keys.size:
-                keep = ~np.isin(np.minimum(ia, ib) * bodies.n + np.maximum(ia, ib), keys)
-                ia, ib = ia[keep], ib[keep]
+        ia, ib = _world_pairs(world, bodies, pos, R, margin)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
     return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)
+
+
+def _world_pairs(world, bodies, pos, R, margin):
+    """The broad phase of ``detect_world``: pairs ``(ia (K,), ib (K,))``, ``ia < ib``, sorted, whose
+    world boxes overlap within ``margin`` (planes: whose half-space reaches the box), without the
+    pairs that never collide (both static, group/mask, ``world.disabled_pairs``). One compiled pass
+    (``broadphase.world_pairs``) while the pair cache holds; a rebuild of the cache first otherwise."""
+    fin, cache = bodies.finite, bodies.pair_cache
+    disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
+
+    def cached_pairs():
+        return broadphase.world_pairs(pos, R, fin, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n,
+                                      bodies.plane_d, cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, margin,
+                                      world.kind, world.group, world.mask, disabled)
+
+    if cache.fat_c is not None:
+        ok, ia, ib = cached_pairs()
+        if ok:
+            cache.reuses += 1
+            return ia, ib
+    c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
+    broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
+    cache.rebuild(c, h, margin)
+    ok, ia, ib = cached_pairs()   # the fat boxes hold the boxes they were built from
+    assert ok
+    return ia, ib
+
+
+_NO_KEYS = np.zeros(0, np.int64)
 
 
 def _check_query(call, settings, margin, bounding_volume):

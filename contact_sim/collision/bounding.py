@@ -227,3 +227,21 @@ def bv_filter(use_sphere, use_obb, a, b, shape_of, sf, pos, R, margin, keep):
                     dist = abs(t[i2] * C[i1, j] - t[i1] * C[i2, j])
                     ok = ok and dist <= ra + rb + margin * np.sqrt(max(1.0 - C[i, j] ** 2, 0.0))
         keep[k] = ok
+
+
+@njit
+def kept_pairs(ia, ib, rank, use_sphere, use_obb, shape_of, sf, pos, R, margin):
+    """The bounding-volume stage of a batch of pairs ``ia, ib (K,)`` in one pass: each pair in the
+    narrow phase's order (A of the higher rank, ``swap (K,)`` where that flips it), then
+    ``bv_filter``. Returns ``(swap (K,), kk (M,), a (M,), b (M,))``: the kept pairs' batch indices
+    and their bodies in that order."""
+    K = ia.shape[0]
+    swap = np.empty(K, np.bool_)
+    a, b = np.empty(K, np.int64), np.empty(K, np.int64)
+    for k in range(K):
+        swap[k] = rank[ia[k]] < rank[ib[k]]
+        a[k], b[k] = (ib[k], ia[k]) if swap[k] else (ia[k], ib[k])
+    keep = np.empty(K, np.bool_)
+    bv_filter(use_sphere, use_obb, a, b, shape_of, sf, pos, R, margin, keep)
+    kk = np.flatnonzero(keep)
+    return swap, kk, a[kk], b[kk]

@@ -54,23 +54,31 @@ class PairCache:
 
     def pairs(self, c, h, margin):
         """Same contract as ``candidate_pairs`` for boxes ``c, h (N, 3)``, pairs sorted by ``(i, j)``."""
-        if (self.fat_c is not None and len(self.fat_c) == len(c) and margin <= self.margin
-                and inside_fat(c, h, self.fat_c, self.fat_h)):
+        if self.valid(c, h, margin):
             self.reuses += 1
         else:
-            self.fat_c = c.copy()
-            self.fat_h = h + FAT_FRACTION * h.max(axis=1, keepdims=True)
-            # twice the margin (a growing look-ahead keeps the cache a while), plus round-off slack
-            # of the coordinates so that the superset argument holds in floating point
-            scale = float(np.abs(c).max() + h.max()) if len(c) else 0.0
-            self.margin = 2.0 * margin + 1e-9 * (1.0 + scale)
-            i, j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
-            order = np.lexsort((j, i))
-            self.i, self.j = np.ascontiguousarray(i[order]), np.ascontiguousarray(j[order])
-            self.rebuilds += 1
+            self.rebuild(c, h, margin)
         oi, oj = np.empty_like(self.i), np.empty_like(self.j)
         n = overlap_filter(c, h, self.i, self.j, margin, oi, oj)
         return oi[:n], oj[:n]
+
+    def valid(self, c, h, margin):
+        """The cached pairs hold for boxes ``c, h (N, 3)`` within ``margin``."""
+        return (self.fat_c is not None and len(self.fat_c) == len(c) and margin <= self.margin
+                and inside_fat(c, h, self.fat_c, self.fat_h))
+
+    def rebuild(self, c, h, margin):
+        """Fat boxes and their pairs from the boxes ``c, h (N, 3)``."""
+        self.fat_c = c.copy()
+        self.fat_h = h + FAT_FRACTION * h.max(axis=1, keepdims=True)
+        # twice the margin (a growing look-ahead keeps the cache a while), plus round-off slack
+        # of the coordinates so that the superset argument holds in floating point
+        scale = float(np.abs(c).max() + h.max()) if len(c) else 0.0
+        self.margin = 2.0 * margin + 1e-9 * (1.0 + scale)
+        i, j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
+        order = np.lexsort((j, i))
+        self.i, self.j = np.ascontiguousarray(i[order]), np.ascontiguousarray(j[order])
+        self.rebuilds += 1
 
 
 def all_pairs(c, h, margin):
@@ -230,3 +238,59 @@ def body_filter(i, j, kind, group, mask, oi, oj):
             oi[n], oj[n] = a, b
             n += 1
     return n
+
+
+@njit
+def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj, fat_margin, margin,
+                kind, group, mask, disabled):
+    """The world's candidate pairs in one pass, while the pair cache holds: ``(ok, i (K,), j (K,))``.
+
+    World boxes of the finite bodies ``fin (M,)`` (``world_boxes``); ``ok`` False (nothing else
+    done) when one left its fat box or ``margin`` grew past the cache's ``fat_margin`` (the caller
+    rebuilds the cache and calls again). Otherwise the cached pairs ``ci, cj`` (indices into
+    ``fin``) that overlap within ``margin`` (``overlap_filter``), the planes ``planes (P,)``
+    (object normal and offset ``plane_n (N, 3)``, ``plane_d (N,)``) against every finite box
+    (``plane_pairs``), sorted by ``(i, j)``, ``i < j`` body indices, without the pairs
+    ``body_filter`` drops nor the sorted keys ``i·N + j`` in ``disabled (D,)``. Bit for bit the
+    pairs of ``PairCache.pairs`` + ``plane_pairs`` + ``body_filter`` (the one method, compiled:
+    a dozen numpy calls a step were most of a small world's detection)."""
+    m = fin.shape[0]
+    nb = pos.shape[0]
+    c, h = np.empty((m, 3)), np.empty((m, 3))
+    world_boxes(pos, R, fin, centre, half, c, h)
+    if fat_c.shape[0] != m or not margin <= fat_margin or not inside_fat(c, h, fat_c, fat_h):
+        return False, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    keys = np.empty(ci.shape[0] + planes.shape[0] * m, np.int64)
+    n = 0
+    for k in range(ci.shape[0]):
+        a, b = ci[k], cj[k]
+        if (abs(c[a, 0] - c[b, 0]) <= h[a, 0] + h[b, 0] + margin and abs(c[a, 1] - c[b, 1]) <= h[a, 1] + h[b, 1] + margin
+                and abs(c[a, 2] - c[b, 2]) <= h[a, 2] + h[b, 2] + margin):
+            keys[n] = fin[a] * nb + fin[b]   # fin ascending and a < b: already i < j
+            n += 1
+    for q in range(planes.shape[0]):
+        p = planes[q]
+        nw = np.empty(3)
+        for i in range(3):
+            nw[i] = R[p, i, 0] * plane_n[p, 0] + R[p, i, 1] * plane_n[p, 1] + R[p, i, 2] * plane_n[p, 2]
+        dw = plane_d[p] + (nw[0] * pos[p, 0] + nw[1] * pos[p, 1] + nw[2] * pos[p, 2])
+        for f in range(m):
+            low = (nw[0] * c[f, 0] + nw[1] * c[f, 1] + nw[2] * c[f, 2]) \
+                - (abs(nw[0]) * h[f, 0] + abs(nw[1]) * h[f, 1] + abs(nw[2]) * h[f, 2])
+            if low <= dw + margin:
+                keys[n] = min(p, fin[f]) * nb + max(p, fin[f])
+                n += 1
+    keys = np.sort(keys[:n]) if planes.shape[0] else keys[:n]
+    oi, oj = np.empty(n, np.int64), np.empty(n, np.int64)
+    out = 0
+    for k in range(n):
+        a, b = keys[k] // nb, keys[k] % nb
+        if not ((kind[a] != 0 or kind[b] != 0) and (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0):
+            continue
+        if disabled.shape[0]:
+            d = np.searchsorted(disabled, keys[k])
+            if d < disabled.shape[0] and disabled[d] == keys[k]:
+                continue
+        oi[out], oj[out] = a, b
+        out += 1
+    return True, oi[:out], oj[:out]

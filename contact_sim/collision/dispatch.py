@@ -14,6 +14,7 @@ registers a kernel under the (A rank, B rank) pairs it handles (A of the higher 
 """
 import numpy as np
 
+from ..jit import njit
 from .geometry import NRANK
 
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
@@ -64,19 +65,17 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     out_i, out_f = np.empty((4 * K, 3), np.int64), np.empty((4 * K, 7))
     if K == 0:
         return out_i, out_f, 0
-    # group the pairs by type pair (one stable sort), each group one kernel call writing after the last
-    key = ranks[a] * NRANK + ranks[b]
-    order = np.argsort(key, kind="stable")
-    ks, A, B = key[order], a[order], b[order]
-    cuts = np.flatnonzero(ks[1:] != ks[:-1]) + 1
-    starts, ends = np.r_[0, cuts], np.r_[cuts, K]
+    # the pairs grouped by type pair (one compiled stable sort), each group one kernel call writing
+    # after the last
+    order, A, B, starts, keys = group_by_type(a, b, ranks, NRANK)
     n, unsupported = 0, 0
-    for s, e in zip(starts.tolist(), ends.tolist()):
-        kernel = TABLE.get(divmod(int(ks[s]), NRANK))
+    for g in range(len(keys)):
+        s, e, key = int(starts[g]), int(starts[g + 1]), divmod(int(keys[g]), NRANK)
+        kernel = TABLE.get(key)
         if kernel is None:
-            unsupported += (e - s) if ks[s] != 0 else 0   # plane–plane pairs are no contacts
+            unsupported += (e - s) if keys[g] != 0 else 0   # plane–plane pairs are no contacts
             continue
-        more = EXTRA.get(divmod(int(ks[s]), NRANK))
+        more = EXTRA.get(key)
         m = kernel(*arrays, shape_of, A[s:e], B[s:e], pos, R, margin, counters, out_i[n:], out_f[n:],
                    *(more(geom) if more is not None else ()))
         out_i[n:n + m, 0] += s
@@ -84,3 +83,48 @@ def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
     rows_i = out_i[:n]
     rows_i[:, 0] = order[rows_i[:, 0]]
     return rows_i, out_f[:n], unsupported
+
+
+@njit
+def group_by_type(a, b, ranks, nrank):
+    """Pairs ``a, b (K,)`` in the stable order of their type-pair key ``rank A · nrank + rank B``:
+    ``(order (K,), A (K,), B (K,), starts (G + 1,), keys (G,))``, group ``g`` being
+    ``A[starts[g]:starts[g + 1]]`` with key ``keys[g]``."""
+    K = a.shape[0]
+    key = np.empty(K, np.int64)
+    for k in range(K):
+        key[k] = ranks[a[k]] * nrank + ranks[b[k]]
+    order = np.argsort(key, kind="mergesort")
+    A, B = np.empty(K, np.int64), np.empty(K, np.int64)
+    starts, keys = np.empty(K + 1, np.int64), np.empty(K, np.int64)
+    g = 0
+    for k in range(K):
+        o = order[k]
+        A[k], B[k] = a[o], b[o]
+        if k == 0 or key[o] != keys[g - 1]:
+            starts[g], keys[g] = k, key[o]
+            g += 1
+    starts[g] = K
+    return order, A, B, starts[:g + 1], keys[:g]
+
+
+@njit
+def contact_columns(rows_i, rows_f, kk, ia, ib, swap):
+    """The narrow phase's rows ``rows_i (M, 3)``, ``rows_f (M, 7)`` (``pair`` indexing the kept
+    pairs ``kk`` of the batch ``ia, ib, swap (K,)``) as contact columns: ``(body_a (M,), body_b
+    (M,), normal (M, 3)`` (from ``body_b`` to ``body_a``: the kernels' normal, negated where the
+    pair was swapped), ``colliding pairs)``."""
+    M = rows_i.shape[0]
+    body_a, body_b = np.empty(M, np.int64), np.empty(M, np.int64)
+    normal = np.empty((M, 3))
+    seen = np.zeros(ia.shape[0], np.bool_)
+    pairs = 0
+    for r in range(M):
+        p = kk[rows_i[r, 0]]
+        body_a[r], body_b[r] = ia[p], ib[p]
+        for i in range(3):
+            normal[r, i] = -rows_f[r, 3 + i] if swap[p] else rows_f[r, 3 + i]
+        if not seen[p]:
+            seen[p] = True
+            pairs += 1
+    return body_a, body_b, normal, pairs
