@@ -237,3 +237,15 @@ def rotational_energies(q, inertia_body, omega, idx, out):
     ``Rᵀ ω`` (the conjugate turn), so no matrix is formed."""
     for k in range(idx.shape[0]):
         out[k] = _rot_energy(q, inertia_body, omega, idx[k])
+
+@njit
+def all_finite(pos, vel, quat, omega):
+    """Every entry of the state arrays ``pos, vel, omega (N,3)``, ``quat (N,4)`` finite."""
+    for i in range(pos.shape[0]):
+        for k in range(3):
+            if not (math.isfinite(pos[i, k]) and math.isfinite(vel[i, k]) and math.isfinite(omega[i, k])):
+                return False
+        for k in range(4):
+            if not math.isfinite(quat[i, k]):
+                return False
+    return True

@@ -73,7 +73,7 @@ class StepContext:
         st = world.settings
         dyn = world.kind == DYNAMIC
         exact_toi = models.toi in ("fractional", "swept")
-        gdt = float(np.linalg.norm(world.gravity)) * dt
+        gdt = world.gravity_norm() * dt
         return cls(world, models, dt, settings=st, exact_toi=exact_toi, speculative=st.speculative and not exact_toi,
                    gdt=gdt, impact_speed=IMPACT_SPEED_FRACTION * gdt,
                    gravity=np.where(dyn[:, None], world.gravity, 0.0), rotating=dyn & ~world.particle, t_left=dt)

@@ -19,7 +19,7 @@ def kinematic_work(world, c):
     """Work (J) done on the dynamic bodies by kinematic ones through the contacts ``c`` of a
     step: impulse on the dynamic side · velocity of the kinematic body's material point. A
     kinematic body is driven from outside, so this is energy the world may gain."""
-    if len(c) == 0:
+    if len(c) == 0 or not (world.kind == KINEMATIC).any():
         return 0.0
     s = world.s
     total = 0.0

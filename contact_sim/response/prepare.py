@@ -151,7 +151,7 @@ def speculative_margin(world, dt):
     vmax = _fastest(s.vel, s.omega, toi_mod._extents(world), moving)
     if vmax < 0:   # nothing moves
         return base
-    reach = 2.0 * vmax * dt + float(np.linalg.norm(world.gravity)) * dt * dt
+    reach = 2.0 * vmax * dt + world.gravity_norm() * dt * dt
     return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
 
 
@@ -174,7 +174,7 @@ def closing_filter(world, c, rel_vel, dt, base):
     close within ``dt`` at the current normal velocity (``(K,) bool``): ``gap ≤ max(−v_n, 0)·dt +
     |g|·dt² + base``, with ``v_n = n·rel_vel`` (``rel_vel (K,3)`` from ``relative_velocity``)."""
     vn = np.einsum("ij,ij->i", c.normal, rel_vel)
-    g = float(np.linalg.norm(world.gravity))
+    g = world.gravity_norm()
     return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
 
 
