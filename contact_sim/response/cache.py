@@ -41,9 +41,21 @@ class ContactCache:
 def local_points(world, c, R, point=None):
     """Contact points ``(K,3)`` (``c.point`` or the given ``point (K,3)``) in body A's frame (what
     identifies a contact across steps); ``R (N,3,3)`` the bodies' rotation matrices."""
-    a = c.body_a
     p = c.point if point is None else point
-    return np.einsum("kji,kj->ki", R[a], p - world.s.pos[a])
+    out = np.empty((len(p), 3))
+    _local_points(np.ascontiguousarray(c.body_a, dtype=np.int64), np.ascontiguousarray(p, dtype=float), world.s.pos,
+                  R, out)
+    return out
+
+
+@njit
+def _local_points(a, point, pos, R, out):
+    """``out[k] = R[a[k]]ᵀ (point[k] − pos[a[k]])``."""
+    for k in range(a.shape[0]):
+        i = a[k]
+        dx, dy, dz = point[k, 0] - pos[i, 0], point[k, 1] - pos[i, 1], point[k, 2] - pos[i, 2]
+        for x in range(3):
+            out[k, x] = R[i, 0, x] * dx + R[i, 1, x] * dy + R[i, 2, x] * dz
 
 
 def match(world, a0, b0, p0, a1, b1, p1):
@@ -54,30 +66,33 @@ def match(world, a0, b0, p0, a1, b1, p1):
     out = np.full(len(a1), -1, np.int64)
     if len(a0) == 0 or len(a1) == 0:
         return out
-    ext = toi_mod._extents(world)
-    n = len(world)
     c = np.ascontiguousarray
-    _match(c(a0 * n + b0, dtype=np.int64), c(p0, dtype=float), c(a1 * n + b1, dtype=np.int64), c(p1, dtype=float),
-           MATCH_FRACTION * np.minimum(ext[a1], ext[b1]), out)
+    _match(c(a0, dtype=np.int64), c(b0, dtype=np.int64), c(p0, dtype=float), c(a1, dtype=np.int64),
+           c(b1, dtype=np.int64), c(p1, dtype=float), toi_mod._extents(world), MATCH_FRACTION, out)
     return out
 
 
 @njit
-def _match(key0, p0, key1, p1, reach, out):
-    """``match``'s kernel: pair keys ``key0 (K0,)``, ``key1 (K1,)``; ``reach (K1,)`` the largest
-    distance of a match; writes ``out (K1,)``. The old contacts sorted by key, each new contact's
-    candidates are its pair's (a handful: binary search, then a scan), ties to the lower index."""
+def _match(a0, b0, p0, a1, b1, p1, ext, fraction, out):
+    """``match``'s kernel: old and new contacts' bodies ``a0, b0 (K0,)``, ``a1, b1 (K1,)``; a match
+    lies within ``fraction × min(ext[a1], ext[b1])`` (``ext (N,)`` the bodies' sizes); writes
+    ``out (K1,)``. The old contacts sorted by pair key ``a·N + b``, each new contact's candidates
+    are its pair's (a handful: binary search, then a scan), ties to the lower index."""
+    n = ext.shape[0]
+    key0 = a0 * n + b0
     order = np.argsort(key0, kind="mergesort")
     sk = key0[order]
-    k1 = key1.shape[0]
+    k1 = a1.shape[0]
     best = np.full(k1, -1, np.int64)
     dist = np.full(k1, np.inf)
     for i in range(k1):
-        j = np.searchsorted(sk, key1[i])
-        while j < sk.shape[0] and sk[j] == key1[i]:
+        key = a1[i] * n + b1[i]
+        reach = fraction * min(ext[a1[i]], ext[b1[i]])
+        j = np.searchsorted(sk, key)
+        while j < sk.shape[0] and sk[j] == key:
             o = order[j]
             d = math.sqrt((p1[i, 0] - p0[o, 0]) ** 2 + (p1[i, 1] - p0[o, 1]) ** 2 + (p1[i, 2] - p0[o, 2]) ** 2)
-            if d <= reach[i] and (d < dist[i] or (d == dist[i] and o < best[i])):
+            if d <= reach and (d < dist[i] or (d == dist[i] and o < best[i])):
                 dist[i] = d
                 best[i] = o
             j += 1
@@ -99,9 +114,17 @@ def warm_lookup(world, a, b, local):
         return out
     a0, b0, p0, values = old
     hit = match(world, a0, b0, p0, a, b, local)
-    ok = hit >= 0
-    out[ok] = values[hit[ok]]
+    _gather(hit, values, out)
     return out
+
+
+@njit
+def _gather(hit, values, out):
+    """``out[i] = values[hit[i]]`` where ``hit[i] >= 0``."""
+    for i in range(hit.shape[0]):
+        if hit[i] >= 0:
+            for x in range(values.shape[1]):
+                out[i, x] = values[hit[i], x]
 
 
 def merge_records(world, records):

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .. import dynamics, quat
+from .. import dynamics
 from ..jit import njit
 from ..kinds import DYNAMIC, STATIC
 from ..memo import derived
@@ -21,6 +21,7 @@ from ..settings import combine
 from . import models as _models
 from . import solver
 from . import toi as toi_mod
+from ..collision.vec3 import rotations
 from .cache import local_points
 from .context import REST_REBOUND_FRACTION
 
@@ -40,7 +41,8 @@ def prepare_contacts(ctx):
     k = len(c)
     if ctx.first:
         ctx.max_penetration = max(ctx.max_penetration, float(c.depth.max()))
-    R = quat.to_matrix(s.quat)
+    R = np.empty((len(world), 3, 3))
+    rotations(s.quat, R)   # quat.to_matrix's values, one compiled pass
     ctx.rows = rows(world, c, inv_inertia(world, m, R), ctx.rel_vel, m)
     ctx.local = local_points(world, c, R)
     e, ctx.mu_s, ctx.mu_d = coefficients(world, c, m)
