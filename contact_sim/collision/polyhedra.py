@@ -45,32 +45,81 @@ def world_poly(verts, planes, si, s, p, R, V, N, d):
 
 
 @njit
-def face_query(N, d, npl, V, nv):
+def face_query(N, d, npl, V, nv, margin):
     """Best face axis of the body with planes ``N, d`` against vertices ``V``: ``(separation, face,
-    any vertex inside every plane)``."""
+    any vertex inside every plane)``; once a face separates by more than ``margin`` that face is
+    returned at once (the pair is apart, nothing else is read).
+
+    Each face's scan starts at the vertex deepest below the previous face (neighbouring faces
+    share their deepest vertices) and stops as soon as a vertex is at or below the best face's
+    separation, since that face can no longer win: the result is the full scan's, and a large hull
+    costs about one vertex per face instead of all of them (two 1000-point hulls: 3 ms → far less)."""
     best, face = -np.inf, 0
+    start = 0
     for p in range(npl):
         m = np.inf
-        for v in range(nv):
-            m = min(m, dotr(N, p, V, v) - d[p])
+        for t in range(nv):
+            v = start + t
+            if v >= nv:
+                v -= nv
+            x = dotr(N, p, V, v) - d[p]
+            if x < m:
+                m = x
+                if m <= best:
+                    start = v
+                    break
         if m > best:
             best, face = m, p
+            if best > margin:
+                return best, face, False
     inside = False
     if best < 0:   # the lecture's vertex test: a vertex of the other inside every face plane
+        last = 0   # the plane that rejected the previous vertex is tried first (it usually rejects this one)
         for v in range(nv):
-            if inside_planes(N, d, npl, V, v):
+            if dotr(N, last, V, v) - d[last] >= 0:
+                continue
+            for q in range(npl):
+                if dotr(N, q, V, v) - d[q] >= 0:
+                    last = q
+                    break
+            else:
                 inside = True
                 break
     return best, face, inside
 
 
 @njit
-def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side, NBt, eb2, eb3):
+def _arc_max(n1, n2, wx, wy, wz):
+    """Largest ``L·w`` over the unit normals ``L`` on the great-circle arc from ``n1`` to ``n2``
+    (an edge's normals on the Gauss map, less than π apart): at an end, or where the arc meets
+    ``w``'s projection on the arcs' plane."""
+    w1 = n1[0] * wx + n1[1] * wy + n1[2] * wz
+    w2 = n2[0] * wx + n2[1] * wy + n2[2] * wz
+    best = max(w1, w2)
+    c = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+    det = 1.0 - c * c
+    if det > 1e-12:
+        al, be = (w1 - c * w2) / det, (w2 - c * w1) / det
+        if al > 0.0 and be > 0.0:
+            best = max(best, np.sqrt(max(al * w1 + be * w2, 0.0)))
+    return best
+
+
+@njit
+def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side, NBt, eb2, eb3, probe, floor):
     """Best edge×edge separation over the edge pairs that build a face of the Minkowski difference
     (Gauss-map arcs crossing), ``(separation, edge of A, edge of B)``; stops early once an axis
     separates by more than ``margin``. Edges ``E* (E, 4)`` hold local vertex and plane indices.
     Scratch: ``side (P,)``, B's normals transposed ``NBt (3, P)`` (so the side loop is one SIMD
-    sweep) and B's edge planes ``eb2, eb3 (E,)`` as contiguous columns."""
+    sweep) and B's edge planes ``eb2, eb3 (E,)`` as contiguous columns.
+
+    Only the pairs separated by more than ``floor`` matter to the caller (the face axes' best,
+    less a tolerance). An edge of A whose axis ``L`` lies on its arc has A's support there, and B's
+    support along ``L`` is below any point of B, so every pair of that edge separates by at most
+    ``max over the arc of L·(b − a0)`` for each of B's points ``probe (k, 3)``; an edge whose bound
+    is below ``floor`` is skipped without the sweep over B (the far side of a large hull: two
+    1000-point hulls touching, 35 ms → about a millisecond). The result is the full query's
+    whenever the best pair separates by ``floor`` or more, and otherwise below ``floor`` too."""
     best, bea, beb = -np.inf, 0, 0
     for p in range(npb):
         NBt[0, p], NBt[1, p], NBt[2, p] = NB[p, 0], NB[p, 1], NB[p, 2]
@@ -85,6 +134,14 @@ def edge_query(VA, NA, EA, ea_n, cA, VB, NB, EB, eb_n, npb, margin, side, NBt, e
         bx = a2y * a1z - a2z * a1y
         by = a2z * a1x - a2x * a1z
         bz = a2x * a1y - a2y * a1x
+        if probe.shape[0]:
+            i0v = EA[i, 0]
+            bound = np.inf
+            for k in range(probe.shape[0]):
+                bound = min(bound, _arc_max(NA[q1], NA[q2], probe[k, 0] - VA[i0v, 0], probe[k, 1] - VA[i0v, 1],
+                                            probe[k, 2] - VA[i0v, 2]))
+            if bound < floor:
+                continue
         for p in range(npb):          # which side of that great circle each of B's normals lies
             side[p] = NBt[0, p] * bx + NBt[1, p] * by + NBt[2, p] * bz
         A0x, A0y, A0z = VA[i0, 0], VA[i0, 1], VA[i0, 2]
@@ -151,6 +208,39 @@ def segment_closest(p1, q1, p2, q2):
     return p1 + d1 * s, p2 + d2 * t
 
 
+PROBE_WORK = 20000   # edge pairs × normals above which the edge query bounds each edge first (measured:
+                     # the bound costs about what it saves on 32-point hulls, 30× less work on 1000-point ones)
+
+
+@njit
+def _probes(V, nv, toward, out, use):
+    """Points of a body (vertices ``V[:nv]``) for ``edge_query``'s bound: its support vertices along
+    ±x, ±y, ±z and towards the point ``toward`` and away (``out[:8]``), or none (``out[:0]``)
+    when ``use`` is false."""
+    if not use:
+        return out[:0]
+    cx, cy, cz = 0.0, 0.0, 0.0
+    for v in range(nv):
+        cx += V[v, 0]
+        cy += V[v, 1]
+        cz += V[v, 2]
+    ux, uy, uz = toward[0] - cx / nv, toward[1] - cy / nv, toward[2] - cz / nv
+    for k in range(8):
+        if k < 6:
+            dx, dy, dz = (1.0 if k == 0 else -1.0 if k == 1 else 0.0), (1.0 if k == 2 else -1.0 if k == 3 else 0.0), \
+                (1.0 if k == 4 else -1.0 if k == 5 else 0.0)
+        else:
+            sg = 1.0 if k == 6 else -1.0
+            dx, dy, dz = sg * ux, sg * uy, sg * uz
+        best, j = -np.inf, 0
+        for v in range(nv):
+            x = V[v, 0] * dx + V[v, 1] * dy + V[v, 2] * dz
+            if x > best:
+                best, j = x, v
+        out[k, 0], out[k, 1], out[k, 2] = V[j, 0], V[j, 1], V[j, 2]
+    return out[:8]
+
+
 @collider((BOX, BOX), (CONVEX, BOX), (CONVEX, CONVEX))
 @njit
 def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
@@ -162,6 +252,7 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     dA, dB = np.empty(npl), np.empty(npl)
     side, NBt = np.empty(npl), np.empty((3, npl))
     eb2, eb3 = np.empty(ne, np.int64), np.empty(ne, np.int64)
+    probe_all = np.empty((8, 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
@@ -169,10 +260,10 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         world_poly(verts, planes, si, sa, pa, Ra, VA, NA, dA)
         world_poly(verts, planes, si, sb, pb, Rb, VB, NB, dB)
         nva, npa, nvb, npb = si[sa, SI_NV], si[sa, SI_NP], si[sb, SI_NV], si[sb, SI_NP]
-        sepA, fa, inA = face_query(NA, dA, npa, VB, nvb)
+        sepA, fa, inA = face_query(NA, dA, npa, VB, nvb, margin)
         if sepA > margin:
             continue
-        sepB, fb, inB = face_query(NB, dB, npb, VA, nva)
+        sepB, fb, inB = face_query(NB, dB, npb, VA, nva, margin)
         if sepB > margin:
             continue
         face_sep = max(sepA, sepB)
@@ -188,13 +279,17 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         fB = faces[si[sb, SI_P0]:si[sb, SI_P0] + npb]
         # the Gauss-map test is symmetric in the two bodies: loop over the body with fewer edges
         # outside (each outer edge costs a sweep over the other body's normals)
+        cB = mv(Rb, sf[sb, SF_CENTROID:SF_CENTROID + 3]) + pb
+        # edge pairs that cannot beat the face axes (by more than round-off) change nothing below
+        floor = face_sep - 1e-9 * scale
         if EB.shape[0] < EA.shape[0]:
-            cB = mv(Rb, sf[sb, SF_CENTROID:SF_CENTROID + 3]) + pb
+            probe = _probes(VA, nva, cB, probe_all, EB.shape[0] * npa > PROBE_WORK)
             esep, eb, ea = edge_query(VB, NB, EB, EB.shape[0], cB, VA, NA, EA, EA.shape[0], npa, margin, side, NBt,
-                                      eb2, eb3)
+                                      eb2, eb3, probe, floor)
         else:
+            probe = _probes(VB, nvb, cA, probe_all, EA.shape[0] * npb > PROBE_WORK)
             esep, ea, eb = edge_query(VA, NA, EA, EA.shape[0], cA, VB, NB, EB, EB.shape[0], npb, margin, side, NBt,
-                                      eb2, eb3)
+                                      eb2, eb3, probe, floor)
         if not vertex_hit:   # the lecture's step 3, for the statistics: an edge through a face
             counters[1] += 1
             # a separating axis (within the margin) means no edge can cross a face: the test (every
