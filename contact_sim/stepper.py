@@ -109,11 +109,12 @@ def _detect_stage(ctx):
     det_margin = prepare.speculative_margin(world, ctx.t_left) if ctx.speculative else margin
     c = toi_mod.mark_swept(_detect(world, det_margin), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
-    rel_vel = prepare.relative_velocity(world, c, m)
     if ctx.speculative and det_margin > margin and len(c):
-        near = prepare.closing_filter(world, c, rel_vel, ctx.t_left, margin)
+        rel_vel, near = prepare.relative_velocity(world, c, m, closing=(ctx.t_left, margin))
         if not near.all():
             c, rel_vel = c.select(near), rel_vel[near]
+    else:
+        rel_vel = prepare.relative_velocity(world, c, m)
     ctx.contacts, ctx.rel_vel = c, rel_vel
     ctx.rest_impulse = ctx.rest_mask = ctx.dv_rest = ctx.dw_rest = None
 

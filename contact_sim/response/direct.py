@@ -93,7 +93,7 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
     if k == 0:
         return lam, np.ones(0, bool), 0.0
     c = np.ascontiguousarray
-    friction = mu_s is not None and bool(np.any(mu_s > 0))
+    friction = mu_s is not None and bool(mu_s.max() > 0)
     zeros = np.zeros(k)
     mus = c(mu_s, dtype=float) if friction else zeros
     mud = c(mu_d, dtype=float) if friction else zeros
@@ -115,6 +115,8 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
         if w is not omega:
             omega[...] = w
     solved = status == active_set.SOLVED
+    if solved.all():   # the usual case: every island solved in the kernel
+        return lam, solved, residual
     big = np.flatnonzero(status == active_set.TOO_LARGE)
     if big.size and not sparse:
         lam[big] = 0.0

@@ -105,31 +105,42 @@ def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_toleranc
         bounced[c] = impact[c] or (close and e[c] > 0)
 
 
-def relative_velocity(world, c, m):
+def relative_velocity(world, c, m, closing=None):
     """Velocity ``(K,3)`` of A's material point at each contact relative to B's, ``ṗ_A − ṗ_B``
     (computed once per detection: the closing filter, the tangent choice and ``v_n`` share it).
     Under the kinematic response a dynamic body is a particle, ``v ← v − (1+k)(N·v)N`` acts on the
     velocity of its centre: its spin is neither seen nor changed (counting it made a spinning box
-    bounce higher than it fell)."""
+    bounce higher than it fell).
+
+    With ``closing = (dt, base)`` returns ``(rel_vel, near (K,) bool)`` from the same pass: the
+    speculative contacts worth keeping, those within ``base`` (touching) and the separated ones
+    whose gap can close within ``dt`` at the current normal velocity, ``gap ≤ max(−v_n, 0)·dt +
+    |g|·dt² + base``."""
     s = world.s
-    out = np.empty((len(c), 3))
-    spin = (world.kind != DYNAMIC) if m.response == "kinematic" else np.ones(len(world), bool)
+    k = len(c)
+    out = np.empty((k, 3))
+    near = np.empty(k if closing is not None else 0, np.bool_)
+    dt, base = closing if closing is not None else (0.0, 0.0)
     cc = np.ascontiguousarray
     _relative_velocity(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
-                       cc(s.pos, dtype=float), cc(s.vel, dtype=float), cc(s.omega, dtype=float), spin, out)
-    return out
+                       s.pos, s.vel, s.omega, world.kind, m.response == "kinematic", out, cc(c.normal, dtype=float),
+                       cc(c.depth, dtype=float), world.gravity_norm(), float(dt), float(base), near)
+    return out if closing is None else (out, near)
 
 
 @njit
-def _relative_velocity(a, b, point, pos, vel, omega, spin, out):
-    """``out[c] = (v_a + ω_a × (p − x_a)) − (v_b + ω_b × (p − x_b))``, ω counted where ``spin``."""
+def _relative_velocity(a, b, point, pos, vel, omega, kind, particles, out, normal, depth, g, dt, base, near):
+    """``out[c] = (v_a + ω_a × (p − x_a)) − (v_b + ω_b × (p − x_b))``, ω not counted for dynamic
+    bodies when ``particles``; ``near[c]`` (when ``near`` has ``K`` rows) the closing filter
+    ``−depth ≤ max(−n·out, 0)·dt + g·dt² + base``."""
     for c in range(a.shape[0]):
         ia, ib = a[c], b[c]
         for side in range(2):
             i = ia if side == 0 else ib
             sgn = 1.0 if side == 0 else -1.0
             rx, ry, rz = point[c, 0] - pos[i, 0], point[c, 1] - pos[i, 1], point[c, 2] - pos[i, 2]
-            wx, wy, wz = (omega[i, 0], omega[i, 1], omega[i, 2]) if spin[i] else (0.0, 0.0, 0.0)
+            spin = not particles or kind[i] != DYNAMIC
+            wx, wy, wz = (omega[i, 0], omega[i, 1], omega[i, 2]) if spin else (0.0, 0.0, 0.0)
             vx = vel[i, 0] + (wy * rz - wz * ry)
             vy = vel[i, 1] + (wz * rx - wx * rz)
             vz = vel[i, 2] + (wx * ry - wy * rx)
@@ -139,6 +150,9 @@ def _relative_velocity(a, b, point, pos, vel, omega, spin, out):
                 out[c, 0] += sgn * vx
                 out[c, 1] += sgn * vy
                 out[c, 2] += sgn * vz
+        if near.shape[0]:
+            vn = normal[c, 0] * out[c, 0] + normal[c, 1] * out[c, 1] + normal[c, 2] * out[c, 2]
+            near[c] = -depth[c] <= max(-vn, 0.0) * dt + g * dt * dt + base
 
 
 def speculative_margin(world, dt):
@@ -169,15 +183,6 @@ def _fastest(vel, omega, ext, moving):
                 omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2) * e
             best = max(best, speed)
     return best
-
-
-def closing_filter(world, c, rel_vel, dt, base):
-    """Keep the contacts of ``c`` within ``base`` (touching) and the separated ones whose gap can
-    close within ``dt`` at the current normal velocity (``(K,) bool``): ``gap ≤ max(−v_n, 0)·dt +
-    |g|·dt² + base``, with ``v_n = n·rel_vel`` (``rel_vel (K,3)`` from ``relative_velocity``)."""
-    vn = np.einsum("ij,ij->i", c.normal, rel_vel)
-    g = world.gravity_norm()
-    return -c.depth <= np.maximum(-vn, 0.0) * dt + g * dt * dt + base
 
 
 def inv_inertia(world, m, R):

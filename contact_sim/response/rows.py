@@ -68,9 +68,10 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
     if hint is None:
         hint = np.zeros((k, 3))
     c = np.ascontiguousarray
-    t1, t2, ra, rb = (np.empty((k, 3)) for _ in range(4))
-    ang_a, ang_b, iang_a, iang_b, K, d = (np.empty((k, 3, 3)) for _ in range(6))
-    ima, imb = np.empty(k), np.empty(k)
+    # three blocks instead of twelve arrays (each field a contiguous slab of its block)
+    t1, t2, ra, rb = np.empty((4, k, 3))
+    ang_a, ang_b, iang_a, iang_b, K, d = np.empty((6, k, 3, 3))
+    ima, imb = np.empty((2, k))
     pgs.build_rows(c(a, dtype=np.int64), c(b, dtype=np.int64), c(point, dtype=float), c(normal, dtype=float),
                    c(pos, dtype=float), c(inv_mass, dtype=float), c(inv_inertia, dtype=float), c(hint, dtype=float),
                    c(movable, dtype=np.bool_), bool(dynamic_levers), t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b,
