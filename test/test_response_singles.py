@@ -40,7 +40,7 @@ def test_single_contacts_get_the_exact_3x3_answer_in_both_paths(spin, converged)
     mu = np.full(k, 0.5)
     target = np.zeros(k)
     v0 = solver.row_velocity(rows, vel, omega)
-    lam, solved, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mu, mu_d=mu)
+    lam, solved, _, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mu, mu_d=mu)
     separating = v0[:, 0] >= 0
     ref = np.zeros((k, 3))
     approach = np.flatnonzero(~separating)
@@ -116,7 +116,7 @@ def test_compiled_islands_equal_the_sparse_active_set(mu):
     k = len(rows)
     mus = np.full(k, mu)
     target = np.zeros(k)
-    lam, solved, residual = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
+    lam, solved, residual, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
     v0 = solver.row_velocity(rows, vel, omega)
     ref, ok, _ = direct._active_set(rows, v0, target, mus if mu else None, mus if mu else None, None)
     assert solved.all() and ok
@@ -170,3 +170,27 @@ def test_many_small_islands_above_200_contacts_take_the_exact_solve():
         w.step(0.01)
     assert w.last_solve.contacts == 240 and w.last_solve.iterations == 1
     assert np.abs(w.s.pos[1:, 2] - z0).max() < 1e-12 and np.abs(w.s.vel).max() < 1e-12
+
+
+def test_rows_apply_kernel_equals_the_numpy_form_bit_for_bit():
+    """``rows.apply`` (a compiled pass) against its numpy form with ``np.add.at`` on random rows
+    whose bodies repeat on both sides: the same sums, rounded the same."""
+    from contact_sim.response import rows as R
+
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        n, k = int(rng.integers(2, 8)), int(rng.integers(1, 30))
+        a = rng.integers(0, n, k)
+        b = (a + rng.integers(1, n, k)) % n
+        rows = R.Rows(a, b, *(rng.normal(size=(k, 3)) for _ in range(5)), *(rng.normal(size=(k, 3, 3)) for _ in range(4)),
+                      rng.uniform(0, 2, k), rng.uniform(0, 2, k), rng.normal(size=(k, 3, 3)), rng.normal(size=(k, 3, 3)),
+                      np.ones(n, bool))
+        lam, vel, omega = rng.normal(size=(k, 3)), rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+        v1, w1 = vel.copy(), omega.copy()
+        imp = np.einsum("kd,kdi->ki", lam, rows.dirs)
+        np.add.at(v1, a, rows.ima[:, None] * imp)
+        np.add.at(v1, b, -rows.imb[:, None] * imp)
+        np.add.at(w1, a, np.einsum("kd,kdi->ki", lam, rows.iang_a))
+        np.add.at(w1, b, -np.einsum("kd,kdi->ki", lam, rows.iang_b))
+        R.apply(rows, vel, omega, lam)
+        assert np.array_equal(vel, v1) and np.array_equal(omega, w1)
