@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from ..contacts import Contacts
+from ..jit import njit
 from ..validate import LENGTH_LIMIT
 from . import dispatch
 from .vec3 import rotations
@@ -56,9 +57,17 @@ def plain_margin(margin):
 
 def pose_arrays(pa, qa, pb, qb):
     """``pos (2, 3)`` and rotation matrices ``R (2, 3, 3)`` of two poses (quaternions x, y, z, w)."""
-    R = np.empty((2, 3, 3))
-    rotations(np.array((qa, qb), float), R)
-    return np.array((pa, pb), float), R
+    return _frames(*pa, *qa, *pb, *qb)
+
+
+@njit
+def _frames(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1):
+    """``pose_arrays`` from 14 numbers in one call (``vec3.rotations``' formula)."""
+    pos, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
+    pos[0, 0], pos[0, 1], pos[0, 2], pos[1, 0], pos[1, 1], pos[1, 2] = x0, y0, z0, x1, y1, z1
+    q[0, 0], q[0, 1], q[0, 2], q[0, 3], q[1, 0], q[1, 1], q[1, 2], q[1, 3] = qx0, qy0, qz0, qw0, qx1, qy1, qz1, qw1
+    rotations(q, R)
+    return pos, R
 
 
 class PairPlan:
@@ -90,6 +99,6 @@ def collide_fast(plan, pa, qa, pb, qb, margin):
     zero = np.zeros((8, k))
     ids = np.zeros((2, k), np.int64)
     ids[1] = 1
-    return Contacts(body_a=ids[0], body_b=ids[1], point=out_f[:k, 0:3], normal=out_f[:k, 3:6], depth=out_f[:k, 6],
-                    impulse=zero[0:3].T, normal_impulse=zero[3], friction_impulse=zero[4:7].T,
-                    relative_normal_velocity=zero[7], feature=out_i[:k, 1], feature_id=out_i[:k, 2])
+    f, i = out_f[:k], out_i[:k]
+    return Contacts(ids[0], ids[1], f[:, 0:3], f[:, 3:6], f[:, 6], zero[0:3].T, zero[3], zero[4:7].T, zero[7],
+                    i[:, 1], i[:, 2])
