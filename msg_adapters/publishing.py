@@ -19,10 +19,12 @@ from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
 import contact_sim
+from contact_sim.vec import cross
 
+from .cdr_out import marker_array_cdr, point_fields_cdr, pointcloud2_cdr
 from .robot_input import JOINT_STATE_REASONS
-from .conversions import (contact_markers, contact_wrenches, contacts_to_pointcloud2, diagnostic_array, make_header,
-                          multidof_cdr, names_cdr, ns_to_stamp, posearray_cdr)
+from .conversions import (CONTACT_DTYPE, contact_marker_specs, contact_wrenches, contacts_to_array, diagnostic_array,
+                          make_header, multidof_cdr, names_cdr, ns_to_stamp, point_fields, posearray_cdr)
 
 POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "non_unit_quaternion", "stamp",
                        "frame_id", "out_of_bounds", "engine")
@@ -30,6 +32,9 @@ POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "n
 WARN_COUNTERS = ("rejected_poses", "rejected_parameters", "overruns", "poses_dropped", "rejected_body_states",
                  "rejected_spawns", "rejected_deletes", "clock_jumps_back", "rejected_robot_descriptions",
                  "rejected_joint_states", "joint_states_unknown_joints")
+
+
+_CONTACT_FIELDS_CDR = point_fields_cdr(point_fields(CONTACT_DTYPE))   # the contacts' layout, once
 
 
 def diag_name(node_name):
@@ -61,13 +66,14 @@ class Outputs:
     def _publish_tick(self, contacts, stamp_ns, duration):
         """Everything a tick publishes, all stamped ``stamp_ns``; ``duration`` (s) is the time the
         contacts' impulses acted over (for the wrenches)."""
-        header = make_header(self.cfg["frame_id"], stamp_ns)
+        frame = self.cfg["frame_id"]
         self._publish_clock(stamp_ns)
-        self.pub_contacts.publish(contacts_to_pointcloud2(contacts, header))
+        # as CDR bytes (cdr_out): rclpy's conversion of the message objects cost more than the step
+        self.pub_contacts.publish(pointcloud2_cdr(contacts_to_array(contacts), _CONTACT_FIELDS_CDR, frame, stamp_ns))
         self._publish_states(stamp_ns, contacts, duration)
         if self.cfg["publish_markers"]:
-            self.pub_markers.publish(contact_markers(contacts, header, self.cfg["impulse_marker_scale"],
-                                                     self.cfg["max_marker_arrows"]))
+            specs = contact_marker_specs(contacts, self.cfg["impulse_marker_scale"], self.cfg["max_marker_arrows"])
+            self.pub_markers.publish(marker_array_cdr(specs, frame, stamp_ns))
 
     def _publish_states(self, stamp_ns, contacts=None, duration=None):
         """``body_states`` (PoseArray, for RViz) and ``body_multidof_states`` (names, poses, twists of
@@ -81,7 +87,7 @@ class Outputs:
         else:
             force = torque = np.zeros_like(p)
         v, w = world.velocities()
-        v = v + np.cross(w, p - world.s.pos)      # the velocity of the origin, not of the centre of mass
+        v = v + cross(w, p - world.s.pos)         # the velocity of the origin, not of the centre of mass
         self.pub_multidof.publish(multidof_cdr(self._names_cdr(), p, q, v, w, force, torque, frame, stamp_ns))
 
     def _names_cdr(self):

@@ -298,3 +298,37 @@ def test_contact_wrenches_sum_impulses_per_body():
     np.testing.assert_allclose(torque, t_ref, atol=1e-9)
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-9)      # action and reaction
     assert not force[7:].any() and not torque[7:].any()
+
+
+@pytest.mark.parametrize("frame_id", ["", "w", "world", "base_link_7"])
+@pytest.mark.parametrize("k", [0, 1, 7, 60])
+def test_tick_outputs_as_cdr_bytes_equal_rclpy_serialization(frame_id, k):
+    """The node publishes ``contacts`` and ``contact_markers`` as bytes (``cdr_out``): the same
+    length as rclpy's serialization of the message objects of ``conversions``, and the same message
+    read back (rclpy leaves padding bytes unset, so the bytes themselves are not compared), for
+    frame ids of every length modulo 4 (the alignment of what follows), no contacts, zero
+    impulses and more impulses than arrows."""
+    from msg_adapters import cdr_out
+    from visualization_msgs.msg import MarkerArray
+
+    c = random_contacts(k, seed=k)
+    c.point = np.random.default_rng(k).normal(size=(k, 3))          # finite points for the markers
+    c.impulse = np.random.default_rng(k + 1).normal(size=(k, 3))
+    if k > 2:
+        c.impulse[1] = 0.0                                            # no segment, no arrow
+    stamp = 1_700_000_000_123_456_789
+    h = cv.make_header(frame_id, stamp)
+    fields = cdr_out.point_fields_cdr(cv.point_fields(cv.CONTACT_DTYPE))
+    ours = cdr_out.pointcloud2_cdr(cv.contacts_to_array(c), fields, frame_id, stamp)
+    ref = serialize_message(cv.contacts_to_pointcloud2(c, h))
+    assert len(ours) == len(ref)
+    assert deserialize_message(ours, PointCloud2) == deserialize_message(ref, PointCloud2)
+    for arrows in (0, 3, 10):
+        ours = cdr_out.marker_array_cdr(cv.contact_marker_specs(c, 0.5, arrows), frame_id, stamp)
+        ref = serialize_message(cv.contact_markers(c, h, 0.5, arrows))
+        assert len(ours) == len(ref)
+        got, want = deserialize_message(ours, MarkerArray), deserialize_message(ref, MarkerArray)
+        nonzero = k - 1 if k > 2 else k
+        # DELETEALL and the points; with impulses to draw, their segments and the arrows
+        assert len(got.markers) == len(want.markers) == (3 + min(arrows, nonzero) if k and arrows else 2)
+        assert got == want
