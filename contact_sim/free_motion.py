@@ -238,6 +238,7 @@ def rotational_energies(q, inertia_body, omega, idx, out):
     for k in range(idx.shape[0]):
         out[k] = _rot_energy(q, inertia_body, omega, idx[k])
 
+
 @njit
 def all_finite(pos, vel, quat, omega):
     """Every entry of the state arrays ``pos, vel, omega (N,3)``, ``quat (N,4)`` finite."""

@@ -113,3 +113,26 @@ def test_set_poses_refuses_the_whole_batch(names, positions, orientations, messa
         w.set_poses(names, positions, orientations, stamp=1.0)
     after = (w.s.pos, w.s.vel, w.s.quat, w.s.omega, w.s.stamp)
     assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after))
+
+
+def test_push_cap_scales_to_the_budget_of_the_fastest_body():
+    """``energy.push_cap``: a velocity change within every body's budget is kept (f = 1); one beyond
+    it is scaled so that the body over budget ends exactly on it (``½m(|v₀| + 2u)² + ½m(2u)²`` plus
+    its rotation before), the formula solved here by hand for a translation-only change."""
+    import numpy as np
+
+    import contact_sim as cs
+    from contact_sim.response.energy import push_cap
+
+    w = cs.World()
+    w.add_body("a", cs.Sphere(0.1), mass=2.0)
+    w.add_body("b", cs.Sphere(0.1), mass=1.0, position=(1.0, 0.0, 0.0))
+    bodies, u = np.array([0, 1]), 0.5
+    v0, w0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.zeros((2, 3))
+    small = v0 + np.array([[0.5, 0.0, 0.0], [0.0, 0.5, 0.0]])
+    assert push_cap(w, bodies, u, v0, w0, small, w0) == 1.0
+    big = v0 + np.array([[0.5, 0.0, 0.0], [0.0, 30.0, 0.0]])   # b thrown out at 30 m/s
+    f = push_cap(w, bodies, u, v0, w0, big, w0)
+    # b: ½·1·(30 f)² = ½·1·(0 + 1)² + ½·1·1²  →  f = √2 / 30
+    assert abs(f - np.sqrt(2.0) / 30.0) < 1e-15
+    assert push_cap(w, bodies, 0.0, v0, w0, v0, w0) == 1.0

@@ -40,7 +40,7 @@ def test_single_contacts_get_the_exact_3x3_answer_in_both_paths(spin, converged)
     mu = np.full(k, 0.5)
     target = np.zeros(k)
     v0 = solver.row_velocity(rows, vel, omega)
-    lam, solved, _, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mu, mu_d=mu)
+    lam, solved, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mu, mu_d=mu)
     separating = v0[:, 0] >= 0
     ref = np.zeros((k, 3))
     approach = np.flatnonzero(~separating)
@@ -116,7 +116,7 @@ def test_compiled_islands_equal_the_sparse_active_set(mu):
     k = len(rows)
     mus = np.full(k, mu)
     target = np.zeros(k)
-    lam, solved, residual, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
+    lam, solved, residual = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
     v0 = solver.row_velocity(rows, vel, omega)
     ref, ok, _ = direct._active_set(rows, v0, target, mus if mu else None, mus if mu else None, None)
     assert solved.all() and ok

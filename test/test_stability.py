@@ -144,8 +144,12 @@ def test_box_rests_on_a_mesh_for_ten_seconds(support):
     assert r.drift() < 1e-6 and r.max_pen < 1e-3 and r.max_speed < 1e-3
 
 
-def test_kinematic_paddle_sweeps_through_a_pile():
-    rng = np.random.default_rng(2)
+@pytest.mark.parametrize("seed", [2, 3, 4, 5])
+def test_kinematic_paddle_sweeps_through_a_pile(seed):
+    # seeds 3-5 threw bodies out at 41-180 m/s before the push cap (energy.push_cap): a body
+    # squeezed between the paddle and a wall, or a chain ending at one, has no impulse that holds
+    # every contact, and Gauss-Seidel's impulses grew with every sweep
+    rng = np.random.default_rng(seed)
     w = _ground()
     _walls(w, 0.6)
     _pile(w, 40, 0.6, rng, 1.0)
@@ -163,6 +167,6 @@ def test_kinematic_paddle_sweeps_through_a_pile():
 
     real_step = w.step
     w.step = lambda dt_=None: (drive(w), real_step(dt_))[1]
-    r = Run(w, 10.0).report("kinematic paddle through a 40-body pile")
+    r = Run(w, 10.0).report(f"kinematic paddle through a 40-body pile (seed {seed})")
     assert r.max_speed < np.sqrt(2 * G * 1.1) + 2 * speed + 0.5
     assert r.max_energy <= r.e0 + 1e-6 * abs(r.e0)

@@ -22,13 +22,12 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .pgs import _apply, _row_velocity, apply_ids, sweep_contacts
+from .pgs import _apply, _row_velocity
 
 _TINY = 1e-300
 
-#: island status (``status (K,)`` per contact); ``SWEPT``: unfinished by the active set, finished by
-#: Gauss–Seidel in the kernel (final, applied)
-SOLVED, UNFINISHED, TOO_LARGE, SWEPT = 0, 1, 2, 3
+#: island status (``status (K,)`` per contact)
+SOLVED, UNFINISHED, TOO_LARGE = 0, 1, 2
 
 
 @njit
@@ -315,7 +314,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
 @njit
 def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s, mu_d,
                   friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, vel, omega, apply,
-                  lam, status, K, gs_iterations, gs_tolerance):
+                  lam, status):
     """The exact active set on every island of at most ``max_island`` contacts.
 
     ``a, b (K,) int64``; ``movable (N,) bool``; ``dirs, ang_a, ang_b, iang_a, iang_b (K,3,3)``;
@@ -324,14 +323,8 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, t
     a solved island, the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``,
     ``UNFINISHED``, ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to
     the caller). With ``apply`` the solved islands' impulses are applied to ``vel, omega`` (islands
-    share no movable body, so each sees the velocities before); with ``apply`` and
-    ``gs_iterations > 0`` an unfinished island is finished here by projected Gauss–Seidel from the
-    start the active set left (``pgs.sweep_contacts`` over the island, ``K (K,3,3)`` the rows'
-    effective inverse masses, at most ``gs_iterations`` sweeps to ``gs_tolerance``) and marked
-    ``SWEPT``: what ``solver.solve`` would do to it afterwards, without leaving the kernel (a box
-    resting on a slope, whose least-norm split of friction over four points leaves a cone, took
-    that Python path every step). Returns ``(largest scaled residual of the solved islands, most
-    sweeps of a swept island, its largest residual)``."""
+    share no movable body, so each sees the velocities before). Returns the largest scaled
+    residual of the solved islands."""
     k = a.shape[0]
     v0 = np.empty((k, 3))
     rv = np.empty(3)
@@ -349,7 +342,6 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, t
     vecs = np.empty((5, n_max))
     S, nz, act = np.empty(n_max, np.int64), np.empty(n_max, np.int64), np.empty(m_max, np.bool_)
     residual = 0.0
-    most_sweeps, gs_residual = 0, 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
         if ids.shape[0] > max_island:
@@ -364,20 +356,6 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, t
                     for c in ids:
                         _apply(c, a[c], b[c], lam[c, 0], lam[c, 1], lam[c, 2], dirs, iang_a, iang_b, ima, imb, vel,
                                omega)
-            elif st == UNFINISHED and apply and gs_iterations > 0:
-                started = False   # solver.solve: the start applied (when not all zero), then the sweeps
-                island_friction = False
-                for c in ids:
-                    started = started or lam[c, 0] != 0.0 or lam[c, 1] != 0.0 or lam[c, 2] != 0.0
-                    island_friction = island_friction or (friction and mu_s[c] > 0.0)
-                if started:
-                    apply_ids(ids, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
-                sweeps, res = sweep_contacts(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
-                                             compliance, mu_s, mu_d, island_friction, lam, vel, omega, gs_iterations,
-                                             gs_tolerance)
-                most_sweeps = max(most_sweeps, sweeps)
-                gs_residual = max(gs_residual, res)
-                st = SWEPT
         for c in ids:
             status[c] = st
-    return residual, most_sweeps, gs_residual
+    return residual

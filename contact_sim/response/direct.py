@@ -75,26 +75,23 @@ def _safest_start(A, rhs, *candidates):
 
 
 def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None, apply_solved=False,
-                island_max=None, sparse=True, gs_iterations=0, gs_tolerance=0.0):
+                island_max=None, sparse=True):
     """Exact contact impulses by the active-set method, island by island (``active_set``: compiled,
     dense per island; an island larger than ``DIRECT_ISLAND_MAX`` contacts, or whose factorisation
     fails, by the sparse ``_active_set`` below).
 
     Solves ``v_n + (Aλ)_n + compliance·λ_n ≥ target_n ⟂ λ_n ≥ 0`` with sticking friction
-    (tangential velocity zero). Returns ``(lam (K,3), solved (K,) bool, residual, (sweeps,
-    gs_residual))``: the impulses of the solved islands, and for the others (a sticking impulse
-    outside the static cone, an inconsistent set, too many rounds) the start of lowest contact
-    objective for Gauss–Seidel; ``residual`` is the largest scaled row residual of the solved ones.
-    ``vel, omega (N,3)`` are left as they are, or with ``apply_solved`` get the solved islands'
-    impulses; with ``apply_solved`` and ``gs_iterations > 0`` Gauss–Seidel finishes the unfinished
-    islands in the kernel too (``active_set.solve_islands``; counted as solved, ``sweeps`` the most
-    sweeps one took and ``gs_residual`` the largest last change, N·s). ``island_max`` (default
-    ``DIRECT_ISLAND_MAX``) bounds the islands the kernel takes; larger ones go through the sparse
-    path, or with ``sparse`` false are left unsolved (zero impulse)."""
+    (tangential velocity zero). Returns ``(lam (K,3), solved (K,) bool, residual)``: the impulses of
+    the solved islands, and for the others (a sticking impulse outside the static cone, an
+    inconsistent set, too many rounds) the start of lowest contact objective for Gauss–Seidel;
+    ``residual`` is the largest scaled row residual of the solved ones. ``vel, omega (N,3)`` are
+    left as they are, or with ``apply_solved`` get the solved islands' impulses. ``island_max``
+    (default ``DIRECT_ISLAND_MAX``) bounds the islands the kernel takes; larger ones go through the
+    sparse path, or with ``sparse`` false are left unsolved (zero impulse)."""
     k = len(rows.a)
     lam = np.zeros((k, 3))
     if k == 0:
-        return lam, np.ones(0, bool), 0.0, (0, 0.0)
+        return lam, np.ones(0, bool), 0.0
     c = np.ascontiguousarray
     friction = mu_s is not None and bool(mu_s.max() > 0)
     zeros = np.zeros(k)
@@ -105,22 +102,21 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
     # the kernel reads (and with apply_solved writes) the velocity arrays: contiguous float64 views
     v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
     w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
-    residual, sweeps, gs_residual = active_set.solve_islands(
+    residual = active_set.solve_islands(
         c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.movable, dtype=np.bool_), c(rows.dirs),
         c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
         c(rows.imb, dtype=float), c(target_n, dtype=float), comp, mus, mud, friction,
         zeros.reshape(k, 1) if warm is None else c(warm, dtype=float), warm is not None,
         DIRECT_ISLAND_MAX if island_max is None else island_max,
-        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v, w, apply_solved, lam, status,
-        c(rows.K), int(gs_iterations), float(gs_tolerance))
+        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v, w, apply_solved, lam, status)
     if apply_solved:
         if v is not vel:
             vel[...] = v
         if w is not omega:
             omega[...] = w
-    solved = (status == active_set.SOLVED) | (status == active_set.SWEPT)
+    solved = status == active_set.SOLVED
     if solved.all():   # the usual case: every island solved in the kernel
-        return lam, solved, residual, (sweeps, gs_residual)
+        return lam, solved, residual
     big = np.flatnonzero(status == active_set.TOO_LARGE)
     if big.size and not sparse:
         lam[big] = 0.0
@@ -142,15 +138,15 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
             residual = max(residual, res_b)
             if apply_solved:
                 apply(sub, vel, omega, lam_b)
-    return lam, solved, residual, (sweeps, gs_residual)
+    return lam, solved, residual
 
 
 def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, compliance=None):
     """``solve_exact`` for the whole set: ``(SolveResult, converged)``, ``vel, omega`` updated only
     when every island is solved (otherwise the result holds Gauss–Seidel's start)."""
     k = len(rows.a)
-    lam, solved, residual, _ = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
-                                           compliance=compliance)
+    lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
+                                        compliance=compliance)
     if not solved.all():
         return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
     if k:

@@ -81,3 +81,51 @@ def rotational_energy(world, idx):
     out = np.empty(len(idx))
     free_motion.rotational_energies(s.quat, world.inertia_body, s.omega, np.asarray(idx, dtype=np.int64), out)
     return out
+
+
+def kinematic_push(world, a, b, point):
+    """What a solve over the contacts ``a, b (K,)`` at ``point (K,3)`` may give where kinematic bodies
+    push: ``(dynamic bodies (k,), speed u of the fastest kinematic contact point)``, or ``None``
+    when no contact has a kinematic body (between dynamic and static bodies the compression and
+    the resting force only take energy away)."""
+    kin = world.kind == KINEMATIC
+    ka, kb = kin[a], kin[b]
+    if not (ka.any() or kb.any()):
+        return None
+    s = world.s
+    k = np.where(ka, a, b)[ka | kb]
+    p = point[ka | kb]
+    u = float(np.sqrt(np.max(np.sum((s.vel[k] + cross(s.omega[k], p - s.pos[k])) ** 2, axis=1))))
+    bodies = np.unique(np.concatenate([a, b]))
+    return bodies[(world.kind == DYNAMIC)[bodies]], u
+
+
+def push_cap(world, bodies, u, vel0, omega0, vel1, omega1):
+    """The largest ``f ≤ 1`` such that every body of ``bodies (k,)``, given the velocity change
+    ``f·(vel1 − vel0)`` (angular ``f·(omega1 − omega0)``, all ``(k,3)``), ends with no more kinetic
+    energy than a body pushed inelastically by a kinematic one whose contact point moves at ``u``
+    can have: ``½m(|v₀| + 2u)²`` of translation and ``½m(2u)²`` more rotation than it had.
+
+    A body squeezed between a kinematic paddle and a wall (or a chain of bodies ending at one) has
+    no impulse that holds every contact: Gauss–Seidel's impulses then grow with every sweep, and a
+    40-body pile swept by a paddle at 0.5 m/s threw bodies out at 40–500 m/s. Capped, such a body
+    moves on at about the paddle's speed and the position correction resolves the overlap."""
+    if len(bodies) == 0:
+        return 1.0
+    m = world.mass[bodies]
+    iw = dynamics.rotate_inertia(quat.to_matrix(world.s.quat[bodies]), world.inertia_body[bodies])
+    iw[world.particle[bodies]] = 0.0
+    dv, dw = vel1 - vel0, omega1 - omega0
+    speed0 = np.sqrt(np.einsum("ij,ij->i", vel0, vel0))
+    rot0 = 0.5 * np.einsum("ni,nij,nj->n", omega0, iw, omega0)
+    budget = 0.5 * m * (speed0 + 2.0 * u) ** 2 + 0.5 * m * (2.0 * u) ** 2 + rot0
+    # K_i(f) = K0_i + b_i f + a_i f²
+    k0 = 0.5 * m * speed0 ** 2 + rot0
+    qa = 0.5 * (m * np.einsum("ij,ij->i", dv, dv) + np.einsum("ni,nij,nj->n", dw, iw, dw))
+    qb = m * np.einsum("ij,ij->i", vel0, dv) + np.einsum("ni,nij,nj->n", omega0, iw, dw)
+    over = (k0 + qb + qa > budget) & (qa > 0.0)
+    if not over.any():
+        return 1.0
+    qa, qb, room = qa[over], qb[over], np.maximum(budget[over] - k0[over], 0.0)
+    roots = (-qb + np.sqrt(np.maximum(qb * qb + 4.0 * qa * room, 0.0))) / (2.0 * qa)
+    return float(np.clip(roots.min(), 0.0, 1.0))

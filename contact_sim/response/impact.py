@@ -14,7 +14,7 @@ import numpy as np
 from ..kinds import DYNAMIC
 from . import kinematic as kinematic_mod
 from . import solver
-from .energy import energetic_cap, kinetic_energy
+from .energy import energetic_cap, kinematic_push, kinetic_energy, push_cap
 
 
 def impact_solve(ctx):
@@ -47,10 +47,20 @@ def impact_solve(ctx):
         kinetic0 = kinetic_energy(world, bodies0)
     target = np.where(touching[ti], 0.0, ctx.spec_target[ti] if ctx.speculative else 0.0)
     fr = ctx.friction
+    pushed = kinematic_push(world, c.body_a[ti], c.body_b[ti], c.point[ti])
+    if pushed is not None:
+        v0, w0 = s.vel[pushed[0]].copy(), s.omega[pushed[0]].copy()
     res = ctx.solve(ctx.rows.select(ti), s.vel, s.omega, target_n=target, mu_s=ctx.mu_s[ti] if fr else None,
                     mu_d=ctx.mu_d[ti] if fr else None)
     ctx.note(res)
-    lam[ti] += res.impulse
+    scale = 1.0
+    if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
+        bodies, u = pushed
+        scale = push_cap(world, bodies, u, v0, w0, s.vel[bodies], s.omega[bodies])
+        if scale < 1.0:
+            s.vel[bodies] = v0 + scale * (s.vel[bodies] - v0)
+            s.omega[bodies] = w0 + scale * (s.omega[bodies] - w0)
+    lam[ti] += res.impulse * scale
     if bounces:   # the velocities after compression
         vel_c, omega_c = s.vel[bodies0].copy(), s.omega[bodies0].copy()
     hit = bounced & (lam[:, 0] > 0) & (e > 0)   # e = 0: the compression was the whole impact

@@ -115,51 +115,40 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
     (K,)``; ``friction`` bool; ``lam (K,3)`` accumulated (n, t1, t2) impulses on A, holding the
     warm start on entry (already applied to the velocities) and the result on return; ``vel, omega
     (N,3)`` updated in place. Returns ``(sweeps done, largest impulse change of the last sweep)``."""
-    return sweep_contacts(np.arange(a.shape[0]), a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n,
-                          compliance, mu_s, mu_d, friction, lam, vel, omega, iterations, tolerance)
-
-
-@njit
-def sweep_contacts(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, compliance, mu_s, mu_d,
-                   friction, lam, vel, omega, iterations, tolerance):
-    """``sweeps`` over the contacts ``ids (m,)`` of the arrays (in that order): one island of the
-    exact solve, finished in its kernel, or the whole set."""
-    m = ids.shape[0]
-    inv_kn = np.zeros(m)
-    ikt = np.zeros((m, 4))
-    for j in range(m):
-        c = ids[j]
+    k = a.shape[0]
+    inv_kn = np.zeros(k)
+    ikt = np.zeros((k, 4))
+    for c in range(k):
         kn = K[c, 0, 0] + compliance[c]
         if kn > 0.0:
-            inv_kn[j] = 1.0 / max(kn, _TINY)
+            inv_kn[c] = 1.0 / max(kn, _TINY)
         det = K[c, 1, 1] * K[c, 2, 2] - K[c, 1, 2] * K[c, 2, 1]
         if det > 1e-300:
-            ikt[j, 0] = K[c, 2, 2] / det
-            ikt[j, 1] = -K[c, 1, 2] / det
-            ikt[j, 2] = -K[c, 2, 1] / det
-            ikt[j, 3] = K[c, 1, 1] / det
+            ikt[c, 0] = K[c, 2, 2] / det
+            ikt[c, 1] = -K[c, 1, 2] / det
+            ikt[c, 2] = -K[c, 2, 1] / det
+            ikt[c, 3] = K[c, 1, 1] / det
     done = 0
     residual = 0.0
     rv = np.zeros(3)
     for it in range(iterations):
         residual = 0.0
-        for j in range(m):
-            c = ids[j]
+        for c in range(k):
             ia = a[c]
             ib = b[c]
             _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]
-            new0 = max(old0 + (target_n[c] - compliance[c] * old0 - rv[0]) * inv_kn[j], 0.0)
+            new0 = max(old0 + (target_n[c] - compliance[c] * old0 - rv[0]) * inv_kn[c], 0.0)
             new1 = old1
             new2 = old2
             if friction:
                 dn = new0 - old0
                 vt0 = rv[1] + K[c, 1, 0] * dn
                 vt1 = rv[2] + K[c, 2, 0] * dn
-                tr0 = old1 - (ikt[j, 0] * vt0 + ikt[j, 1] * vt1)
-                tr1 = old2 - (ikt[j, 2] * vt0 + ikt[j, 3] * vt1)
+                tr0 = old1 - (ikt[c, 0] * vt0 + ikt[c, 1] * vt1)
+                tr1 = old2 - (ikt[c, 2] * vt0 + ikt[c, 3] * vt1)
                 if math.sqrt(tr0 * tr0 + tr1 * tr1) <= mu_s[c] * new0:
                     new1 = tr0
                     new2 = tr1

@@ -15,6 +15,7 @@ import numpy as np
 from ..jit import njit
 from .pgs import _row_velocity
 from .cache import project_warm, warm_lookup, warm_record
+from .energy import kinematic_push, push_cap
 
 
 def resting_solve(ctx):
@@ -51,6 +52,15 @@ def resting_solve(ctx):
     res = ctx.solve(r2, v_end, w_end, target_n=target, mu_s=ctx.mu_s[ri] if fr else None,
                     mu_d=ctx.mu_d[ri] if fr else None, warm=warm)
     ctx.note(res)
+    pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
+    if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
+        bodies, u = pushed
+        v0, w0 = v_start_end[bodies], w_start_end[bodies]
+        f = push_cap(world, bodies, u, v0, w0, v_end[bodies], w_end[bodies])
+        if f < 1.0:
+            v_end[bodies] = v0 + f * (v_end[bodies] - v0)
+            w_end[bodies] = w0 + f * (w_end[bodies] - w0)
+            res.impulse = res.impulse * f
     lam2 = np.zeros((len(c), 3))
     lam2[ri] = res.impulse
     # the constant-force model is first order in what the force does while the contact point moves

@@ -225,25 +225,21 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
     if method == "direct":
         # islands are independent: the solved ones keep their exact impulses (applied), Gauss–Seidel
         # finishes the others (sliding friction, an inconsistent set) from the start the active set left
-        # (an island the active set leaves unfinished is finished by Gauss–Seidel in the same kernel)
-        lam, solved, residual, (sweeps, gs_residual) = solve_exact(
-            rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm, apply_solved=True,
-            gs_iterations=iterations, gs_tolerance=tolerance)
-        if sweeps:
-            residual = max(residual, gs_residual)
+        lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
+                                            apply_solved=True)
         if solved.all():
-            return SolveResult(lam, max(sweeps, 1), residual)
+            return SolveResult(lam, 1, residual)
         ui = np.flatnonzero(~solved)
         res = solve(rows.select(ui), vel, omega, target_n=target_n[ui], mu_s=None if mu_s is None else mu_s[ui],
                     mu_d=None if mu_d is None else mu_d[ui], iterations=iterations, tolerance=tolerance,
                     warm=lam[ui])
         lam[ui] = res.impulse
-        return SolveResult(lam, max(res.iterations, sweeps), max(res.residual, residual))
+        return SolveResult(lam, res.iterations, max(res.residual, residual))
     if method == "gs":
         # islands of one contact (a body touching only static geometry) exactly, by the island kernel;
         # Gauss–Seidel for the coupled rest and for a single contact that slides
-        lam, solved, _, _ = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
-                                        apply_solved=True, island_max=1, sparse=False)
+        lam, solved, _ = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
+                                     apply_solved=True, island_max=1, sparse=False)
         if solved.all():
             return SolveResult(lam, 1, 0.0)
         rest = np.flatnonzero(~solved)
