@@ -135,4 +135,5 @@ def test_push_cap_scales_to_the_budget_of_the_fastest_body():
     f = push_cap(w, bodies, u, v0, w0, big, w0)
     # b: ½·1·(30 f)² = ½·1·(0 + 1)² + ½·1·1²  →  f = √2 / 30
     assert abs(f - np.sqrt(2.0) / 30.0) < 1e-15
+    assert abs(np.linalg.norm(big[1]) - np.sqrt(2.0)) < 1e-14   # applied in place: b ends on its budget
     assert push_cap(w, bodies, 0.0, v0, w0, v0, w0) == 1.0

@@ -126,16 +126,6 @@ def sweep_and_prune(c, h, margin, budget=None):
     return np.minimum(i, j), np.maximum(i, j)
 
 
-def plane_pairs(plane_idx, plane_n, plane_d, finite_idx, c, h, margin):
-    """Pairs ``(plane body (K,), finite body (K,))`` whose AABB reaches within ``margin`` of the
-    half-space (world plane normals ``(Np, 3)``, offsets ``(Np,)``; finite AABBs ``c, h (Nf, 3)``)."""
-    if len(plane_idx) == 0 or len(finite_idx) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    low = plane_n @ c.T - np.abs(plane_n) @ h.T          # (Np, Nf) lowest point of each box
-    p, f = np.nonzero(low <= plane_d[:, None] + margin)
-    return plane_idx[p], finite_idx[f]
-
-
 # the 13 neighbour offsets of a cell that come "after" it, plus the cell itself (index 0)
 _OFFS = np.array([(0, 0, 0)] + [(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1)
                                  if (x, y, z) > (0, 0, 0)], np.int64)
@@ -213,6 +203,13 @@ def inside_fat(c, h, fat_c, fat_h):
     return True
 
 
+@njit(inline="always")
+def _overlap(c, h, a, b, margin):
+    """Boxes ``a`` and ``b`` of ``c, h (N, 3)`` overlap within ``margin`` on all three axes."""
+    return (abs(c[a, 0] - c[b, 0]) <= h[a, 0] + h[b, 0] + margin and abs(c[a, 1] - c[b, 1]) <= h[a, 1] + h[b, 1] + margin
+            and abs(c[a, 2] - c[b, 2]) <= h[a, 2] + h[b, 2] + margin)
+
+
 @njit
 def overlap_filter(c, h, i, j, margin, oi, oj):
     """The pairs ``i, j`` whose boxes overlap within ``margin`` into ``oi, oj``; returns their count
@@ -220,21 +217,7 @@ def overlap_filter(c, h, i, j, margin, oi, oj):
     n = 0
     for k in range(i.shape[0]):
         a, b = i[k], j[k]
-        if (abs(c[a, 0] - c[b, 0]) <= h[a, 0] + h[b, 0] + margin and abs(c[a, 1] - c[b, 1]) <= h[a, 1] + h[b, 1] + margin
-                and abs(c[a, 2] - c[b, 2]) <= h[a, 2] + h[b, 2] + margin):
-            oi[n], oj[n] = a, b
-            n += 1
-    return n
-
-
-@njit
-def body_filter(i, j, kind, group, mask, oi, oj):
-    """Pairs that may touch: not both static (kind 0), and each one's group in the other's mask;
-    returns their count, order kept."""
-    n = 0
-    for k in range(i.shape[0]):
-        a, b = i[k], j[k]
-        if (kind[a] != 0 or kind[b] != 0) and (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0:
+        if _overlap(c, h, a, b, margin):
             oi[n], oj[n] = a, b
             n += 1
     return n
@@ -248,12 +231,12 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
     World boxes of the finite bodies ``fin (M,)`` (``world_boxes``); ``ok`` False (nothing else
     done) when one left its fat box or ``margin`` grew past the cache's ``fat_margin`` (the caller
     rebuilds the cache and calls again). Otherwise the cached pairs ``ci, cj`` (indices into
-    ``fin``) that overlap within ``margin`` (``overlap_filter``), the planes ``planes (P,)``
-    (object normal and offset ``plane_n (N, 3)``, ``plane_d (N,)``) against every finite box
-    (``plane_pairs``), sorted by ``(i, j)``, ``i < j`` body indices, without the pairs
-    ``body_filter`` drops nor the sorted keys ``i·N + j`` in ``disabled (D,)``. Bit for bit the
-    pairs of ``PairCache.pairs`` + ``plane_pairs`` + ``body_filter`` (the one method, compiled:
-    a dozen numpy calls a step were most of a small world's detection)."""
+    ``fin``) that overlap within ``margin`` (``PairCache.pairs``' answer), and each plane of
+    ``planes (P,)`` (object normal and offset ``plane_n (N, 3)``, ``plane_d (N,)``) with every
+    finite box whose lowest point along the world normal reaches within ``margin`` of the plane;
+    sorted by ``(i, j)``, ``i < j`` body indices; without the pairs that may not touch (both
+    static, or a group outside the other's mask) nor the sorted keys ``i·N + j`` in ``disabled
+    (D,)``. One compiled pass: a dozen numpy calls a step were most of a small world's detection."""
     m = fin.shape[0]
     nb = pos.shape[0]
     c, h = np.empty((m, 3)), np.empty((m, 3))
@@ -264,8 +247,7 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
     n = 0
     for k in range(ci.shape[0]):
         a, b = ci[k], cj[k]
-        if (abs(c[a, 0] - c[b, 0]) <= h[a, 0] + h[b, 0] + margin and abs(c[a, 1] - c[b, 1]) <= h[a, 1] + h[b, 1] + margin
-                and abs(c[a, 2] - c[b, 2]) <= h[a, 2] + h[b, 2] + margin):
+        if _overlap(c, h, a, b, margin):
             keys[n] = fin[a] * nb + fin[b]   # fin ascending and a < b: already i < j
             n += 1
     for q in range(planes.shape[0]):
@@ -286,7 +268,7 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
     for k in range(n):
         a, b = keys[k] // nb, keys[k] % nb
         if not ((kind[a] != 0 or kind[b] != 0) and (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0):
-            continue
+            continue   # both static, or a group outside the other's mask
         if disabled.shape[0]:
             d = np.searchsorted(disabled, keys[k])
             if d < disabled.shape[0] and disabled[d] == keys[k]:

@@ -1,7 +1,7 @@
 """The lecture's vertex-inside test, by name: ``vertex_inside(points, polyhedron, pose)``.
 
 * A vertex is inside a **convex** polyhedron iff it is on the inside of every face plane
-  (``n·x ≤ d`` for each merged face plane ``(n, d)``): ``plane_excess`` / ``inside_planes``, the
+  (``n·x ≤ d`` for each merged face plane ``(n, d)``): ``plane_excess`` / ``outside_plane``, the
   compiled helpers the convex narrow-phase kernels call (``polyhedra.face_query``, the mesh kernels'
   vertex tests).
 * A vertex is inside a **concave** polyhedron (a closed ``TriMesh``) iff a semi-infinite ray from it
@@ -86,13 +86,17 @@ def plane_excess(N, d, npl, X, v):
 
 
 @njit
-def inside_planes(N, d, npl, X, v):
-    """Vertex ``v`` of ``X (n, 3)`` strictly inside every face plane ``N[p]·x < d[p]`` (stops at the
-    first plane it is not inside: the cheap form when only the verdict is needed)."""
+def outside_plane(N, d, npl, X, v, first):
+    """A face plane that vertex ``v`` of ``X (n, 3)`` is not strictly inside (``N[p]·x ≥ d[p]``), or
+    −1 when it is inside every one. Plane ``first`` is tried first (the one that rejected the
+    previous vertex usually rejects this one), then the others in order until one rejects it: the
+    cheap form when only the verdict is needed."""
+    if N[first, 0] * X[v, 0] + N[first, 1] * X[v, 1] + N[first, 2] * X[v, 2] - d[first] >= 0:
+        return first
     for p in range(npl):
         if N[p, 0] * X[v, 0] + N[p, 1] * X[v, 1] + N[p, 2] * X[v, 2] - d[p] >= 0:
-            return False
-    return True
+            return p
+    return -1
 
 
 @njit
@@ -116,7 +120,7 @@ def vertex_inside(points, polyhedron, pose=None):
     included) or a closed ``cs.TriMesh`` (concave allowed: odd ray-crossing parity); ``pose =
     (position (3,), orientation (4,) x, y, z, w)`` of the shape frame, identity when omitted.
     Returns ``(K,)`` bool (a bool for a single point). The narrow-phase kernels use the same
-    compiled tests (``plane_excess`` / ``inside_planes`` and ``parity_inside``).
+    compiled tests (``plane_excess`` / ``outside_plane`` and ``parity_inside``).
     Raises ``cs.ContactSimError`` for other shapes, an open mesh (it has no inside) or bad points.
     """
     if not isinstance(polyhedron, Shape) or polyhedron.type not in ("box", "convex", "mesh"):

@@ -26,7 +26,7 @@ import numpy as np
 from ..contacts import FID_EDGE, fid
 from ..jit import njit
 from .dispatch import collider
-from .inside import inside_planes
+from .inside import outside_plane
 from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
 from .vec3 import col_max, cross, dot, dotr, edge_through_face, mv, norm, transform_rows
@@ -74,15 +74,10 @@ def face_query(N, d, npl, V, nv, margin):
                 return best, face, False
     inside = False
     if best < 0:   # the lecture's vertex test: a vertex of the other inside every face plane
-        last = 0   # the plane that rejected the previous vertex is tried first (it usually rejects this one)
+        last = 0
         for v in range(nv):
-            if dotr(N, last, V, v) - d[last] >= 0:
-                continue
-            for q in range(npl):
-                if dotr(N, q, V, v) - d[q] >= 0:
-                    last = q
-                    break
-            else:
+            last = outside_plane(N, d, npl, V, v, last)
+            if last < 0:
                 inside = True
                 break
     return best, face, inside

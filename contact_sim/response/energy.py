@@ -100,11 +100,13 @@ def kinematic_push(world, a, b, point):
     return bodies[(world.kind == DYNAMIC)[bodies]], u
 
 
-def push_cap(world, bodies, u, vel0, omega0, vel1, omega1):
-    """The largest ``f ≤ 1`` such that every body of ``bodies (k,)``, given the velocity change
-    ``f·(vel1 − vel0)`` (angular ``f·(omega1 − omega0)``, all ``(k,3)``), ends with no more kinetic
-    energy than a body pushed inelastically by a kinematic one whose contact point moves at ``u``
-    can have: ``½m(|v₀| + 2u)²`` of translation and ``½m(2u)²`` more rotation than it had.
+def push_cap(world, bodies, u, vel0, omega0, vel, omega):
+    """Scale a solve's velocity change back so that no body of ``bodies (k,)`` ends with more
+    kinetic energy than a body pushed inelastically by a kinematic one whose contact point moves
+    at ``u`` can have: ``½m(|v₀| + 2u)²`` of translation and ``½m(2u)²`` more rotation than it had.
+    ``vel0, omega0 (k,3)`` the bodies' velocities before the solve; ``vel, omega (N,3)`` after it,
+    set to ``vel0 + f·(vel[bodies] − vel0)`` (angular alike) with the largest ``f ≤ 1`` that
+    keeps every body within that; returns ``f`` (scale the solve's impulses by it).
 
     A body squeezed between a kinematic paddle and a wall (or a chain of bodies ending at one) has
     no impulse that holds every contact: Gauss–Seidel's impulses then grow with every sweep, and a
@@ -115,7 +117,7 @@ def push_cap(world, bodies, u, vel0, omega0, vel1, omega1):
     m = world.mass[bodies]
     iw = dynamics.rotate_inertia(quat.to_matrix(world.s.quat[bodies]), world.inertia_body[bodies])
     iw[world.particle[bodies]] = 0.0
-    dv, dw = vel1 - vel0, omega1 - omega0
+    dv, dw = vel[bodies] - vel0, omega[bodies] - omega0
     speed0 = np.sqrt(np.einsum("ij,ij->i", vel0, vel0))
     rot0 = 0.5 * np.einsum("ni,nij,nj->n", omega0, iw, omega0)
     budget = 0.5 * m * (speed0 + 2.0 * u) ** 2 + 0.5 * m * (2.0 * u) ** 2 + rot0
@@ -128,4 +130,8 @@ def push_cap(world, bodies, u, vel0, omega0, vel1, omega1):
         return 1.0
     qa, qb, room = qa[over], qb[over], np.maximum(budget[over] - k0[over], 0.0)
     roots = (-qb + np.sqrt(np.maximum(qb * qb + 4.0 * qa * room, 0.0))) / (2.0 * qa)
-    return float(np.clip(roots.min(), 0.0, 1.0))
+    f = float(np.clip(roots.min(), 0.0, 1.0))
+    if f < 1.0:
+        vel[bodies] = vel0 + f * dv
+        omega[bodies] = omega0 + f * dw
+    return f

@@ -53,13 +53,8 @@ def impact_solve(ctx):
     res = ctx.solve(ctx.rows.select(ti), s.vel, s.omega, target_n=target, mu_s=ctx.mu_s[ti] if fr else None,
                     mu_d=ctx.mu_d[ti] if fr else None)
     ctx.note(res)
-    scale = 1.0
-    if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
-        bodies, u = pushed
-        scale = push_cap(world, bodies, u, v0, w0, s.vel[bodies], s.omega[bodies])
-        if scale < 1.0:
-            s.vel[bodies] = v0 + scale * (s.vel[bodies] - v0)
-            s.omega[bodies] = w0 + scale * (s.omega[bodies] - w0)
+    # where kinematic bodies push, no body ends faster than a push can make it
+    scale = 1.0 if pushed is None else push_cap(world, *pushed, v0, w0, s.vel, s.omega)
     lam[ti] += res.impulse * scale
     if bounces:   # the velocities after compression
         vel_c, omega_c = s.vel[bodies0].copy(), s.omega[bodies0].copy()

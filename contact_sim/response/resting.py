@@ -54,12 +54,9 @@ def resting_solve(ctx):
     ctx.note(res)
     pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
     if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
-        bodies, u = pushed
-        v0, w0 = v_start_end[bodies], w_start_end[bodies]
-        f = push_cap(world, bodies, u, v0, w0, v_end[bodies], w_end[bodies])
+        bodies = pushed[0]
+        f = push_cap(world, *pushed, v_start_end[bodies], w_start_end[bodies], v_end, w_end)
         if f < 1.0:
-            v_end[bodies] = v0 + f * (v_end[bodies] - v0)
-            w_end[bodies] = w0 + f * (w_end[bodies] - w0)
             res.impulse = res.impulse * f
     lam2 = np.zeros((len(c), 3))
     lam2[ri] = res.impulse
