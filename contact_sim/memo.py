@@ -6,14 +6,18 @@ and compares by identity (an ``id()`` alone could be reused by a later array); `
 plain values compared by equality (settings, a step size). Everything lives in one dict on the
 object, so it goes with the world.
 """
+from operator import is_
 
 
 def derived(obj, name, deps, build, key=None):
     """``build()``, cached on ``obj`` under ``name`` until one of ``deps`` (objects, compared by
     identity) is replaced or ``key`` (compared by equality) changes."""
-    memo = obj.__dict__.setdefault("_cs_memo", {})
+    memo = obj.__dict__.get("_cs_memo")
+    if memo is None:
+        memo = obj.__dict__["_cs_memo"] = {}
     hit = memo.get(name)
+    # a hit is the usual case, several times a step: ``map(is_)`` compares without a generator frame
     if (hit is None or hit[1] != key or len(hit[0]) != len(deps)
-            or any(a is not b for a, b in zip(hit[0], deps))):
+            or not all(map(is_, hit[0], deps))):
         hit = memo[name] = (tuple(deps), key, build())
     return hit[2]

@@ -13,7 +13,8 @@ import numpy as np
 from . import dynamics, free_motion, quat
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
-from .kinds import DYNAMIC, KINDS, KINEMATIC
+from .kinds import DYNAMIC, KINDS, KINEMATIC, body_masks
+from .memo import derived
 from .response.cache import ContactCache
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .stats import StepStats
@@ -71,7 +72,7 @@ class _State:
         self.pose_quat = np.zeros((0, 4))     # finite differences start there, not where the body drifted to
 
     def copy(self):
-        c = _State()
+        c = _State.__new__(_State)   # not __init__: its empty arrays would be replaced at once
         for n in self.NAMES:
             setattr(c, n, getattr(self, n).copy())
         return c
@@ -157,12 +158,22 @@ class World(BodyInput):
 
     @gravity.setter
     def gravity(self, value):
-        self._gravity = GRAVITY.check(value, "gravity", self._settings)
+        g = GRAVITY.check(value, "gravity", self._settings).copy()
+        # read-only: gravity changes only through this setter (checked), so its norm and the
+        # per-body rows derived from it (``body_masks``) stay true
+        g.flags.writeable = False
+        self._gravity = g
+        self._gravity_norm = math.sqrt(float(g @ g))
 
     def gravity_norm(self):
-        """``|gravity|`` (m/s²; ``np.linalg.norm``'s value, without its ~10 µs of overhead)."""
-        g = self._gravity
-        return math.sqrt(float(g @ g))
+        """``|gravity|`` (m/s²; ``np.linalg.norm``'s value, kept from the last assignment)."""
+        return self._gravity_norm
+
+    def body_masks(self):
+        """``kinds.BodyMasks`` of the current bodies and gravity, cached until a body is added or
+        removed, a kind changes or gravity is assigned: what every step reads (never write into them)."""
+        return derived(self, "body_masks", (self.kind, self.particle, self._gravity),
+                       lambda: body_masks(self.kind, self.particle, self._gravity))
 
     # ------------------------------------------------------------------ bodies
     @property
@@ -528,13 +539,13 @@ class World(BodyInput):
         tumbling bodies (see ``dynamics``), and with the kicks also their
         first-order error bound (J): ``(drift, kick_error)``."""
         s = self.s
-        dynamic = self.kind == DYNAMIC
+        bm = self.body_masks()
         kick = half_dv is not None
         z = np.zeros((0, 3))
         c = np.ascontiguousarray
         drift, kick_error = free_motion.advance(
             s.pos, s.vel, s.quat, s.omega, c(s.principal_q), c(s.principal_moments), c(self.inertia_body),
-            c(self.gravity, dtype=float), dynamic, dynamic & ~self.particle, self.kind == KINEMATIC,
+            self._gravity, bm.dynamic, bm.rotating, bm.kinematic,
             c(half_dv, dtype=float) if kick else z, c(half_dw, dtype=float) if kick else z, kick, float(dt),
             dynamics.ISOTROPIC_TOLERANCE, dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
         return (drift, kick_error) if kick else drift

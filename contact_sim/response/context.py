@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kinds import DYNAMIC
 from . import solver
 
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
@@ -71,12 +70,12 @@ class StepContext:
     @classmethod
     def start(cls, world, dt, models):
         st = world.settings
-        dyn = world.kind == DYNAMIC
+        bm = world.body_masks()   # cached: read-only, never written by the stages
         exact_toi = models.toi in ("fractional", "swept")
         gdt = world.gravity_norm() * dt
         return cls(world, models, dt, settings=st, exact_toi=exact_toi, speculative=st.speculative and not exact_toi,
-                   gdt=gdt, impact_speed=IMPACT_SPEED_FRACTION * gdt,
-                   gravity=np.where(dyn[:, None], world.gravity, 0.0), rotating=dyn & ~world.particle, t_left=dt)
+                   gdt=gdt, impact_speed=IMPACT_SPEED_FRACTION * gdt, gravity=bm.gravity, rotating=bm.rotating,
+                   t_left=dt)
 
     @property
     def k(self):

@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import dynamics
 from ..jit import njit
-from ..kinds import DYNAMIC, STATIC
+from ..kinds import DYNAMIC
 from ..memo import derived
 from ..settings import combine
 from . import models as _models
@@ -163,8 +163,7 @@ def speculative_margin(world, dt):
     step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
     s = world.s
     base = world.settings.contact_margin
-    moving = world.kind != STATIC
-    vmax = _fastest(s.vel, s.omega, toi_mod._extents(world), moving)
+    vmax = _fastest(s.vel, s.omega, toi_mod._extents(world), world.body_masks().moving)
     if vmax < 0:   # nothing moves
         return base
     reach = 2.0 * vmax * dt + world.gravity_norm() * dt * dt
@@ -239,10 +238,10 @@ def rows(world, c, inv_inertia_w, rel_vel, m):
     """Constraint rows (``solver.build_rows``) of contacts ``c``; under the kinematic response a
     movable body's contact acts at its centre."""
     return solver.build_rows(c.body_a, c.body_b, c.point, c.normal, world.s.pos, world.inv_mass, inv_inertia_w,
-                             movable=world.kind == DYNAMIC, rel_vel=rel_vel,
+                             movable=world.body_masks().dynamic, rel_vel=rel_vel,
                              dynamic_levers=m.response != "kinematic")
 
 
 def gravity(world):
     """Gravity ``(N,3)`` of the dynamic bodies, 0 for the others."""
-    return np.where((world.kind == DYNAMIC)[:, None], world.gravity, 0.0)
+    return world.body_masks().gravity
