@@ -104,27 +104,38 @@ def _match(a0, b0, p0, a1, b1, p1, ext, fraction, out):
             out[i] = o
 
 
-def warm_lookup(world, a, b, local):
-    """Previous step's resting impulses per unit time ``(K,4)`` (normal, then the world tangential
-    impulse vector) for the contacts ``(a, b (K,), local (K,3))`` that match one of its contacts
-    (same pair, nearest point); 0 where none matches."""
-    out = np.zeros((len(a), 4))
+def warm_start(world, a, b, local, t_left, rows, mu):
+    """The resting solve's warm start ``(K,3)`` in ``rows``' (n, t1, t2) basis: the previous step's
+    resting impulses per unit time of the contacts ``(a, b (K,), local (K,3))`` that match one of
+    its contacts (same pair, nearest point: ``match``), times ``t_left``, projected on each contact's
+    tangent plane and friction cone (``mu (K,)``, ``project_warm``); ``None`` when nothing matches
+    (or every match is zero). One compiled pass."""
     old = world.contact_cache.warm
     if old is None or len(old[0]) == 0 or len(a) == 0:
-        return out
+        return None
     a0, b0, p0, values = old
-    hit = match(world, a0, b0, p0, a, b, local)
-    _gather(hit, values, out)
+    c = np.ascontiguousarray
+    out = np.empty((len(a), 3))
+    if not _warm_start(c(a0, dtype=np.int64), c(b0, dtype=np.int64), c(p0, dtype=float), c(a, dtype=np.int64),
+                       c(b, dtype=np.int64), c(local, dtype=float), toi_mod._extents(world), MATCH_FRACTION,
+                       c(values, dtype=float), float(t_left), c(rows.dirs), c(mu, dtype=float), out):
+        return None
     return out
 
 
 @njit
-def _gather(hit, values, out):
-    """``out[i] = values[hit[i]]`` where ``hit[i] >= 0``."""
-    for i in range(hit.shape[0]):
+def _warm_start(a0, b0, p0, a1, b1, p1, ext, fraction, values, t_left, dirs, mu, out):
+    """``warm_start``'s kernel: ``_match``, the matched values ``(K,4)`` times ``t_left`` (zero
+    where none matches) and ``_project_warm`` into ``out (K,3)``; whether any is non-zero."""
+    k1 = a1.shape[0]
+    hit = np.full(k1, -1, np.int64)
+    _match(a0, b0, p0, a1, b1, p1, ext, fraction, hit)
+    w = np.zeros((k1, 4))
+    for i in range(k1):
         if hit[i] >= 0:
-            for x in range(values.shape[1]):
-                out[i, x] = values[hit[i], x]
+            for x in range(4):
+                w[i, x] = values[hit[i], x] * t_left
+    return _project_warm(w, dirs, mu, out)
 
 
 def merge_records(world, records):
@@ -172,20 +183,11 @@ def _warm_record(lam, dirs, out):
             out[c, 1 + x] = lam[c, 1] * dirs[c, 1, x] + lam[c, 2] * dirs[c, 2, x]
 
 
-def project_warm(w, rows, mu):
-    """Warm impulses ``(K,3)`` in ``rows``' basis from the ``warm_record`` form ``w (K,4)``: the
-    tangential vector projected on the contact's tangent plane, inside the cone (``mu (K,)``);
-    ``None`` when every warm impulse is zero."""
-    out = np.empty((len(w), 3))
-    if not _project_warm(np.ascontiguousarray(w, dtype=float), np.ascontiguousarray(rows.dirs), np.ascontiguousarray(mu, dtype=float),
-                         out):
-        return None
-    return out
-
-
 @njit
 def _project_warm(w, dirs, mu, out):
-    """``project_warm``'s kernel; returns whether any warm impulse is non-zero."""
+    """Warm impulses ``out (K,3)`` in the rows' basis (``dirs (K,3,3)``) from the ``warm_record``
+    form ``w (K,4)``: the tangential vector projected on the contact's tangent plane, inside the
+    cone (``mu (K,)``); returns whether any warm impulse is non-zero."""
     anything = False
     for c in range(w.shape[0]):
         for x in range(4):

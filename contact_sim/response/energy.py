@@ -19,7 +19,7 @@ def kinematic_work(world, c):
     """Work (J) done on the dynamic bodies by kinematic ones through the contacts ``c`` of a
     step: impulse on the dynamic side · velocity of the kinematic body's material point. A
     kinematic body is driven from outside, so this is energy the world may gain."""
-    if len(c) == 0 or not (world.kind == KINEMATIC).any():
+    if len(c) == 0 or not world.body_masks().any_kinematic:
         return 0.0
     s = world.s
     total = 0.0
@@ -88,8 +88,10 @@ def kinematic_push(world, a, b, point):
     push: ``(dynamic bodies (k,), speed u of the fastest kinematic contact point)``, or ``None``
     when no contact has a kinematic body (between dynamic and static bodies the compression and
     the resting force only take energy away)."""
-    kin = world.kind == KINEMATIC
-    ka, kb = kin[a], kin[b]
+    bm = world.body_masks()
+    if not bm.any_kinematic:
+        return None
+    ka, kb = bm.kinematic[a], bm.kinematic[b]
     if not (ka.any() or kb.any()):
         return None
     s = world.s

@@ -1,7 +1,7 @@
 """The resting stage of a step: contacts that stay touching get the impulse that acts as a
 constant force over the rest of the step ``T`` (held against gravity).
 
-Warm started from the previous step's matched contacts (``cache.warm_lookup``). The constraints
+Warm started from the previous step's matched contacts (``cache.warm_start``). The constraints
 are on the velocity at the *end* of ``T``: the normal velocity at least ``min(depth, 0)/T``-ish
 (the force acts on the displacement ``(v_start + v_end)/2·T``, which may close a gap exactly,
 never more, and never asks a pair to separate; an approaching pair ends at rest, a separating one
@@ -14,7 +14,7 @@ import numpy as np
 
 from ..jit import njit
 from .pgs import _row_velocity
-from .cache import project_warm, warm_lookup, warm_record
+from .cache import warm_record, warm_start
 from .energy import kinematic_push, push_cap
 
 
@@ -47,7 +47,7 @@ def resting_solve(ctx):
     ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
     r2 = ctx.rows.select(rmask)
     target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - ctx.vn1[ri], 0.0)
-    warm = project_warm(warm_lookup(world, c.body_a[ri], c.body_b[ri], ctx.local[ri]) * t_left, r2, ctx.mu_d[ri])
+    warm = warm_start(world, c.body_a[ri], c.body_b[ri], ctx.local[ri], t_left, r2, ctx.mu_d[ri])
     fr = ctx.friction
     res = ctx.solve(r2, v_end, w_end, target_n=target, mu_s=ctx.mu_s[ri] if fr else None,
                     mu_d=ctx.mu_d[ri] if fr else None, warm=warm)
