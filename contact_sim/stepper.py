@@ -38,6 +38,7 @@ from .kinds import DYNAMIC
 from .stats import StepStats
 from .response import models as _models
 from .collision import detect_world
+from .collision.vec3 import rotations
 from .response import solver
 from .response import toi as toi_mod
 from .response import correction, impact, penalty_friction, prepare, resting
@@ -65,10 +66,10 @@ def step(world, dt):
 
 
 # ---------------------------------------------------------------------------- helpers
-def _detect(world, margin):
-    """Contacts of the current state within ``margin``; the detection statistics go to
-    ``world.last_detection``."""
-    contacts, world.last_detection = detect_world(world, margin=margin)
+def _detect(world, margin, R=None):
+    """Contacts of the current state within ``margin`` (``R (N,3,3)`` the rotation matrices, when
+    known); the detection statistics go to ``world.last_detection``."""
+    contacts, world.last_detection = detect_world(world, margin=margin, R=R)
     return contacts
 
 
@@ -107,7 +108,9 @@ def _detect_stage(ctx):
     world, m = ctx.world, ctx.models
     margin = world.settings.contact_margin
     det_margin = prepare.speculative_margin(world, ctx.t_left) if ctx.speculative else margin
-    c = toi_mod.mark_swept(_detect(world, det_margin), ctx.swept_pair)   # the sweep's hit: feature swept
+    ctx.R = np.empty((len(world), 3, 3))
+    rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
+    c = toi_mod.mark_swept(_detect(world, det_margin, ctx.R), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
     if ctx.speculative and det_margin > margin and len(c):
         rel_vel, near = prepare.relative_velocity(world, c, m, closing=(ctx.t_left, margin))

@@ -223,12 +223,13 @@ def disabled_keys(world):
                    key=(len(world), len(world.disabled_pairs)))
 
 
-def detect_world(world, margin=None):
+def detect_world(world, margin=None, R=None):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
     ``margin`` (m) overrides ``world.settings.contact_margin``: pairs closer than it are reported
     with ``depth = -separation`` (negative). ``body_a < body_b`` in every row; ``normal (K, 3)``
-    points from ``body_b`` to ``body_a``.
+    points from ``body_b`` to ``body_a``. ``R (N, 3, 3)``: the bodies' rotation matrices, when the
+    caller has them already (``vec3.rotations`` of ``world.s.quat``; the step shares them).
     """
     t0 = time.perf_counter()
     margin = float(world.settings.contact_margin if margin is None else margin)
@@ -239,12 +240,12 @@ def detect_world(world, margin=None):
     bodies = _bodies_of(world)
     timings = {"prepare": time.perf_counter() - t0}   # shape preparation: the first detection only
     pos, quat = world.s.pos, world.s.quat
-    R = None
     if bodies.n < 2:
         ia = ib = np.zeros(0, np.int64)
     else:
-        R = np.empty((bodies.n, 3, 3))
-        rotations(quat, R)
+        if R is None:
+            R = np.empty((bodies.n, 3, 3))
+            rotations(quat, R)
         ia, ib = _world_pairs(world, bodies, pos, R, margin)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)

@@ -33,6 +33,7 @@ class StepContext:
     rotating: np.ndarray = None    # (N,) bool: dynamic bodies that rotate (not particles)
     # ---- the current sub-step (written by the stages, in order)
     t_left: float = 0.0            # time left in the step
+    R: np.ndarray = None           # (N,3,3) the bodies' rotation matrices at the sub-step's start (detect)
     contacts: object = None        # Contacts of the sub-step (detect)
     rel_vel: np.ndarray = None     # (K,3) relative velocity of the contact points (detect)
     rows: object = None            # solver.Rows (prepare)
@@ -47,6 +48,7 @@ class StepContext:
     closing: np.ndarray = None     # (K,) bool: speculative contacts that would overlap by the end
     impact: np.ndarray = None      # (K,) bool: touching contacts that approach fast enough to bounce
     bounced: np.ndarray = None     # (K,) bool: impact, or a closing one that bounces (e > 0)
+    counts: object = None          # prepare.Counts: how many touch, impact, close, bounce; the deepest depth
     impulse: np.ndarray = None     # (K,3) impulses of the sub-step (n, t1, t2), on A
     vn1: np.ndarray = None         # (K,) normal velocity after the impact solve
     rest_impulse: np.ndarray = None  # (K,3) the resting solve's impulse over the rest of the step

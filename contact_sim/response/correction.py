@@ -15,7 +15,7 @@ def plan(ctx):
     deeper than ``settings.split_slop``."""
     world, c = ctx.world, ctx.contacts
     st = world.settings
-    if len(c) == 0 or c.depth.max() <= st.split_slop:
+    if len(c) == 0 or ctx.counts.deepest <= st.split_slop:
         return
     pen = np.flatnonzero(c.depth > 0)
     if pen.size == 0:

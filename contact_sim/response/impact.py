@@ -26,10 +26,11 @@ def impact_solve(ctx):
     e, vn0, touching, closing = ctx.restitution, ctx.vn0, ctx.touching, ctx.closing
     lam = np.zeros((len(c), 3))
     ctx.impulse = lam
-    if ctx.models.response == "kinematic" and ctx.impact.any() and not closing.any():
+    n = ctx.counts
+    if ctx.models.response == "kinematic" and n.impact and not n.closing:
         lam[:, 0], ctx.vn1 = _kinematic_impacts(world, c, ctx.rel_vel, e, touching & (vn0 <= 0.0))
         return
-    if not (ctx.impact.any() or closing.any()):
+    if not (n.impact or n.closing):
         ctx.vn1 = vn0
         return
     # a touching pair that separates takes no impact impulse: it was not hit; were it held at

@@ -10,6 +10,7 @@ the contacts; numpy sets them up.
 Shapes: ``N`` bodies, ``K`` contacts.
 """
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,7 +22,6 @@ from ..settings import combine
 from . import models as _models
 from . import solver
 from . import toi as toi_mod
-from ..collision.vec3 import rotations
 from .cache import local_points
 from .context import REST_REBOUND_FRACTION
 
@@ -39,10 +39,7 @@ def prepare_contacts(ctx):
     s = world.s
     c = ctx.contacts
     k = len(c)
-    if ctx.first:
-        ctx.max_penetration = max(ctx.max_penetration, float(c.depth.max()))
-    R = np.empty((len(world), 3, 3))
-    rotations(s.quat, R)   # quat.to_matrix's values, one compiled pass
+    R = ctx.R   # the detection's rotation matrices: the bodies have not moved since
     ctx.rows = rows(world, c, inv_inertia(world, m, R), ctx.rel_vel, m)
     ctx.local = local_points(world, c, R)
     e, ctx.mu_s, ctx.mu_d = coefficients(world, c, m)
@@ -54,11 +51,13 @@ def prepare_contacts(ctx):
         np.empty(k), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool))
     ctx.spec_target = np.empty(k)
     ctx.restitution = cc(e, dtype=float).copy()
-    classify(a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
-             cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
-             world.settings.contact_margin, m.resting, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
-             ctx.speculative, ctx.t_left, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing,
-             ctx.spec_target, ctx.bounced)
+    ctx.counts = classify(
+        a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
+        cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
+        world.settings.contact_margin, m.resting, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, ctx.speculative,
+        ctx.t_left, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.spec_target, ctx.bounced)
+    if ctx.first:
+        ctx.max_penetration = max(ctx.max_penetration, ctx.counts.deepest)
 
 
 @njit
@@ -67,7 +66,9 @@ def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_toleranc
     """The contact classes of ``prepare_contacts``, per contact: writes ``vn0`` (the approach speed
     ``n·rel_vel``), ``touching``, ``impact``, ``closing``, ``bounced (K,) bool``, ``spec_target
     (K,)`` and zeroes ``e (K,)`` where the rebound rests. ``gravity (N,3)`` per body; ``ext (N,)``
-    the bodies' extents (read with ``exact_toi``)."""
+    the bodies' extents (read with ``exact_toi``). Returns ``Counts`` of the classes and the
+    deepest depth (what the stages test before doing anything)."""
+    n_touch, n_impact, n_closing, n_bounced, deepest = 0, 0, 0, 0, -np.inf
     for c in range(a.shape[0]):
         ia, ib = a[c], b[c]
         v = normal[c, 0] * rel_vel[c, 0] + normal[c, 1] * rel_vel[c, 1] + normal[c, 2] * rel_vel[c, 2]
@@ -103,6 +104,21 @@ def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_toleranc
             close = not touch and v < st
         closing[c] = close
         bounced[c] = impact[c] or (close and e[c] > 0)
+        n_touch += touch
+        n_impact += impact[c]
+        n_closing += close
+        n_bounced += bounced[c]
+        deepest = max(deepest, depth[c])
+    return Counts(n_touch, n_impact, n_closing, n_bounced, deepest)
+
+
+class Counts(NamedTuple):
+    """What ``classify`` counted over a sub-step's contacts."""
+    touching: int
+    impact: int
+    closing: int
+    bounced: int
+    deepest: float      # the largest depth (m; > 0 penetrating)
 
 
 def relative_velocity(world, c, m, closing=None):
@@ -210,8 +226,9 @@ def coefficients(world, c, m):
     uniform = _uniform_material(world)
     if uniform is not None:   # one material everywhere: every rule gives its own values
         e, mu_s, mu_d = uniform
-        z = np.zeros(k)
-        return (np.full(k, e), np.full(k, mu_s), np.full(k, mu_d)) if kinetic else (np.full(k, e), z, z)
+        out = np.empty((3, k))   # one block, three rows
+        out[0], out[1], out[2] = e, (mu_s if kinetic else 0.0), (mu_d if kinetic else 0.0)
+        return out[0], out[1], out[2]
     e = combine(world.restitution[a], world.restitution[b], rule)
     if not kinetic:
         z = np.zeros(k)

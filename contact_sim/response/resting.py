@@ -24,8 +24,8 @@ def resting_solve(ctx):
     the contact cache keeps (``ctx.warm_out``); the bodies' velocities are not changed here (the
     advance stage applies the force as two half-kicks)."""
     m = ctx.models
-    if not m.resting or not (ctx.touching.any() or not ctx.exact_toi) \
-            or (ctx.bounced.any() and np.all(ctx.vn1 > ctx.impact_speed)):
+    if not m.resting or not (ctx.counts.touching or not ctx.exact_toi) \
+            or (ctx.counts.bounced and np.all(ctx.vn1 > ctx.impact_speed)):
         return
     world = ctx.world
     s = world.s
