@@ -312,12 +312,13 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
 
 
 @njit
-def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s, mu_d,
+def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s, mu_d,
                   friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, vel, omega, apply,
                   lam, status):
     """The exact active set on every island of at most ``max_island`` contacts.
 
-    ``a, b (K,) int64``; ``movable (N,) bool``; ``dirs, ang_a, ang_b, iang_a, iang_b (K,3,3)``;
+    ``a, b (K,) int64``; ``order, start`` the contacts by island (``islands``); ``dirs, ang_a, ang_b,
+    iang_a, iang_b (K,3,3)``;
     ``ima, imb (K,)``; ``target, compliance, mu_s, mu_d (K,)``; ``warm (K,3)`` (read when
     ``use_warm``); ``vel, omega (N,3)`` the velocities before. Writes ``lam (K,3)`` (the impulses of
     a solved island, the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``,
@@ -331,7 +332,6 @@ def solve_islands(a, b, movable, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, t
     for c in range(k):
         _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
         v0[c, 0], v0[c, 1], v0[c, 2] = rv[0], rv[1], rv[2]
-    order, start = islands(a, b, movable, movable.shape[0])
     m_max = 0
     for i in range(start.shape[0] - 1):
         size = start[i + 1] - start[i]

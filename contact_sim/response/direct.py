@@ -102,8 +102,9 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
     # the kernel reads (and with apply_solved writes) the velocity arrays: contiguous float64 views
     v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
     w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
+    order, start = rows.islands()
     residual = active_set.solve_islands(
-        c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.movable, dtype=np.bool_), c(rows.dirs),
+        c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), order, start, c(rows.dirs),
         c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
         c(rows.imb, dtype=float), c(target_n, dtype=float), comp, mus, mud, friction,
         zeros.reshape(k, 1) if warm is None else c(warm, dtype=float), warm is not None,

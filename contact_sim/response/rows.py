@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..vec import cross
-from . import pgs
+from . import active_set, pgs
 
 _TINY = 1e-300
 
@@ -35,6 +35,16 @@ class Rows:
 
     def __len__(self):
         return len(self.a)
+
+    def islands(self):
+        """``(order (K,), start (I+1,))``: the contacts grouped by island (``active_set.islands``),
+        computed once for these rows (the solver's method choice and the island solve share it)."""
+        hit = self.__dict__.get("_islands")
+        if hit is None:
+            c = np.ascontiguousarray
+            hit = self.__dict__["_islands"] = active_set.islands(
+                c(self.a, dtype=np.int64), c(self.b, dtype=np.int64), c(self.movable, dtype=np.bool_), len(self.movable))
+        return hit
 
     def select(self, idx):
         """Rows of the contacts ``idx`` (index array or boolean mask), without recomputation; ``self``

@@ -257,9 +257,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
 
 def _largest_island(rows):
     """Contacts in the largest island of ``rows`` (contacts linked through movable bodies)."""
-    c = np.ascontiguousarray
-    _, start = active_set.islands(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64),
-                                  c(rows.movable, dtype=np.bool_), len(rows.movable))
+    start = rows.islands()[1]
     return int(np.diff(start).max()) if len(start) > 1 else 0
 
 
