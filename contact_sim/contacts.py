@@ -86,7 +86,8 @@ class Contacts:
 
     @classmethod
     def empty(cls):
-        return cls()
+        """No contacts (zero-length columns, shared by every empty ``Contacts``)."""
+        return cls(*_EMPTY)
 
     def select(self, mask):
         """A new ``Contacts`` with the rows picked by a boolean mask or index array."""
@@ -98,3 +99,8 @@ class Contacts:
         if not parts:
             return cls()
         return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)})
+
+
+# zero-length columns of every empty ``Contacts`` (no element to write; not flagged read-only, which
+# compiled kernels would type apart)
+_EMPTY = tuple(getattr(Contacts(), f.name) for f in fields(Contacts))
