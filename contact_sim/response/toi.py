@@ -24,10 +24,10 @@ a fast body among thousands at rest is tested against its neighbours along its p
 against every body of the world.
 """
 import numpy as np
-from scipy.optimize import brentq
 
 from .. import dynamics, quat
 from ..kinds import DYNAMIC, KINEMATIC
+from . import advancement
 from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
 from .swept import mark_swept, swept_toi  # noqa: F401 (mark_swept: the stepper marks the sweep's contacts)
@@ -36,6 +36,9 @@ XTOL = 1e-15
 TOI_TOLERANCE = 1e-9   # × the smaller body's size: a pair this close counts as touching at its impact time
 MAX_ADVANCES = 16      # conservative-advancement evaluations per pair and search, then bounded sampling
 MAX_SAMPLES = 32       # samples of the rest of the interval when advancement is slow (its bound is loose)
+RTOL = 4 * np.finfo(float).eps   # Brent's relative tolerance on the root
+_SPLIT = (dynamics.MAX_SPLIT_ANGLE, float(dynamics.MAX_SUBSTEPS))   # the free rotation's sub-step rule
+COUNTS = {"distance_evaluations": 0}   # the searches' distance evaluations (for tests and benchmarks)
 
 
 def plane_world(shape, pos, q):
@@ -73,49 +76,39 @@ class Motion:
         self.pos, self.vel, self.acc = s.pos.copy(), s.vel.copy(), acc
         self.quat, self.omega = s.quat.copy(), s.omega.copy()
         self.rotating = rotating
+        self._arrays = None
+
+    def arrays(self):
+        """``(motion, flags)`` as the compiled search reads them (``advancement``): ``(pos, vel, acc,
+        quat, omega, principal_q, moments)`` and ``(N, 3)`` bool (rotating, kinematic, dynamic)."""
+        if self._arrays is None:
+            s, w, c = self.world.s, self.world, np.ascontiguousarray
+            self._arrays = ((c(self.pos, dtype=float), c(self.vel, dtype=float), c(self.acc, dtype=float),
+                             c(self.quat, dtype=float), c(self.omega, dtype=float), c(s.principal_q, dtype=float),
+                             c(s.principal_moments, dtype=float)),
+                            np.stack([np.asarray(self.rotating, bool), w.kind == KINEMATIC, w.kind == DYNAMIC], axis=1))
+        return self._arrays
 
     def pose(self, i, tau):
-        """Centre ``(3,)`` and orientation ``(4,)`` of body ``i`` at ``tau``."""
-        p = self.pos[i] + self.vel[i] * tau + 0.5 * self.acc[i] * tau * tau
-        q = self.quat[i]
-        if self.rotating[i] and np.any(self.omega[i]):
-            s = self.world.s
-            q, _ = dynamics.rotate_free(q[None], self.omega[i][None], s.principal_q[i][None],
-                                        s.principal_moments[i][None], tau)
-            q = q[0]
-        elif self.world.kind[i] == KINEMATIC and np.any(self.omega[i]):
-            q = quat.mul(quat.from_rotvec(self.omega[i] * tau), q)
-        return p, q
+        """Centre ``(3,)`` and orientation ``(4,)`` of body ``i`` at ``tau`` (``advancement.pose``)."""
+        motion, flags = self.arrays()
+        p, q = np.empty((1, 3)), np.empty((1, 4))
+        advancement.pose(i, float(tau), motion, flags, _SPLIT, p, q, 0)
+        return p[0], q[0]
 
 
 def signed_distance(world, i, j, pi, qi, pj, qj):
-    """Signed distance between bodies ``i`` and ``j`` at the given poses (negative: penetrating)."""
-    si, sj = world.shapes[i], world.shapes[j]
-    if isinstance(si, Plane) and not isinstance(sj, Plane):
-        si, sj, pi, qi, pj, qj = sj, si, pj, qj, pi, qi
-    if isinstance(sj, Plane):
-        n, off = plane_world(sj, pj, qj)
-        if isinstance(si, Sphere):
-            return float(pi @ n - off - si.radius)
-        if isinstance(si, Polyhedron):
-            return float(np.min((pi + quat.rotate(qi, si.vertices)) @ n) - off)
-    if isinstance(si, Sphere) and isinstance(sj, Sphere):
-        return float(np.linalg.norm(pi - pj) - si.radius - sj.radius)
-    if isinstance(si, Box) and isinstance(sj, Sphere):
-        si, sj, pi, qi, pj, qj = sj, si, pj, qj, pi, qi
-    if isinstance(si, Sphere) and isinstance(sj, Box):
-        local = quat.rotate(quat.conj(qj), pi - pj)
-        h = sj.half
-        out = np.abs(local) - h
-        outside = np.linalg.norm(np.maximum(out, 0.0))
-        return float(outside + min(out.max(), 0.0) - si.radius)
-    from ..collision import collide  # general pairs need the detection package
-
-    big = 1e3
-    c = collide(si, (pi, qi), sj, (pj, qj), margin=big)
-    if len(c) == 0:
-        return big
-    return float(-np.max(c.depth))
+    """Signed distance between bodies ``i`` and ``j`` at the given poses (negative: penetrating):
+    closed forms for a plane, two spheres, a sphere and a box, else the pair's narrow phase
+    (``advancement.distance``)."""
+    which, bvh = _pair_kernel(world, i, j)
+    b = _geometry(world)
+    code, facts, verts, vrange = _shape_facts(world)
+    p = np.array([pi, pj], dtype=float)
+    q = np.array([qi, qj], dtype=float)
+    return float(advancement.distance(which, b.geom.arrays(), bvh, b.shape_of, b.rank, code, facts, verts, vrange,
+                                      int(i), int(j), p, q, np.empty((2, 3, 3)), np.empty((4, 3), np.int64),
+                                      np.empty((4, 7))))
 
 
 def _extent(shape):
@@ -147,81 +140,84 @@ def pair_toi(world, motion, i, j, T):
         # |dx|² - R² = (|dx| - R)(|dx| + R): compute c0 without cancellation
         c0 = (np.linalg.norm(dx) - R) * (np.linalg.norm(dx) + R)
         return float(_first_quadratic_root(c0, 2 * dx @ dv, dv @ dv, T))
-    # conservative advancement
-    def f(tau):
-        pi, qi = m.pose(i, tau)
-        pj, qj = m.pose(j, tau)
-        return signed_distance(world, i, j, pi, qi, pj, qj)
-
-    tol = TOI_TOLERANCE * min(_extent(si), _extent(sj))
-    rate = _closing_bound(m, i, j, T, _extent(si), _extent(sj))
-    if rate <= 0:
+    # conservative advancement, compiled (advancement.search): the closing-speed bound is relative
+    # centre speed, plus what the relative acceleration adds over the interval, plus each body's
+    # largest spin over its torque-free motion (max_spin) times its extent
+    which, bvh = _pair_kernel(world, i, j)
+    if which < 0:
         return np.inf
-    tau, d = 0.0, f(0.0)
-    if d <= 0:
-        return np.inf
-    for _ in range(MAX_ADVANCES):
-        if d <= tol:
-            return tau
-        nxt = tau + d / rate
-        if nxt > T:
-            return np.inf
-        dn = f(nxt)
-        if dn < 0:   # the bound was beaten by round-off: the root is between the two, find it exactly
-            return float(brentq(f, tau, nxt, xtol=XTOL, rtol=4 * np.finfo(float).eps))
-        tau, d = nxt, dn
-    # the bound is far from the motion (a fast spin about the contact normal closes nothing): sample
-    # the rest of the interval finely enough that neither body moves more than half the thinner one
-    # between samples, at most MAX_SAMPLES times, and refine the first sign change exactly
-    thin = min(si.thinnest(), sj.thinnest())
-    n = int(np.clip(np.ceil(rate * (T - tau) / (0.5 * thin)), 1, MAX_SAMPLES))
-    prev = tau
-    for t in np.linspace(tau, T, n + 1)[1:]:
-        ft = f(t)
-        if ft <= tol:
-            return float(brentq(f, prev, t, xtol=XTOL, rtol=4 * np.finfo(float).eps)) if ft < 0 else t
-        prev = t
-    return np.inf
+    b = _geometry(world)
+    code, facts, verts, vrange = _shape_facts(world)
+    motion, flags = m.arrays()
+    t, evals = advancement.search(which, b.geom.arrays(), bvh, b.shape_of, b.rank, code, facts, verts, vrange,
+                                  motion, flags, _SPLIT, int(i), int(j), float(T), TOI_TOLERANCE, MAX_ADVANCES,
+                                  MAX_SAMPLES, XTOL, RTOL)
+    COUNTS["distance_evaluations"] += evals
+    return float(t)
 
 
-def _closing_bound(m, i, j, T, ext_i, ext_j):
+def _geometry(world):
+    from ..collision import _bodies_of   # the detection package's per-world shape tables
+
+    return _bodies_of(world)
+
+
+def _pair_kernel(world, i, j):
+    """``(which, trees)``: the narrow-phase kernel of bodies ``i, j`` as ``collision.pair_kernels``
+    numbers it (−1 for a pair no kernel takes: plane–plane), and the mesh trees it may need."""
+    from ..collision import pair_kernels
+
+    b = _geometry(world)
+    ra, rb = int(b.rank[i]), int(b.rank[j])
+    return pair_kernels.index(max(ra, rb), min(ra, rb)), pair_kernels.trees(b.geom)
+
+
+def _shape_facts(world):
+    """``(code (N,), facts (N, 10), verts (M, 3), vrange (N, 2))`` of ``advancement`` (cached)."""
+    def build():
+        n = len(world)
+        code = np.empty(n, np.int64)
+        facts = np.zeros((n, 10))
+        vrange = np.zeros((n, 2), np.int64)
+        verts = []
+        start = 0
+        for k, sh in enumerate(world.shapes):
+            facts[k, advancement.F_EXTENT], facts[k, advancement.F_THIN] = _extent(sh), sh.thinnest()
+            if isinstance(sh, Plane):
+                code[k] = advancement.D_PLANE
+                facts[k, 0:3], facts[k, advancement.F_OFFSET] = sh.normal, sh.offset
+            elif isinstance(sh, Sphere):
+                code[k] = advancement.D_SPHERE
+                facts[k, advancement.F_RADIUS] = sh.radius
+            else:   # every other shape is a polyhedron (boxes, hulls, cylinders, meshes)
+                code[k] = advancement.D_BOX if isinstance(sh, Box) else advancement.D_POLY
+                if isinstance(sh, Box):
+                    facts[k, advancement.F_HALF:advancement.F_HALF + 3] = sh.half
+                v = np.asarray(sh.vertices, float)
+                verts.append(v)
+                vrange[k] = start, len(v)
+                start += len(v)
+        verts = np.ascontiguousarray(np.concatenate(verts)) if verts else np.zeros((0, 3))
+        return code, facts, verts, vrange
+
+    return derived(world, "shape_facts", (), build, key=len(world))
+
+
+def _closing_bound(m, i, j, T):
     """An upper bound (m/s) on how fast any point of body ``i`` can approach any point of body
-    ``j`` during ``[0, T]``: relative centre speed, plus what the relative acceleration adds over the
-    interval, plus each body's largest spin over its torque-free motion (``max_spin``) times its
-    extent."""
-    rel = float(np.linalg.norm(m.vel[i] - m.vel[j]) + np.linalg.norm(m.acc[i] - m.acc[j]) * T)
-    for k, ext in ((i, ext_i), (j, ext_j)):
-        if np.isfinite(ext) and np.any(m.omega[k]):
-            rel += max_spin(m, k) * ext
-    return rel
+    ``j`` during ``[0, T]`` (``advancement.closing_bound``)."""
+    motion, flags = m.arrays()
+    return float(advancement.closing_bound(int(i), int(j), float(T), motion, flags, _shape_facts(m.world)[1]))
 
 
 def max_spin(m, k):
     """The largest ``|ω|`` (rad/s) body ``k`` reaches in torque-free motion from its current spin:
     with ``pᵢ = Πᵢ²`` (principal-frame angular momentum), ``|ω|² = Σ pᵢ/Iᵢ²`` is largest at a vertex
     of ``{p ≥ 0: Σ pᵢ = |L|², Σ pᵢ/Iᵢ = 2E}`` (both conserved). A body spinning about a principal
-    axis keeps its ``|ω|`` exactly (the set is that one point); the crude ``|ω|·I_max/I_min`` is only
-    the fallback."""
-    w = m.omega[k]
-    s = m.world.s
-    mom = s.principal_moments[k]
-    if m.world.kind[k] != DYNAMIC or not np.all(np.isfinite(mom)) or mom.min() <= 0:
-        return float(np.linalg.norm(w))            # kinematic: spins as told; particles do not spin
-    qp = quat.mul(s.quat[k], s.principal_q[k])
-    pi = mom * quat.rotate(quat.conj(qp), w)
-    p = pi * pi
-    l2, e2 = p.sum(), (p / mom).sum()
-    best = (p / mom ** 2).sum()
-    for z in range(3):   # vertices: one pᵢ = 0, the other two from the two conserved sums
-        a, b = [x for x in range(3) if x != z]
-        det = 1.0 / mom[b] - 1.0 / mom[a]
-        if abs(det) <= 1e-12 / mom[a]:
-            continue
-        pb = (e2 - l2 / mom[a]) / det
-        pa = l2 - pb
-        if pa >= -1e-12 * l2 and pb >= -1e-12 * l2:
-            best = max(best, max(pa, 0.0) / mom[a] ** 2 + max(pb, 0.0) / mom[b] ** 2)
-    return float(np.sqrt(best))
+    axis keeps its ``|ω|`` exactly (the set is that one point); kinematic bodies and particles spin
+    as told (``advancement.max_spin``)."""
+    motion, flags = m.arrays()
+    return float(advancement.max_spin(int(k), motion, flags))
 
 
 def _extents(world):

@@ -1,0 +1,301 @@
+"""Conservative advancement, compiled: the time of impact of a general pair (``toi.pair_toi``).
+
+One call searches one pair: poses along the step's motion (centres ``x + v τ + a τ²/2``, the
+torque-free rotation of ``free_motion._rotate_body``), the signed distance at each pose (closed
+forms for a plane, two spheres, a sphere and a box; otherwise the pair's narrow-phase kernel from
+``collision.dispatch`` with a wide margin, as ``collision.collide`` runs it), the closing-speed
+bound, the advancement, the bounded sampling and Brent's refinement of a sign change. The method
+is ``toi``'s (its module docstring); here it runs without a Python call per distance.
+
+Per-body inputs (``shape_facts``): ``code (N,)`` (``D_PLANE``, ``D_SPHERE``, ``D_BOX``,
+``D_POLY``: any other polyhedron, meshes and cylinders included), ``facts (N, 10)`` (plane normal
+and offset, sphere radius, box half sizes, extent, thinnest size) and each polyhedron's vertices
+``verts (M, 3)`` at ``vrange (N, 2)`` (start, count). The motion is ``motion = (pos, vel, acc,
+quat, omega, principal_q, moments)``, ``(N, 3)``/``(N, 4)`` arrays, ``flags (N, 3)`` bool
+(rotating, kinematic, dynamic).
+"""
+import math
+
+import numpy as np
+
+from ..collision.pair_kernels import call
+from ..free_motion import _rotate_body
+from ..jit import njit
+
+D_PLANE, D_SPHERE, D_BOX, D_POLY = range(4)
+F_NORMAL, F_OFFSET, F_RADIUS, F_HALF, F_EXTENT, F_THIN = 0, 3, 4, 5, 8, 9
+WIDE = 1e3     # the narrow phase's margin for a distance (m): pairs farther apart count as this far
+MAX_BRENT = 100
+
+
+@njit
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit
+def qrotate(qx, qy, qz, qw, vx, vy, vz):
+    """``quat.rotate`` of one vector, its arithmetic in its order: ``v + w t + u × t``, ``t = 2 u × v``."""
+    cx, cy, cz = _cross(qx, qy, qz, vx, vy, vz)
+    tx, ty, tz = 2.0 * cx, 2.0 * cy, 2.0 * cz
+    ux, uy, uz = _cross(qx, qy, qz, tx, ty, tz)
+    return vx + qw * tx + ux, vy + qw * ty + uy, vz + qw * tz + uz
+
+
+@njit
+def qmul(ax, ay, az, aw, bx, by, bz, bw):
+    """``quat.mul`` (Hamilton product ``a ⊗ b``) of one pair, in its order."""
+    cx, cy, cz = _cross(ax, ay, az, bx, by, bz)
+    return (aw * bx + bw * ax + cx, aw * by + bw * ay + cy, aw * bz + bw * az + cz,
+            aw * bw - (ax * bx + ay * by + az * bz))
+
+
+@njit
+def qrotvec(rx, ry, rz):
+    """``quat.from_rotvec`` of one rotation vector (series of ``sin(θ/2)/θ`` near zero)."""
+    theta = math.sqrt(rx * rx + ry * ry + rz * rz)
+    th2 = theta * theta
+    s = 0.5 - th2 / 48.0 + th2 * th2 / 3840.0 if theta < 1e-4 else math.sin(0.5 * theta) / theta
+    return rx * s, ry * s, rz * s, math.cos(0.5 * theta)
+
+
+@njit
+def pose(k, tau, motion, flags, split, out_p, out_q, row):
+    """Centre and orientation of body ``k`` at ``tau`` into ``out_p[row]``, ``out_q[row]``
+    (``toi.Motion.pose``'s arithmetic; ``split = (max split angle, max sub-steps)``)."""
+    pos, vel, acc, quat, omega, principal_q, moments = motion
+    for x in range(3):
+        out_p[row, x] = pos[k, x] + vel[k, x] * tau + 0.5 * acc[k, x] * tau * tau
+    qx, qy, qz, qw = quat[k, 0], quat[k, 1], quat[k, 2], quat[k, 3]
+    spins = omega[k, 0] != 0.0 or omega[k, 1] != 0.0 or omega[k, 2] != 0.0
+    if flags[k, 0] and spins:
+        qx, qy, qz, qw, _, _, _, _ = _rotate_body(quat, omega, principal_q, moments, k, tau, split[0],
+                                                  np.int64(split[1]))
+    elif flags[k, 1] and spins:
+        rx, ry, rz, rw = qrotvec(omega[k, 0] * tau, omega[k, 1] * tau, omega[k, 2] * tau)
+        qx, qy, qz, qw = qmul(rx, ry, rz, rw, qx, qy, qz, qw)
+    out_q[row, 0], out_q[row, 1], out_q[row, 2], out_q[row, 3] = qx, qy, qz, qw
+
+
+@njit
+def _plane_poly(code, facts, verts, vrange, o, pl, p, q):
+    """Signed distance of body ``o`` (sphere or polyhedron; rows ``0``/``1`` of ``p, q`` are the
+    pair's poses, ``o``/``pl`` name the rows) to the plane body ``pl``; NaN for another shape."""
+    f = facts[pl[0]]
+    r = pl[1]
+    nx, ny, nz = qrotate(q[r, 0], q[r, 1], q[r, 2], q[r, 3], f[F_NORMAL], f[F_NORMAL + 1], f[F_NORMAL + 2])
+    off = f[F_OFFSET] + (nx * p[r, 0] + ny * p[r, 1] + nz * p[r, 2])
+    k, ro = o[0], o[1]
+    if code[k] == D_SPHERE:
+        return (p[ro, 0] * nx + p[ro, 1] * ny + p[ro, 2] * nz) - off - facts[k, F_RADIUS]
+    if code[k] == D_PLANE:
+        return np.nan
+    low = np.inf
+    for v in range(vrange[k, 0], vrange[k, 0] + vrange[k, 1]):
+        wx, wy, wz = qrotate(q[ro, 0], q[ro, 1], q[ro, 2], q[ro, 3], verts[v, 0], verts[v, 1], verts[v, 2])
+        low = min(low, (p[ro, 0] + wx) * nx + (p[ro, 1] + wy) * ny + (p[ro, 2] + wz) * nz)
+    return low - off
+
+
+@njit
+def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, p, q, R, scratch_i, scratch_f):
+    """Signed distance (m; negative: penetrating) of bodies ``i`` (pose row 0 of ``p (2,3)``,
+    ``q (2,4)``) and ``j`` (row 1), as ``toi.signed_distance``: closed forms for a plane, two
+    spheres and a sphere with a box, else the pair's narrow-phase kernel (``pair_kernels.call``'s
+    ``which``) over the geometry ``geo`` (``GeomTable.arrays()``, ``bvh`` its mesh trees) within
+    ``WIDE``: minus the deepest
+    contact's depth, ``WIDE`` when none. ``R (2,3,3)``, ``scratch_i (4,3)``, ``scratch_f (4,7)``
+    are workspace."""
+    ci, cj = code[i], code[j]
+    if ci == D_PLANE and cj != D_PLANE:
+        d = _plane_poly(code, facts, verts, vrange, (j, 1), (i, 0), p, q)
+        if not math.isnan(d):
+            return d
+    elif cj == D_PLANE:
+        d = _plane_poly(code, facts, verts, vrange, (i, 0), (j, 1), p, q)
+        if not math.isnan(d):
+            return d
+    if ci == D_SPHERE and cj == D_SPHERE:
+        dx, dy, dz = p[0, 0] - p[1, 0], p[0, 1] - p[1, 1], p[0, 2] - p[1, 2]
+        return math.sqrt(dx * dx + dy * dy + dz * dz) - facts[i, F_RADIUS] - facts[j, F_RADIUS]
+    if (ci == D_SPHERE and cj == D_BOX) or (ci == D_BOX and cj == D_SPHERE):
+        s, b = (0, 1) if ci == D_SPHERE else (1, 0)
+        sb = j if b == 1 else i
+        lx, ly, lz = qrotate(-q[b, 0], -q[b, 1], -q[b, 2], q[b, 3], p[s, 0] - p[b, 0], p[s, 1] - p[b, 1],
+                             p[s, 2] - p[b, 2])
+        ox = abs(lx) - facts[sb, F_HALF]
+        oy = abs(ly) - facts[sb, F_HALF + 1]
+        oz = abs(lz) - facts[sb, F_HALF + 2]
+        mx, my, mz = max(ox, 0.0), max(oy, 0.0), max(oz, 0.0)
+        outside = math.sqrt(mx * mx + my * my + mz * mz)
+        return outside + min(max(ox, oy, oz), 0.0) - facts[i if s == 0 else j, F_RADIUS]
+    # collide()'s one-pair path: unit quaternions, rotations, the kernel of A (higher rank) and B
+    for r in range(2):
+        x, y, z, w = q[r, 0], q[r, 1], q[r, 2], q[r, 3]
+        norm = math.sqrt(x * x + y * y + z * z + w * w)
+        qx, qy, qz, qw = x / norm, y / norm, z / norm, w / norm
+        R[r, 0, 0], R[r, 0, 1], R[r, 0, 2] = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)
+        R[r, 1, 0], R[r, 1, 1], R[r, 1, 2] = 2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)
+        R[r, 2, 0], R[r, 2, 1], R[r, 2, 2] = 2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)
+    swap = rank[i] < rank[j]
+    two = np.empty(2, np.int64)
+    two[0], two[1] = shape_of[i], shape_of[j]
+    a, b = np.empty(1, np.int64), np.empty(1, np.int64)
+    a[0], b[0] = (1, 0) if swap else (0, 1)
+    counters = np.zeros(3, np.int64)
+    k = call(which, *geo, two, a, b, p, R, WIDE, counters, scratch_i, scratch_f, bvh)
+    if k == 0:
+        return WIDE
+    deepest = -np.inf
+    for r in range(k):
+        deepest = max(deepest, scratch_f[r, 6])
+    return -deepest
+
+
+@njit
+def max_spin(k, motion, flags):
+    """``toi.max_spin``: the largest ``|ω|`` body ``k`` reaches in torque-free motion."""
+    pos, vel, acc, quat, omega, principal_q, moments = motion
+    wx, wy, wz = omega[k, 0], omega[k, 1], omega[k, 2]
+    m0, m1, m2 = moments[k, 0], moments[k, 1], moments[k, 2]
+    if not flags[k, 2] or not (math.isfinite(m0) and math.isfinite(m1) and math.isfinite(m2)) \
+            or min(m0, m1, m2) <= 0:
+        return math.sqrt(wx * wx + wy * wy + wz * wz)
+    px, py, pz, pw = qmul(quat[k, 0], quat[k, 1], quat[k, 2], quat[k, 3],
+                          principal_q[k, 0], principal_q[k, 1], principal_q[k, 2], principal_q[k, 3])
+    bx, by, bz = qrotate(-px, -py, -pz, pw, wx, wy, wz)
+    mom = (m0, m1, m2)
+    p0, p1, p2 = (m0 * bx) ** 2, (m1 * by) ** 2, (m2 * bz) ** 2
+    l2 = p0 + p1 + p2
+    e2 = p0 / m0 + p1 / m1 + p2 / m2
+    best = p0 / m0 ** 2 + p1 / m1 ** 2 + p2 / m2 ** 2
+    for z in range(3):   # vertices: one pᵢ = 0, the other two from the two conserved sums
+        a = 1 if z == 0 else 0
+        b = 1 if z == 2 else 2
+        det = 1.0 / mom[b] - 1.0 / mom[a]
+        if abs(det) <= 1e-12 / mom[a]:
+            continue
+        pb = (e2 - l2 / mom[a]) / det
+        pa = l2 - pb
+        if pa >= -1e-12 * l2 and pb >= -1e-12 * l2:
+            best = max(best, max(pa, 0.0) / mom[a] ** 2 + max(pb, 0.0) / mom[b] ** 2)
+    return math.sqrt(best)
+
+
+@njit
+def closing_bound(i, j, T, motion, flags, facts):
+    """``toi._closing_bound``: how fast (m/s) any point of ``i`` can approach any point of ``j``."""
+    pos, vel, acc, quat, omega, principal_q, moments = motion
+    dvx, dvy, dvz = vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1], vel[i, 2] - vel[j, 2]
+    dax, day, daz = acc[i, 0] - acc[j, 0], acc[i, 1] - acc[j, 1], acc[i, 2] - acc[j, 2]
+    rel = math.sqrt(dvx * dvx + dvy * dvy + dvz * dvz) + math.sqrt(dax * dax + day * day + daz * daz) * T
+    for k in (i, j):
+        ext = facts[k, F_EXTENT]
+        if math.isfinite(ext) and (omega[k, 0] != 0.0 or omega[k, 1] != 0.0 or omega[k, 2] != 0.0):
+            rel += max_spin(k, motion, flags) * ext
+    return rel
+
+
+@njit
+def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, T, tolerance,
+           max_advances, max_samples, xtol, rtol):
+    """First touching time of bodies ``i, j`` in ``(0, T]`` (``inf`` if none) by conservative
+    advancement, then bounded sampling and Brent's method on a sign change (``toi.pair_toi``);
+    ``tolerance`` × the smaller extent counts as touching. Returns ``(τ, distance evaluations)``."""
+    p, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
+    si, sf = np.empty((4, 3), np.int64), np.empty((4, 7))
+    tol = tolerance * min(facts[i, F_EXTENT], facts[j, F_EXTENT])
+    rate = closing_bound(i, j, T, motion, flags, facts)
+    if rate <= 0:
+        return np.inf, 0
+    evals = 1
+    tau, d = 0.0, _at(0.0, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j,
+                      p, q, R, si, sf)
+    if d <= 0:
+        return np.inf, evals
+    lo, hi, f_lo, f_hi = 0.0, 0.0, 0.0, 0.0
+    found = False
+    for _ in range(max_advances):
+        if d <= tol:
+            return tau, evals
+        nxt = tau + d / rate
+        if nxt > T:
+            return np.inf, evals
+        dn = _at(nxt, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
+                 R, si, sf)
+        evals += 1
+        if dn < 0:   # the bound was beaten by round-off: the root is between the two, find it exactly
+            lo, hi, f_lo, f_hi, found = tau, nxt, d, dn, True
+            break
+        tau, d = nxt, dn
+    if not found:
+        # the bound is far from the motion (a fast spin about the contact normal closes nothing):
+        # sample the rest of the interval so that neither body moves more than half the thinner
+        # one between samples, at most max_samples times (np.linspace's points)
+        thin = min(facts[i, F_THIN], facts[j, F_THIN])
+        x = rate * (T - tau) / (0.5 * thin)
+        n = max_samples if not x < max_samples else max(int(math.ceil(x)), 1)
+        step = (T - tau) / n
+        prev, f_prev = tau, d
+        for s in range(1, n + 1):
+            t = T if s == n else s * step + tau
+            ft = _at(t, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j,
+                     p, q, R, si, sf)
+            evals += 1
+            if ft <= tol:
+                if not ft < 0:
+                    return t, evals
+                lo, hi, f_lo, f_hi, found = prev, t, f_prev, ft, True
+                break
+            prev, f_prev = t, ft
+        if not found:
+            return np.inf, evals
+    # Brent's method (Brent 1973, ch. 4): inverse quadratic interpolation or secant steps while
+    # they shrink the bracket fast enough, bisection otherwise; b is the best estimate
+    a, b, fa, fb = lo, hi, f_lo, f_hi
+    c, fc = a, fa
+    dstep = estep = b - a
+    for _ in range(MAX_BRENT):
+        if (fb > 0) == (fc > 0):
+            c, fc = a, fa
+            dstep = estep = b - a
+        if abs(fc) < abs(fb):
+            a, b, c = b, c, b
+            fa, fb, fc = fb, fc, fb
+        half = 0.5 * (xtol + rtol * abs(b))
+        mid = 0.5 * (c - b)
+        if abs(mid) <= half or fb == 0:
+            break
+        if abs(estep) >= half and abs(fa) > abs(fb):
+            s_ = fb / fa
+            if a == c:
+                pp, qq = 2.0 * mid * s_, 1.0 - s_
+            else:
+                qa, rb = fa / fc, fb / fc
+                pp = s_ * (2.0 * mid * qa * (qa - rb) - (b - a) * (rb - 1.0))
+                qq = (qa - 1.0) * (rb - 1.0) * (s_ - 1.0)
+            if pp > 0:
+                qq = -qq
+            else:
+                pp = -pp
+            if 2.0 * pp < min(3.0 * mid * qq - abs(half * qq), abs(estep * qq)):
+                estep, dstep = dstep, pp / qq
+            else:
+                dstep = estep = mid
+        else:
+            dstep = estep = mid
+        a, fa = b, fb
+        b += dstep if abs(dstep) > half else (half if mid > 0 else -half)
+        fb = _at(b, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
+                 R, si, sf)
+        evals += 1
+    return b, evals
+
+
+@njit
+def _at(tau, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, p, q, R, si,
+        sf):
+    """The pair's signed distance at ``tau`` (poses into ``p, q``)."""
+    pose(i, tau, motion, flags, split, p, q, 0)
+    pose(j, tau, motion, flags, split, p, q, 1)
+    return distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, p, q, R, si, sf)

@@ -1,0 +1,143 @@
+"""The compiled time-of-impact search (``response.advancement``): its quaternion arithmetic is the
+``quat`` module's, its poses are the integrator's, its distances and times are the formulas'."""
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim import dynamics, quat
+from contact_sim.response import advancement, toi
+
+pytestmark = pytest.mark.exact
+
+
+def test_quaternion_helpers_are_the_quat_modules_arithmetic():
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        a, b = rng.normal(size=4), rng.normal(size=4)
+        a /= np.linalg.norm(a)
+        v = rng.normal(size=3)
+        r = rng.normal(size=3) * 10.0 ** rng.uniform(-7, 1)   # both sides of the series' switch at 1e-4
+        assert np.array_equal(advancement.qrotate(*a, *v), quat.rotate(a, v))
+        assert np.array_equal(advancement.qmul(*a, *b), quat.mul(a, b))
+        assert np.array_equal(advancement.qrotvec(*r), quat.from_rotvec(r))
+
+
+def _tumbling_world(toi_mode="fractional"):
+    w = cs.World(gravity=(0, 0, -9.81), settings={"toi": toi_mode, "dt": 1 / 60})
+    w.add_body("floor", cs.Plane((0, 0, 1), 0.0), kind="static")
+    w.add_body("brick", cs.Box([0.4, 0.2, 0.1]), mass=2.0, position=[0, 0, 1.0], velocity=[1.0, 0, 0],
+               angular_velocity=[3.0, 0.2, 5.0])
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[1.0, 0, 1.0], velocity=[-1.0, 0, 0])
+    w.add_body("paddle", cs.Box([0.1, 0.5, 0.5]), kind="kinematic", position=[0, 1.5, 1.0],
+               angular_velocity=[0, 0, 2.0])
+    return w
+
+
+def test_poses_follow_the_integrators_motion():
+    # the search's pose is the step's free motion: the torque-free rotation of a tumbling brick
+    # (dynamics.rotate_free) and a kinematic body's constant spin, bit for bit
+    w = _tumbling_world()
+    acc = np.where((w.kind == 2)[:, None], w.gravity, 0.0)
+    m = toi.Motion(w, acc, w.kind == 2)
+    s = w.s
+    for tau in (0.0, 1e-9, 0.004, 1 / 60, 0.3):
+        p, q = m.pose(1, tau)
+        q_ref, _ = dynamics.rotate_free(s.quat[1:2], s.omega[1:2], s.principal_q[1:2], s.principal_moments[1:2], tau)
+        assert np.array_equal(q, q_ref[0])
+        assert np.array_equal(p, s.pos[1] + s.vel[1] * tau + 0.5 * acc[1] * tau * tau)
+        _, qk = m.pose(3, tau)
+        assert np.array_equal(qk, quat.mul(quat.from_rotvec(s.omega[3] * tau), s.quat[3]))
+
+
+def test_signed_distances_are_the_formulas():
+    w = _tumbling_world()
+    I = np.array([0.0, 0.0, 0.0, 1.0])
+    tilt = np.array([np.sin(0.3), 0.0, 0.0, np.cos(0.3)])          # 0.6 rad about x
+    # sphere over the plane: height − radius
+    assert toi.signed_distance(w, 2, 0, np.array([0.3, -1.0, 0.47]), I, np.zeros(3), I) == pytest.approx(0.37, abs=1e-15)
+    # brick over the plane, tilted: its lowest corner
+    half = np.array([0.2, 0.1, 0.05])
+    low = 0.8 - (half[1] * np.sin(0.6) + half[2] * np.cos(0.6))
+    assert toi.signed_distance(w, 1, 0, np.array([0, 0, 0.8]), tilt, np.zeros(3), I) == pytest.approx(low, abs=1e-15)
+    # ball beside the brick's face, then off its corner edge (the brick in its own frame)
+    assert toi.signed_distance(w, 2, 1, np.array([0.5, 0.0, 0.0]), I, np.zeros(3), I) == pytest.approx(0.2, abs=1e-15)
+    corner = np.array([0.2 + 0.3, 0.1 + 0.4, 0.0])
+    assert toi.signed_distance(w, 1, 2, np.zeros(3), I, corner, I) == pytest.approx(0.5 - 0.1, abs=1e-15)
+    # two boxes (the narrow phase): brick and paddle 0.35 m apart along y, faces parallel
+    gap = toi.signed_distance(w, 1, 3, np.zeros(3), I, np.array([0.0, 0.1 + 0.25 + 0.35, 0.0]), I)
+    assert gap == pytest.approx(0.35, abs=1e-12)
+
+
+def test_search_finds_the_closing_time_of_translating_polyhedra():
+    # a hull and a box closing at 4 m/s across a 0.3 m gap, no rotation, no gravity: contact at
+    # 0.075 s, found no later and within the tolerance × the smaller size
+    w = cs.World(gravity=(0, 0, 0), settings={"toi": "fractional", "dt": 1 / 60})
+    hull = cs.Convex(np.array([[0.1, 0, 0], [-0.1, 0, 0], [0, 0.1, 0], [0, -0.1, 0], [0, 0, 0.1], [0, 0, -0.1]]))
+    w.add_body("hull", hull, mass=1.0, position=[0.0, 0.0, 0.0], velocity=[2.0, 0, 0])
+    w.add_body("box", cs.Box([0.2, 0.2, 0.2]), mass=1.0, position=[0.5, 0.0, 0.0], velocity=[-2.0, 0, 0])
+    m = toi.Motion(w, np.zeros((2, 3)), w.kind == 2)
+    n0 = toi.COUNTS["distance_evaluations"]
+    t = toi.pair_toi(w, m, 0, 1, 0.2)
+    assert toi.COUNTS["distance_evaluations"] > n0
+    assert 0.075 - toi.TOI_TOLERANCE * 0.1 / 4.0 - 1e-15 <= t <= 0.075 + 1e-15
+    assert toi.pair_toi(w, m, 0, 1, 0.07) == np.inf          # not within a shorter interval
+
+
+def test_search_refines_a_spinning_approach_to_the_touching_instant():
+    # the brick tumbles while falling: the time returned is where the distance crosses zero (to
+    # the tolerance), and nothing touches before it (sampled densely)
+    w = _tumbling_world()
+    w.set_state("brick", position=[0, 0, 0.35], velocity=[0, 0, -2.0])
+    acc = np.where((w.kind == 2)[:, None], w.gravity, 0.0)
+    m = toi.Motion(w, acc, w.kind == 2)
+    t = toi.pair_toi(w, m, 1, 0, 0.2)
+    assert 0 < t < 0.2
+
+    def d(tau):
+        p, q = m.pose(1, tau)
+        return toi.signed_distance(w, 1, 0, p, q, np.zeros(3), np.array([0, 0, 0, 1.0]))
+
+    tol = toi.TOI_TOLERANCE * np.linalg.norm(w.shapes[1].vertices, axis=1).max()
+    assert abs(d(t)) <= tol + 1e-12
+    assert min(d(x) for x in np.linspace(0, t, 400)[:-1]) > -1e-12
+
+
+def test_the_compiled_table_is_the_narrow_phase_table():
+    # pair_kernels.call branches over a list of kernels: exactly dispatch.TABLE's, each type pair
+    # numbered to its own kernel
+    from contact_sim.collision import dispatch, pair_kernels
+    from contact_sim.collision.geometry import NRANK
+
+    dispatch._load()
+    assert set(pair_kernels.KERNELS) == set(dispatch.TABLE.values())
+    assert len(set(pair_kernels.KERNELS)) == len(pair_kernels.KERNELS)
+    for ra in range(NRANK):
+        for rb in range(ra + 1):
+            kernel = dispatch.TABLE.get((ra, rb))
+            which = pair_kernels.index(ra, rb)
+            assert (which == -1) if kernel is None else pair_kernels.KERNELS[which] is kernel
+
+
+@pytest.mark.parametrize("pair", ["box-box", "hull-sphere", "cylinder-box", "mesh-sphere", "mesh-hull", "mesh-mesh"])
+def test_general_distances_are_collides(pair):
+    # the search's distance for the pairs without a closed form is what collide() reports: minus
+    # the deepest contact within a wide margin (every kernel the search can reach through the table)
+    import trimesh
+
+    rng = np.random.default_rng(4)
+    tet = trimesh.creation.icosphere(subdivisions=1, radius=0.15)
+    mesh = cs.TriMesh(tet.vertices, tet.faces)
+    make = {"box": lambda: cs.Box([0.3, 0.2, 0.1]), "sphere": lambda: cs.Sphere(0.1),
+            "hull": lambda: cs.Convex(rng.normal(size=(14, 3)) * 0.1), "cylinder": lambda: cs.Cylinder(0.1, 0.3),
+            "mesh": lambda: mesh}
+    a, b = pair.split("-")
+    w = cs.World(gravity=(0, 0, 0))
+    w.add_body("a", make[a](), mass=1.0)
+    w.add_body("b", make[b](), mass=1.0, position=[0.5, 0, 0])
+    for _ in range(20):
+        qa, qb = rng.normal(size=4), rng.normal(size=4)
+        qa, qb = qa / np.linalg.norm(qa), qb / np.linalg.norm(qb)
+        pa, pb = rng.normal(size=3) * 0.1, rng.normal(size=3) * 0.3
+        got = toi.signed_distance(w, 0, 1, pa, qa, pb, qb)
+        c = cs.collide(w.shapes[0], (pa, qa), w.shapes[1], (pb, qb), margin=advancement.WIDE)
+        assert got == (-float(np.max(c.depth)) if len(c) else advancement.WIDE)
