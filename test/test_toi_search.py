@@ -141,3 +141,51 @@ def test_general_distances_are_collides(pair):
         got = toi.signed_distance(w, 0, 1, pa, qa, pb, qb)
         c = cs.collide(w.shapes[0], (pa, qa), w.shapes[1], (pb, qb), margin=advancement.WIDE)
         assert got == (-float(np.max(c.depth)) if len(c) else advancement.WIDE)
+
+
+def test_candidate_pairs_follow_their_contract():
+    # a double loop written from candidate_pairs' contract: path spheres whose boxes overlap (a
+    # plane: the path reaches its half-space), a dynamic body in the pair, groups that collide,
+    # relative motion, one of ``only``, not excluded
+    rng = np.random.default_rng(5)
+    w = cs.World(gravity=(0, 0, -9.81), settings={"toi": "fractional", "dt": 1 / 60})
+    w.add_body("floor", cs.Plane((0, 0, 1), 0.0), kind="static")
+    w.add_body("wall", cs.Plane((1, 0, 0), -1.0), kind="static")
+    for k in range(30):
+        kind = "static" if k % 7 == 3 else "dynamic"
+        kw = dict(mass=1.0, velocity=rng.normal(size=3) * 3 * (k % 5 != 0),
+                  angular_velocity=rng.normal(size=3) * 8 * (k % 3 != 0)) if kind == "dynamic" else {}
+        shape = [cs.Sphere(0.1), cs.Box([0.3, 0.2, 0.1]), cs.Convex(rng.normal(size=(12, 3)) * 0.1)][k % 3]
+        w.add_body(f"b{k}", shape, kind=kind, position=rng.uniform(-1.5, 1.5, 3) + [0, 0, 1.6],
+                   group=1 if k % 4 else 2, mask=1 if k % 4 else 2 | 1, **kw)
+    acc = np.where((w.kind == 2)[:, None], w.gravity, 0.0)
+    m = toi.Motion(w, acc, w.kind == 2)
+    n = len(w)
+    T = 0.2
+    ext = np.array([toi._extent(sh) for sh in w.shapes])
+    mid = m.pos + 0.5 * m.vel * T + 0.125 * m.acc * T * T
+    rad = ext + 0.5 * np.linalg.norm(m.vel * T + 0.5 * m.acc * T * T, axis=1) + 0.125 * np.linalg.norm(m.acc, axis=1) * T * T
+    base_i, base_j = toi.candidate_pairs(w, m, T, np.zeros(0, np.int64))
+    exclude = np.sort((base_i * n + base_j)[::7][:3])    # pairs that would be candidates: in contact
+    assert len(exclude) == 3
+    for only in (None, (4, 9)):
+        want = set()
+        for i in range(n):
+            for j in range(i + 1, n):
+                if np.isfinite(rad[i]) and np.isfinite(rad[j]):
+                    near = np.all(np.abs(mid[i] - mid[j]) <= rad[i] + rad[j])
+                else:
+                    pl, o = (i, j) if not np.isfinite(rad[i]) else (j, i)
+                    if not np.isfinite(rad[o]):
+                        continue
+                    sh = w.shapes[pl]
+                    near = mid[o] @ sh.normal - sh.offset <= rad[o]
+                dyn = w.kind[i] == 2 or w.kind[j] == 2
+                groups = (w.group[i] & w.mask[j]) and (w.group[j] & w.mask[i])
+                moves = np.any(m.vel[i] != m.vel[j]) or np.any(m.acc[i] != m.acc[j]) or np.any(m.omega[i]) or np.any(m.omega[j])
+                chosen = only is None or i in only or j in only
+                if near and dyn and groups and moves and chosen and i * n + j not in exclude:
+                    want.add((i, j))
+        got_i, got_j = toi.candidate_pairs(w, m, T, exclude, only=only)
+        assert set(zip(got_i.tolist(), got_j.tolist())) == want and len(got_i) == len(want)
+        assert len(want) > (2 if only else 20)

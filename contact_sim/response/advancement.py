@@ -299,3 +299,73 @@ def _at(tau, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion
     pose(i, tau, motion, flags, split, p, q, 0)
     pose(j, tau, motion, flags, split, p, q, 1)
     return distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, p, q, R, si, sf)
+
+
+# ---------------------------------------------------------------------------- candidate pairs
+@njit
+def path_spheres(pos, vel, acc, ext, T, mid, rad):
+    """The sphere bounding each body's path over ``[0, T]``: centre ``mid (N,3)`` (the path's
+    midpoint in time) and radius ``rad (N,)`` (extent ``ext`` plus half the chord plus the sag
+    ``|a| T²/8``; infinite for planes)."""
+    for k in range(pos.shape[0]):
+        cx = vel[k, 0] * T + 0.5 * acc[k, 0] * T * T
+        cy = vel[k, 1] * T + 0.5 * acc[k, 1] * T * T
+        cz = vel[k, 2] * T + 0.5 * acc[k, 2] * T * T
+        for x in range(3):
+            mid[k, x] = pos[k, x] + 0.5 * vel[k, x] * T + 0.125 * acc[k, x] * T * T
+        a = math.sqrt(acc[k, 0] * acc[k, 0] + acc[k, 1] * acc[k, 1] + acc[k, 2] * acc[k, 2])
+        rad[k] = ext[k] + (0.5 * math.sqrt(cx * cx + cy * cy + cz * cz) + 0.125 * a * T * T)
+
+
+@njit
+def path_pairs(bi, bj, finite, planes, unbounded, pos, quat, vel, acc, omega, mid, rad, normal, offset, T, kind,
+               dynamic_code, group, mask, only, exclude, out_i, out_j):
+    """``toi.candidate_pairs`` after the broad phase: the pairs ``bi, bj`` of bounded bodies whose
+    path spheres overlap, then (finite body, plane) pairs whose path reaches the plane (``planes``
+    with ``normal (P,3)``, ``offset (P,)`` in their own frames; a moving plane widens by its own
+    path), then every bounded body with each ``unbounded`` body, in that order; kept when a
+    dynamic body takes part, the collision groups allow it, something moves relative to the other,
+    ``only`` (bool per body, or empty) has one of them, and the key ``min·N + max`` is not in the
+    sorted ``exclude``. Writes ``out_i, out_j`` (``i < j``); returns how many."""
+    n = kind.shape[0]
+    k = 0
+    total = bi.shape[0] + finite.shape[0] * (planes.shape[0] + unbounded.shape[0])
+    for c in range(total):
+        if c < bi.shape[0]:
+            i, j = bi[c], bj[c]
+        else:
+            r = c - bi.shape[0]
+            width = planes.shape[0] + unbounded.shape[0]
+            f, s = finite[r // width], r % width
+            if s < planes.shape[0]:
+                pl = planes[s]
+                nx, ny, nz = qrotate(quat[pl, 0], quat[pl, 1], quat[pl, 2], quat[pl, 3], normal[s, 0], normal[s, 1],
+                                     normal[s, 2])
+                off = offset[s] + (nx * pos[pl, 0] + ny * pos[pl, 1] + nz * pos[pl, 2])
+                speed = math.sqrt(vel[pl, 0] ** 2 + vel[pl, 1] ** 2 + vel[pl, 2] ** 2)
+                if not (mid[f, 0] * nx + mid[f, 1] * ny + mid[f, 2] * nz) - off <= rad[f] + speed * T:
+                    continue
+                o = pl
+            else:
+                o = unbounded[s - planes.shape[0]]
+            i, j = min(o, f), max(o, f)
+        if kind[i] != dynamic_code and kind[j] != dynamic_code:
+            continue
+        if (group[i] & mask[j]) == 0 or (group[j] & mask[i]) == 0:
+            continue
+        moves = False
+        for x in range(3):
+            if vel[i, x] != vel[j, x] or acc[i, x] != acc[j, x] or omega[i, x] != 0.0 or omega[j, x] != 0.0:
+                moves = True
+        if not moves:      # no relative motion: a pair apart now stays apart
+            continue
+        if only.shape[0] and not (only[i] or only[j]):
+            continue
+        if exclude.shape[0]:
+            key = i * n + j
+            e = np.searchsorted(exclude, key)
+            if e < exclude.shape[0] and exclude[e] == key:
+                continue
+        out_i[k], out_j[k] = i, j
+        k += 1
+    return k

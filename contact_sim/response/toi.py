@@ -235,47 +235,40 @@ def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
     from ..collision import broadphase
 
     n = len(world)
-    kind = world.kind
-    ext = _extents(world)
     m = motion
-    mid = m.pos + 0.5 * m.vel * T + 0.125 * m.acc * T * T
-    half_path = 0.5 * np.linalg.norm(m.vel * T + 0.5 * m.acc * T * T, axis=1) + 0.125 * np.linalg.norm(m.acc, axis=1) * T * T
-    rad = ext + half_path
+    motion_arrays, _ = m.arrays()
+    pos, vel, acc, q, omega = motion_arrays[:5]
+    mid, rad = np.empty((n, 3)), np.empty(n)
+    advancement.path_spheres(pos, vel, acc, _extents(world), float(T), mid, rad)
     finite = np.flatnonzero(np.isfinite(rad))
-    i, j = broadphase.candidate_pairs(mid[finite], np.repeat(rad[finite, None], 3, axis=1), 0.0)
-    i, j = finite[i], finite[j]
-    planes = np.flatnonzero(~np.isfinite(rad))
-    if planes.size and finite.size:
-        typ = _types(world)
-        pl = planes[typ[planes] == 0]
-        if pl.size:
-            nw = quat.rotate(m.quat[pl], np.array([world.shapes[x].normal for x in pl]))
-            off = np.array([world.shapes[x].offset for x in pl]) + np.einsum("ij,ij->i", nw, m.pos[pl])
-            # a plane moves (kinematic): widen by its own path
-            reach = rad[finite][None, :] + (np.linalg.norm(m.vel[pl], axis=1) * T)[:, None]
-            p, f = np.nonzero(mid[finite] @ nw.T - off[None, :] <= reach.T)   # (finite, plane) pairs
-            pi, fi = pl[f], finite[p]
-            i, j = np.concatenate([i, np.minimum(pi, fi)]), np.concatenate([j, np.maximum(pi, fi)])
-        other = planes[typ[planes] != 0]   # unbounded meshes (none today): every finite body
-        if other.size:
-            oi, fi = np.repeat(other, finite.size), np.tile(finite, other.size)
-            i, j = np.concatenate([i, np.minimum(oi, fi)]), np.concatenate([j, np.maximum(oi, fi)])
-    ok = (kind[i] == DYNAMIC) | (kind[j] == DYNAMIC)
-    g, mk = world.group, world.mask
-    ok &= ((g[i] & mk[j]) != 0) & ((g[j] & mk[i]) != 0)
-    # no relative motion: a pair apart now stays apart
-    still = ~(np.any(m.vel[i] != m.vel[j], axis=1) | np.any(m.acc[i] != m.acc[j], axis=1)
-              | np.any(m.omega[i] != 0, axis=1) | np.any(m.omega[j] != 0, axis=1))
-    ok &= ~still
+    bi, bj = broadphase.candidate_pairs(mid[finite], np.repeat(rad[finite, None], 3, axis=1), 0.0)
+    planes, normal, offset, unbounded = _unbounded(world)
+    if not finite.size:
+        planes, unbounded = planes[:0], unbounded[:0]
+    only_mask = np.zeros(0, bool)
     if only is not None:
-        sel = np.zeros(n, bool)
-        sel[list(only)] = True
-        ok &= sel[i] | sel[j]
-    i, j = i[ok], j[ok]
-    if len(exclude):
-        keep = ~np.isin(i * n + j, exclude)
-        i, j = i[keep], j[keep]
-    return i, j
+        only_mask = np.zeros(n, bool)
+        only_mask[list(only)] = True
+    size = len(bi) + finite.size * (planes.size + unbounded.size)
+    out_i, out_j = np.empty(size, np.int64), np.empty(size, np.int64)
+    k = advancement.path_pairs(finite[bi], finite[bj], finite, planes, unbounded, pos, q, vel, acc, omega, mid, rad,
+                               normal, offset, float(T), world.kind, DYNAMIC, world.group, world.mask, only_mask,
+                               np.sort(np.asarray(exclude, np.int64)), out_i, out_j)
+    return out_i[:k], out_j[:k]
+
+
+def _unbounded(world):
+    """``(planes (P,), their normals (P,3) and offsets (P,), other unbounded bodies (U,))``: the
+    bodies without a finite extent (cached)."""
+    def build():
+        typ = _types(world)
+        inf = np.flatnonzero(~np.isfinite(_extents(world)))
+        pl = inf[typ[inf] == 0]
+        normals = np.array([world.shapes[x].normal for x in pl], float).reshape(-1, 3)
+        offsets = np.array([world.shapes[x].offset for x in pl], float)
+        return pl.astype(np.int64), normals, offsets, inf[typ[inf] != 0].astype(np.int64)
+
+    return derived(world, "unbounded", (), build, key=len(world))
 
 
 def _closed_form_tois(world, motion, i, j, T):
