@@ -47,6 +47,23 @@ scenes = {"resting_10": (lambda: br.resting_scene(10), 200), "resting_100": (lam
 for name, (make, n) in scenes.items():
     print(name, timed(re_.ContactSimEngine(make()).step, n))
 print("default_scene", timed(contact_sim.load_scene(default_scene_path()).step, 240))
+
+def tumbling_pile(toi):
+    # ten boxes and 16-point hulls tumbling onto a floor, exact times of impact (general pairs: the
+    # time-of-impact search's own cost)
+    import numpy as np
+    rng = np.random.default_rng(1)
+    bodies = [{"name": "floor", "kind": "static", "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 0.0}}]
+    for k in range(10):
+        q = rng.normal(size=4)
+        shape = {"type": "box", "size": [0.2, 0.15, 0.1]} if k % 2 else \
+            {"type": "convex", "points": (rng.normal(size=(16, 3)) * 0.08).tolist()}
+        bodies.append({"name": f"b{k}", "shape": shape, "position": [0.3 * (k % 4), 0.3 * (k // 4), 0.3 + 0.25 * k],
+                       "orientation": (q / np.linalg.norm(q)).tolist(), "mass": 1.0,
+                       "angular_velocity": rng.normal(size=3).tolist()})
+    return contact_sim.load_scene({"gravity": [0, 0, -9.81], "settings": {"dt": 1 / 240, "toi": toi}, "bodies": bodies})
+
+print("pile_fractional", timed(tumbling_pile("fractional").step, 60))
 '''
 
 
