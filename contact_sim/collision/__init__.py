@@ -324,11 +324,11 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     if (settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin)
             and isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
             and shape_b.type in RANK):
-        fa, fb = single.fast_pose(pose_a), single.fast_pose(pose_b)
-        if fa is not None and fb is not None:
-            bodies = _bodies_cached((shape_a, shape_b))
-            plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
-            return single.collide_fast(plan, fa[0], fa[1], fb[0], fb[1], margin)
+        bodies = _bodies_cached((shape_a, shape_b))
+        plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
+        c = single.collide_fast(plan, pose_a, pose_b, margin)
+        if c is not None:
+            return c
     st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
     _check_shape(shape_a, "collide: shape_a", st)
     _check_shape(shape_b, "collide: shape_b", st)

@@ -2,18 +2,17 @@
 
 For plainly valid input (numbers, finite, within ``LENGTH_LIMIT``, a non-zero quaternion, margin a
 plain number, default bounding volume, no settings, no statistics) the pair skips the batch
-machinery: one compiled call builds both rotations, one calls the pair's kernel. Anything else
-returns ``None`` here and goes through the full checks (which name the problem) and the batch
-pipeline; both paths run the same kernels, so they give the same contacts.
+machinery: one compiled call (``_one_pair``) checks the numbers, builds both rotations and runs the
+pair's kernel (``pair_kernels.call``). Anything else returns ``None`` here and goes through the
+full checks (which name the problem) and the batch pipeline; both paths run the same kernels, so
+they give the same contacts.
 """
-import math
-
 import numpy as np
 
 from ..contacts import Contacts
 from ..jit import njit
 from ..validate import LENGTH_LIMIT
-from . import dispatch
+from . import pair_kernels
 from .vec3 import rotations
 
 _NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
@@ -34,71 +33,88 @@ def _plain(v, n):
     return None
 
 
-def fast_pose(pose):
-    """``(position (3 numbers), orientation (4 numbers, normalised))`` of a plainly valid pose, else None."""
+def plain_pose(pose):
+    """``(position, orientation)`` as 3 and 4 plain numbers when ``pose`` is plainly that, else None
+    (their values are checked in the compiled call)."""
     if (type(pose) is not tuple and type(pose) is not list) or len(pose) != 2:
         return None
     p, q = _plain(pose[0], 3), _plain(pose[1], 4)
-    if p is None or q is None:
-        return None
-    x, y, z, w = q
-    if not (abs(p[0]) <= LENGTH_LIMIT and abs(p[1]) <= LENGTH_LIMIT and abs(p[2]) <= LENGTH_LIMIT
-            and abs(x) < 1e150 and abs(y) < 1e150 and abs(z) < 1e150 and abs(w) < 1e150):
-        return None   # NaN, inf or too far: the full check says which
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not norm >= 1e-12:
-        return None
-    return p, (x / norm, y / norm, z / norm, w / norm)
+    return None if p is None or q is None else (p, q)
 
 
 def plain_margin(margin):
     return type(margin) in _NUMBER and 0 <= margin <= LENGTH_LIMIT
 
 
-def pose_arrays(pa, qa, pb, qb):
-    """``pos (2, 3)`` and rotation matrices ``R (2, 3, 3)`` of two poses (quaternions x, y, z, w)."""
-    return _frames(*pa, *qa, *pb, *qb)
-
-
-@njit
-def _frames(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1):
-    """``pose_arrays`` from 14 numbers in one call (``vec3.rotations``' formula)."""
-    pos, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
-    pos[0, 0], pos[0, 1], pos[0, 2], pos[1, 0], pos[1, 1], pos[1, 2] = x0, y0, z0, x1, y1, z1
-    q[0, 0], q[0, 1], q[0, 2], q[0, 3], q[1, 0], q[1, 1], q[1, 2], q[1, 3] = qx0, qy0, qz0, qw0, qx1, qy1, qz1, qw1
-    rotations(q, R)
-    return pos, R
-
-
 class PairPlan:
-    """What a shape pair needs for the fast path: its kernel, the kernel's A/B order."""
+    """What a shape pair needs for the fast path: its kernel's place in ``pair_kernels``, the
+    kernel's A/B order, the geometry arrays."""
 
     def __init__(self, bodies):
         r = bodies.rank
         self.swap = bool(r[0] < r[1])
         self.a = np.array([1 if self.swap else 0], np.int64)
         self.b = np.array([0 if self.swap else 1], np.int64)
-        self.kernel = dispatch.kernel_for(int(max(r)), int(min(r)))
+        self.which = pair_kernels.index(int(max(r)), int(min(r)))
         self.arrays = bodies.geom.arrays()
-        more = dispatch.EXTRA.get((int(max(r)), int(min(r))))
-        self.more = more(bodies.geom) if more is not None else ()   # mesh–mesh: the trees
+        self.bvh = pair_kernels.trees(bodies.geom)   # mesh–mesh: the trees
         self.shape_of = bodies.shape_of
 
 
-def collide_fast(plan, pa, qa, pb, qb, margin):
-    """Contacts of one pair on the fast path (``body_a = 0``, ``body_b = 1``)."""
-    pos, R = pose_arrays(pa, qa, pb, qb)
-    out_i, out_f = np.empty((4, 3), np.int64), np.empty((4, 7))
-    k = 0
-    if plan.kernel is not None:
-        k = plan.kernel(*plan.arrays, plan.shape_of, plan.a, plan.b, pos, R, float(margin), np.zeros(3, np.int64),
-                        out_i, out_f, *plan.more)
-    if plan.swap:
-        out_f[:k, 3:6] *= -1.0
-    # the response columns are zero: one block, split into its columns (separate arrays to the user)
-    zero = np.zeros((8, k))
-    ids = np.zeros((2, k), np.int64)
-    ids[1] = 1
-    f, i = out_f[:k], out_i[:k]
-    return Contacts(ids[0], ids[1], f[:, 0:3], f[:, 3:6], f[:, 6], zero[0:3].T, zero[3], zero[4:7].T, zero[7],
-                    i[:, 1], i[:, 2])
+_OUT_I = np.zeros((4, 5), np.int64)
+_OUT_I[:, 4] = 1      # the kernel writes columns 0-2; columns 3 and 4 are body_a = 0 and body_b = 1
+
+
+def collide_fast(plan, pose_a, pose_b, margin):
+    """Contacts of one pair on the fast path (``body_a = 0``, ``body_b = 1``), or None when the
+    poses are not plainly valid (the full checks then say why)."""
+    a, b = plain_pose(pose_a), plain_pose(pose_b)
+    if a is None or b is None:
+        return None
+    (pa, qa), (pb, qb) = a, b
+    f = float
+    # one block per kind: the kernel's rows (point, normal, depth; pair, feature, id) and, beside
+    # them, the zero response columns and the body indices (views into the blocks, as the batch's)
+    out_i, out_f = _OUT_I.copy(), np.zeros((4, 15))
+    k = _one_pair(plan.which, f(pa[0]), f(pa[1]), f(pa[2]), f(qa[0]), f(qa[1]), f(qa[2]), f(qa[3]),
+                  f(pb[0]), f(pb[1]), f(pb[2]), f(qb[0]), f(qb[1]), f(qb[2]), f(qb[3]), f(margin), plan.swap,
+                  *plan.arrays, plan.shape_of, plan.a, plan.b, out_i, out_f, plan.bvh, LENGTH_LIMIT)
+    if k < 0:
+        return None
+    fr, i = out_f[:k], out_i[:k]
+    return Contacts(i[:, 3], i[:, 4], fr[:, 0:3], fr[:, 3:6], fr[:, 6], fr[:, 7:10], fr[:, 10], fr[:, 11:14],
+                    fr[:, 14], i[:, 1], i[:, 2])
+
+
+@njit
+def _one_pair(which, x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, swap, sf, si, verts,
+              planes, faces, loops, edges, tris, shape_of, a, b, out_i, out_f, bvh, limit):
+    """The pair's contacts from its two poses (14 numbers): −1 when a coordinate is not finite or
+    beyond ``limit``, or a quaternion is not finite or (near) zero; else the quaternions
+    normalised, the rotations (``vec3.rotations``), the kernel (``pair_kernels.call``) into
+    ``out_i (4, ≥3)``, ``out_f (4, ≥7)``, normals from B to A (negated when ``swap``); returns
+    the rows written."""
+    pos, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
+    pos[0, 0], pos[0, 1], pos[0, 2], pos[1, 0], pos[1, 1], pos[1, 2] = x0, y0, z0, x1, y1, z1
+    q[0, 0], q[0, 1], q[0, 2], q[0, 3], q[1, 0], q[1, 1], q[1, 2], q[1, 3] = qx0, qy0, qz0, qw0, qx1, qy1, qz1, qw1
+    for r in range(2):
+        for x in range(3):
+            if not abs(pos[r, x]) <= limit:
+                return -1   # NaN, inf or too far: the full check says which
+        for x in range(4):
+            if not abs(q[r, x]) < 1e150:
+                return -1
+        norm = np.sqrt(q[r, 0] * q[r, 0] + q[r, 1] * q[r, 1] + q[r, 2] * q[r, 2] + q[r, 3] * q[r, 3])
+        if not norm >= 1e-12:
+            return -1
+        for x in range(4):
+            q[r, x] = q[r, x] / norm
+    rotations(q, R)
+    counters = np.zeros(3, np.int64)
+    k = pair_kernels.call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+                          counters, out_i, out_f, bvh)
+    if swap:
+        for r in range(k):
+            for x in range(3, 6):
+                out_f[r, x] = -out_f[r, x]
+    return k
