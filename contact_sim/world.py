@@ -14,7 +14,6 @@ from . import dynamics, free_motion, quat
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
 from .kinds import DYNAMIC, KINDS, KINEMATIC, body_masks
-from .memo import derived
 from .response.cache import ContactCache
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .stats import StepStats
@@ -172,8 +171,11 @@ class World(BodyInput):
     def body_masks(self):
         """``kinds.BodyMasks`` of the current bodies and gravity, cached until a body is added or
         removed, a kind changes or gravity is assigned: what every step reads (never write into them)."""
-        return derived(self, "body_masks", (self.kind, self.particle, self._gravity),
-                       lambda: body_masks(self.kind, self.particle, self._gravity))
+        hit = self.__dict__.get("_body_masks")   # read several times a step: identity checks only
+        if hit is None or hit[0] is not self.kind or hit[1] is not self.particle or hit[2] is not self._gravity:
+            hit = self._body_masks = (self.kind, self.particle, self._gravity,
+                                      body_masks(self.kind, self.particle, self._gravity))
+        return hit[3]
 
     # ------------------------------------------------------------------ bodies
     @property
