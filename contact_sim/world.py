@@ -13,7 +13,7 @@ import numpy as np
 from . import dynamics, free_motion, quat
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
-from .kinds import DYNAMIC, KINDS, KINEMATIC, body_masks
+from .kinds import DYNAMIC, KINDS, body_masks
 from .response.cache import ContactCache
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .stats import StepStats

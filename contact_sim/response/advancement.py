@@ -154,7 +154,8 @@ def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, 
 
 @njit
 def max_spin(k, motion, flags):
-    """``toi.max_spin``: the largest ``|ω|`` body ``k`` reaches in torque-free motion."""
+    """The largest ``|ω|`` body ``k`` reaches in torque-free motion (``toi.max_spin`` says why the
+    vertices of the conserved set bound it); kinematic bodies and particles spin as told."""
     pos, vel, acc, quat, omega, principal_q, moments = motion
     wx, wy, wz = omega[k, 0], omega[k, 1], omega[k, 2]
     m0, m1, m2 = moments[k, 0], moments[k, 1], moments[k, 2]
@@ -184,7 +185,10 @@ def max_spin(k, motion, flags):
 
 @njit
 def closing_bound(i, j, T, motion, flags, facts):
-    """``toi._closing_bound``: how fast (m/s) any point of ``i`` can approach any point of ``j``."""
+    """An upper bound (m/s) on how fast any point of body ``i`` can approach any point of body
+    ``j`` during ``[0, T]``: relative centre speed, plus what the relative acceleration adds over
+    the interval, plus each body's largest spin over its torque-free motion (``max_spin``) times
+    its extent."""
     pos, vel, acc, quat, omega, principal_q, moments = motion
     dvx, dvy, dvz = vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1], vel[i, 2] - vel[j, 2]
     dax, day, daz = acc[i, 0] - acc[j, 0], acc[i, 1] - acc[j, 1], acc[i, 2] - acc[j, 2]

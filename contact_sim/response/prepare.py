@@ -36,7 +36,6 @@ def prepare_contacts(ctx):
     apart, and overlapping by the end unless slowed) and bounced (impact, or closing with e > 0).
     A rebound slower than ``REST_REBOUND_FRACTION·|g|·dt`` rests instead (e = 0)."""
     world, m = ctx.world, ctx.models
-    s = world.s
     c = ctx.contacts
     k = len(c)
     R = ctx.R   # the detection's rotation matrices: the bodies have not moved since

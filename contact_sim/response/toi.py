@@ -13,7 +13,8 @@ torque-free rotation of ``dynamics.rotate_free``. Roots:
   the smaller body's size: never later than the true contact. Bounded: after ``MAX_ADVANCES``
   evaluations (a loose bound: a fast spin about the normal) the rest of the interval is sampled at
   most ``MAX_SAMPLES`` times and the first sign change refined by Brent's method, so a fast-spinning
-  body costs a bounded amount per step instead of thousands of samples.
+  body costs a bounded amount per step instead of thousands of samples. The search of a pair is
+  one compiled call (``advancement``); ``COUNTS`` counts its distance evaluations.
 
 ``toi = swept`` puts the lecture's swept-volume test (``response.swept``) before that search for
 pairs that only translate during the step: closed-form roots along separating directions, a
@@ -27,9 +28,9 @@ import numpy as np
 
 from .. import dynamics, quat
 from ..kinds import DYNAMIC, KINEMATIC
-from . import advancement
 from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
+from . import advancement
 from .swept import mark_swept, swept_toi  # noqa: F401 (mark_swept: the stepper marks the sweep's contacts)
 
 XTOL = 1e-15
@@ -201,13 +202,6 @@ def _shape_facts(world):
         return code, facts, verts, vrange
 
     return derived(world, "shape_facts", (), build, key=len(world))
-
-
-def _closing_bound(m, i, j, T):
-    """An upper bound (m/s) on how fast any point of body ``i`` can approach any point of body
-    ``j`` during ``[0, T]`` (``advancement.closing_bound``)."""
-    motion, flags = m.arrays()
-    return float(advancement.closing_bound(int(i), int(j), float(T), motion, flags, _shape_facts(m.world)[1]))
 
 
 def max_spin(m, k):
