@@ -224,3 +224,17 @@ def test_scenes_dir_search_path(tmp_path):
     with pytest.raises(cs.ContactSimError, match="no shipped scene"):
         cs.resolve_scene("default", search=[str(tmp_path)])
     assert cs.resolve_scene("default").endswith("default.yaml")   # the source tree's
+
+
+def test_gravity_is_assigned_not_edited_in_place():
+    # the step reads |g| and the per-body gravity rows from caches kept for the assigned array:
+    # writing into it is refused, assigning a new one (checked) takes effect in the next step
+    w = cs.World(gravity=(0, 0, -9.81))
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[0, 0, 10.0])
+    with pytest.raises(ValueError):
+        w.gravity[2] = -1.0
+    assert w.gravity_norm() == 9.81 and np.array_equal(w.body_masks().gravity[0], [0, 0, -9.81])
+    w.gravity = (0, 0, -1.62)
+    assert w.gravity_norm() == 1.62 and np.array_equal(w.body_masks().gravity[0], [0, 0, -1.62])
+    w.step(0.1)
+    assert w.body("ball").velocity[2] == pytest.approx(-0.162, rel=1e-12)
