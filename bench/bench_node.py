@@ -123,7 +123,10 @@ def run_scene(n_bodies, seconds, tmp, rows, pose_rates=(), rate_hz=100, scene=No
                 seen = cl.diag_count
                 spin.until(lambda: cl.diag_count > seen, 5, "diagnostics after the warm-up")
                 start_ticks = int(cl.diag["ticks"])
-                spin.until(lambda: int(cl.diag["ticks"]) >= start_ticks + window, seconds + 10, "the measured window")
+                # a node that cannot keep the rate (1 kHz on a loaded machine) takes longer than the
+                # window's nominal seconds to tick through it: wait for it, the overruns say so
+                spin.until(lambda: int(cl.diag["ticks"]) >= start_ticks + window, seconds * (1 + rate_hz / 200) + 10,
+                           "the measured window")
                 d = cl.diag
                 rows.append(dict(test=test, bodies=n_bodies, rate_hz=rate_hz, samples=window,
                                  p50_ms=float(d["tick_time_ms_p50"]), p99_ms=float(d["tick_time_ms_p99"]),
