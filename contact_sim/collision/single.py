@@ -13,7 +13,7 @@ from ..contacts import Contacts
 from ..jit import njit
 from ..validate import LENGTH_LIMIT
 from . import pair_kernels
-from .vec3 import rotations
+from .vec3 import unit_rotations
 
 _NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
 
@@ -104,12 +104,9 @@ def _one_pair(which, x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, 
         for x in range(4):
             if not abs(q[r, x]) < 1e150:
                 return -1
-        norm = np.sqrt(q[r, 0] * q[r, 0] + q[r, 1] * q[r, 1] + q[r, 2] * q[r, 2] + q[r, 3] * q[r, 3])
-        if not norm >= 1e-12:
+        if not np.sqrt(q[r, 0] * q[r, 0] + q[r, 1] * q[r, 1] + q[r, 2] * q[r, 2] + q[r, 3] * q[r, 3]) >= 1e-12:
             return -1
-        for x in range(4):
-            q[r, x] = q[r, x] / norm
-    rotations(q, R)
+    unit_rotations(q, R)
     counters = np.zeros(3, np.int64)
     k = pair_kernels.call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
                           counters, out_i, out_f, bvh)

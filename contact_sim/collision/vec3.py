@@ -118,6 +118,18 @@ def rotations(quat, R):
 
 
 @njit
+def unit_rotations(quat, R):
+    """Normalise the quaternion rows of ``quat (N, 4)`` in place (any non-zero length) and write
+    their rotation matrices into ``R (N, 3, 3)`` (``rotations``)."""
+    for k in range(quat.shape[0]):
+        norm = np.sqrt(quat[k, 0] * quat[k, 0] + quat[k, 1] * quat[k, 1] + quat[k, 2] * quat[k, 2]
+                       + quat[k, 3] * quat[k, 3])
+        for x in range(4):
+            quat[k, x] = quat[k, x] / norm
+    rotations(quat, R)
+
+
+@njit
 def col_max(si, col, shape_of, a, b):
     """Largest ``si[s, col]`` over the shapes of the pairs ``a, b`` (at least 1): sizes a kernel's
     scratch arrays (over the pairs, not the whole table: a batch of a few pairs in a big world)."""

@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ..collision.pair_kernels import call
+from ..collision.vec3 import unit_rotations
 from ..free_motion import _rotate_body
 from ..jit import njit
 
@@ -103,9 +104,8 @@ def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, 
     ``q (2,4)``) and ``j`` (row 1), as ``toi.signed_distance``: closed forms for a plane, two
     spheres and a sphere with a box, else the pair's narrow-phase kernel (``pair_kernels.call``'s
     ``which``) over the geometry ``geo`` (``GeomTable.arrays()``, ``bvh`` its mesh trees) within
-    ``WIDE``: minus the deepest
-    contact's depth, ``WIDE`` when none. ``R (2,3,3)``, ``scratch_i (4,3)``, ``scratch_f (4,7)``
-    are workspace."""
+    ``WIDE``: minus the deepest contact's depth, ``WIDE`` when none (``q`` is then normalised in
+    place). ``R (2,3,3)``, ``scratch_i (4,3)``, ``scratch_f (4,7)`` are workspace."""
     ci, cj = code[i], code[j]
     if ci == D_PLANE and cj != D_PLANE:
         d = _plane_poly(code, facts, verts, vrange, (j, 1), (i, 0), p, q)
@@ -129,14 +129,9 @@ def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, 
         mx, my, mz = max(ox, 0.0), max(oy, 0.0), max(oz, 0.0)
         outside = math.sqrt(mx * mx + my * my + mz * mz)
         return outside + min(max(ox, oy, oz), 0.0) - facts[i if s == 0 else j, F_RADIUS]
-    # collide()'s one-pair path: unit quaternions, rotations, the kernel of A (higher rank) and B
-    for r in range(2):
-        x, y, z, w = q[r, 0], q[r, 1], q[r, 2], q[r, 3]
-        norm = math.sqrt(x * x + y * y + z * z + w * w)
-        qx, qy, qz, qw = x / norm, y / norm, z / norm, w / norm
-        R[r, 0, 0], R[r, 0, 1], R[r, 0, 2] = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)
-        R[r, 1, 0], R[r, 1, 1], R[r, 1, 2] = 2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)
-        R[r, 2, 0], R[r, 2, 1], R[r, 2, 2] = 2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)
+    # collide()'s one-pair path: unit quaternions (q is overwritten), rotations, the kernel of A
+    # (higher rank) and B
+    unit_rotations(q, R)
     swap = rank[i] < rank[j]
     two = np.empty(2, np.int64)
     two[0], two[1] = shape_of[i], shape_of[j]
