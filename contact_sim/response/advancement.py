@@ -20,7 +20,7 @@ import numpy as np
 
 from ..collision.pair_kernels import call
 from ..collision.vec3 import unit_rotations
-from ..free_motion import _rotate_body
+from ..free_motion import _qrot, _rotate_body, _rotvec_quat  # quat.rotate's and from_rotvec's arithmetic
 from ..jit import njit
 
 D_PLANE, D_SPHERE, D_BOX, D_POLY = range(4)
@@ -30,34 +30,14 @@ MAX_BRENT = 100
 
 
 @njit
-def _cross(ax, ay, az, bx, by, bz):
-    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-
-
-@njit
-def qrotate(qx, qy, qz, qw, vx, vy, vz):
-    """``quat.rotate`` of one vector, its arithmetic in its order: ``v + w t + u × t``, ``t = 2 u × v``."""
-    cx, cy, cz = _cross(qx, qy, qz, vx, vy, vz)
-    tx, ty, tz = 2.0 * cx, 2.0 * cy, 2.0 * cz
-    ux, uy, uz = _cross(qx, qy, qz, tx, ty, tz)
-    return vx + qw * tx + ux, vy + qw * ty + uy, vz + qw * tz + uz
-
-
-@njit
 def qmul(ax, ay, az, aw, bx, by, bz, bw):
-    """``quat.mul`` (Hamilton product ``a ⊗ b``) of one pair, in its order."""
-    cx, cy, cz = _cross(ax, ay, az, bx, by, bz)
+    """``quat.mul`` (Hamilton product ``a ⊗ b``) of one pair, in its order: the cross product is
+    added last. ``free_motion._qmul`` adds its terms one by one and can differ in the last bit;
+    the search keeps ``quat``'s arithmetic, which the Python search used (kinematic spins,
+    ``max_spin``)."""
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     return (aw * bx + bw * ax + cx, aw * by + bw * ay + cy, aw * bz + bw * az + cz,
             aw * bw - (ax * bx + ay * by + az * bz))
-
-
-@njit
-def qrotvec(rx, ry, rz):
-    """``quat.from_rotvec`` of one rotation vector (series of ``sin(θ/2)/θ`` near zero)."""
-    theta = math.sqrt(rx * rx + ry * ry + rz * rz)
-    th2 = theta * theta
-    s = 0.5 - th2 / 48.0 + th2 * th2 / 3840.0 if theta < 1e-4 else math.sin(0.5 * theta) / theta
-    return rx * s, ry * s, rz * s, math.cos(0.5 * theta)
 
 
 @njit
@@ -73,7 +53,7 @@ def pose(k, tau, motion, flags, split, out_p, out_q, row):
         qx, qy, qz, qw, _, _, _, _ = _rotate_body(quat, omega, principal_q, moments, k, tau, split[0],
                                                   np.int64(split[1]))
     elif flags[k, 1] and spins:
-        rx, ry, rz, rw = qrotvec(omega[k, 0] * tau, omega[k, 1] * tau, omega[k, 2] * tau)
+        rx, ry, rz, rw = _rotvec_quat(omega[k, 0] * tau, omega[k, 1] * tau, omega[k, 2] * tau)
         qx, qy, qz, qw = qmul(rx, ry, rz, rw, qx, qy, qz, qw)
     out_q[row, 0], out_q[row, 1], out_q[row, 2], out_q[row, 3] = qx, qy, qz, qw
 
@@ -84,7 +64,7 @@ def _plane_poly(code, facts, verts, vrange, o, pl, p, q):
     pair's poses, ``o``/``pl`` name the rows) to the plane body ``pl``; NaN for another shape."""
     f = facts[pl[0]]
     r = pl[1]
-    nx, ny, nz = qrotate(q[r, 0], q[r, 1], q[r, 2], q[r, 3], f[F_NORMAL], f[F_NORMAL + 1], f[F_NORMAL + 2])
+    nx, ny, nz = _qrot(q[r, 0], q[r, 1], q[r, 2], q[r, 3], f[F_NORMAL], f[F_NORMAL + 1], f[F_NORMAL + 2])
     off = f[F_OFFSET] + (nx * p[r, 0] + ny * p[r, 1] + nz * p[r, 2])
     k, ro = o[0], o[1]
     if code[k] == D_SPHERE:
@@ -93,19 +73,32 @@ def _plane_poly(code, facts, verts, vrange, o, pl, p, q):
         return np.nan
     low = np.inf
     for v in range(vrange[k, 0], vrange[k, 0] + vrange[k, 1]):
-        wx, wy, wz = qrotate(q[ro, 0], q[ro, 1], q[ro, 2], q[ro, 3], verts[v, 0], verts[v, 1], verts[v, 2])
+        wx, wy, wz = _qrot(q[ro, 0], q[ro, 1], q[ro, 2], q[ro, 3], verts[v, 0], verts[v, 1], verts[v, 2])
         low = min(low, (p[ro, 0] + wx) * nx + (p[ro, 1] + wy) * ny + (p[ro, 2] + wz) * nz)
     return low - off
 
 
 @njit
-def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, p, q, R, scratch_i, scratch_f):
+def pair_rows(i, j, shape_of, rank):
+    """What the narrow-phase kernel of bodies ``i, j`` reads besides poses, set up once per pair:
+    ``(shape rows (2,), a (1,), b (1,), counters (3,))``, A the body of higher rank (pose row 0 is
+    ``i``, row 1 is ``j``)."""
+    two = np.empty(2, np.int64)
+    two[0], two[1] = shape_of[i], shape_of[j]
+    a, b = np.empty(1, np.int64), np.empty(1, np.int64)
+    a[0], b[0] = (1, 0) if rank[i] < rank[j] else (0, 1)
+    return two, a, b, np.zeros(3, np.int64)
+
+
+@njit
+def distance(which, geo, bvh, rows, code, facts, verts, vrange, i, j, p, q, R, scratch_i, scratch_f):
     """Signed distance (m; negative: penetrating) of bodies ``i`` (pose row 0 of ``p (2,3)``,
     ``q (2,4)``) and ``j`` (row 1), as ``toi.signed_distance``: closed forms for a plane, two
     spheres and a sphere with a box, else the pair's narrow-phase kernel (``pair_kernels.call``'s
     ``which``) over the geometry ``geo`` (``GeomTable.arrays()``, ``bvh`` its mesh trees) within
     ``WIDE``: minus the deepest contact's depth, ``WIDE`` when none (``q`` is then normalised in
-    place). ``R (2,3,3)``, ``scratch_i (4,3)``, ``scratch_f (4,7)`` are workspace."""
+    place; ``rows`` from ``pair_rows``). ``R (2,3,3)``, ``scratch_i (4,3)``, ``scratch_f (4,7)``
+    are workspace."""
     ci, cj = code[i], code[j]
     if ci == D_PLANE and cj != D_PLANE:
         d = _plane_poly(code, facts, verts, vrange, (j, 1), (i, 0), p, q)
@@ -121,7 +114,7 @@ def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, 
     if (ci == D_SPHERE and cj == D_BOX) or (ci == D_BOX and cj == D_SPHERE):
         s, b = (0, 1) if ci == D_SPHERE else (1, 0)
         sb = j if b == 1 else i
-        lx, ly, lz = qrotate(-q[b, 0], -q[b, 1], -q[b, 2], q[b, 3], p[s, 0] - p[b, 0], p[s, 1] - p[b, 1],
+        lx, ly, lz = _qrot(-q[b, 0], -q[b, 1], -q[b, 2], q[b, 3], p[s, 0] - p[b, 0], p[s, 1] - p[b, 1],
                              p[s, 2] - p[b, 2])
         ox = abs(lx) - facts[sb, F_HALF]
         oy = abs(ly) - facts[sb, F_HALF + 1]
@@ -130,14 +123,9 @@ def distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, 
         outside = math.sqrt(mx * mx + my * my + mz * mz)
         return outside + min(max(ox, oy, oz), 0.0) - facts[i if s == 0 else j, F_RADIUS]
     # collide()'s one-pair path: unit quaternions (q is overwritten), rotations, the kernel of A
-    # (higher rank) and B
+    # (higher rank) and B (``rows``: ``pair_rows``)
     unit_rotations(q, R)
-    swap = rank[i] < rank[j]
-    two = np.empty(2, np.int64)
-    two[0], two[1] = shape_of[i], shape_of[j]
-    a, b = np.empty(1, np.int64), np.empty(1, np.int64)
-    a[0], b[0] = (1, 0) if swap else (0, 1)
-    counters = np.zeros(3, np.int64)
+    two, a, b, counters = rows
     k = call(which, *geo, two, a, b, p, R, WIDE, counters, scratch_i, scratch_f, bvh)
     if k == 0:
         return WIDE
@@ -159,7 +147,7 @@ def max_spin(k, motion, flags):
         return math.sqrt(wx * wx + wy * wy + wz * wz)
     px, py, pz, pw = qmul(quat[k, 0], quat[k, 1], quat[k, 2], quat[k, 3],
                           principal_q[k, 0], principal_q[k, 1], principal_q[k, 2], principal_q[k, 3])
-    bx, by, bz = qrotate(-px, -py, -pz, pw, wx, wy, wz)
+    bx, by, bz = _qrot(-px, -py, -pz, pw, wx, wy, wz)
     mom = (m0, m1, m2)
     p0, p1, p2 = (m0 * bx) ** 2, (m1 * by) ** 2, (m2 * bz) ** 2
     l2 = p0 + p1 + p2
@@ -203,12 +191,13 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
     ``tolerance`` × the smaller extent counts as touching. Returns ``(τ, distance evaluations)``."""
     p, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
     si, sf = np.empty((4, 3), np.int64), np.empty((4, 7))
+    rows = pair_rows(i, j, shape_of, rank)
     tol = tolerance * min(facts[i, F_EXTENT], facts[j, F_EXTENT])
     rate = closing_bound(i, j, T, motion, flags, facts)
     if rate <= 0:
         return np.inf, 0
     evals = 1
-    tau, d = 0.0, _at(0.0, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j,
+    tau, d = 0.0, _at(0.0, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j,
                       p, q, R, si, sf)
     if d <= 0:
         return np.inf, evals
@@ -220,7 +209,7 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
         nxt = tau + d / rate
         if nxt > T:
             return np.inf, evals
-        dn = _at(nxt, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
+        dn = _at(nxt, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
                  R, si, sf)
         evals += 1
         if dn < 0:   # the bound was beaten by round-off: the root is between the two, find it exactly
@@ -238,7 +227,7 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
         prev, f_prev = tau, d
         for s in range(1, n + 1):
             t = T if s == n else s * step + tau
-            ft = _at(t, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j,
+            ft = _at(t, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j,
                      p, q, R, si, sf)
             evals += 1
             if ft <= tol:
@@ -285,19 +274,18 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
             dstep = estep = mid
         a, fa = b, fb
         b += dstep if abs(dstep) > half else (half if mid > 0 else -half)
-        fb = _at(b, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
+        fb = _at(b, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
                  R, si, sf)
         evals += 1
     return b, evals
 
 
 @njit
-def _at(tau, which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, p, q, R, si,
-        sf):
+def _at(tau, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j, p, q, R, si, sf):
     """The pair's signed distance at ``tau`` (poses into ``p, q``)."""
     pose(i, tau, motion, flags, split, p, q, 0)
     pose(j, tau, motion, flags, split, p, q, 1)
-    return distance(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, i, j, p, q, R, si, sf)
+    return distance(which, geo, bvh, rows, code, facts, verts, vrange, i, j, p, q, R, si, sf)
 
 
 # ---------------------------------------------------------------------------- candidate pairs
@@ -317,37 +305,30 @@ def path_spheres(pos, vel, acc, ext, T, mid, rad):
 
 
 @njit
-def path_pairs(bi, bj, finite, planes, unbounded, pos, quat, vel, acc, omega, mid, rad, normal, offset, T, kind,
-               dynamic_code, group, mask, only, exclude, out_i, out_j):
+def path_pairs(bi, bj, finite, planes, pos, quat, vel, acc, omega, mid, rad, facts, T, kind, dynamic_code, group,
+               mask, only, exclude, out_i, out_j):
     """``toi.candidate_pairs`` after the broad phase: the pairs ``bi, bj`` of bounded bodies whose
-    path spheres overlap, then (finite body, plane) pairs whose path reaches the plane (``planes``
-    with ``normal (P,3)``, ``offset (P,)`` in their own frames; a moving plane widens by its own
-    path), then every bounded body with each ``unbounded`` body, in that order; kept when a
-    dynamic body takes part, the collision groups allow it, something moves relative to the other,
-    ``only`` (bool per body, or empty) has one of them, and the key ``min·N + max`` is not in the
-    sorted ``exclude``. Writes ``out_i, out_j`` (``i < j``); returns how many."""
+    path spheres overlap, then (finite body, plane) pairs whose path reaches the plane (``planes``,
+    their normal and offset in ``facts``; a moving plane widens by its own path), in that order;
+    kept when a dynamic body takes part, the collision groups allow it, something moves relative
+    to the other, ``only`` (bool per body, or empty) has one of them, and the key ``min·N + max``
+    is not in the sorted ``exclude``. Writes ``out_i, out_j`` (``i < j``); returns how many."""
     n = kind.shape[0]
     k = 0
-    total = bi.shape[0] + finite.shape[0] * (planes.shape[0] + unbounded.shape[0])
+    total = bi.shape[0] + finite.shape[0] * planes.shape[0]
     for c in range(total):
         if c < bi.shape[0]:
             i, j = bi[c], bj[c]
         else:
             r = c - bi.shape[0]
-            width = planes.shape[0] + unbounded.shape[0]
-            f, s = finite[r // width], r % width
-            if s < planes.shape[0]:
-                pl = planes[s]
-                nx, ny, nz = qrotate(quat[pl, 0], quat[pl, 1], quat[pl, 2], quat[pl, 3], normal[s, 0], normal[s, 1],
-                                     normal[s, 2])
-                off = offset[s] + (nx * pos[pl, 0] + ny * pos[pl, 1] + nz * pos[pl, 2])
-                speed = math.sqrt(vel[pl, 0] ** 2 + vel[pl, 1] ** 2 + vel[pl, 2] ** 2)
-                if not (mid[f, 0] * nx + mid[f, 1] * ny + mid[f, 2] * nz) - off <= rad[f] + speed * T:
-                    continue
-                o = pl
-            else:
-                o = unbounded[s - planes.shape[0]]
-            i, j = min(o, f), max(o, f)
+            f, pl = finite[r // planes.shape[0]], planes[r % planes.shape[0]]
+            nx, ny, nz = _qrot(quat[pl, 0], quat[pl, 1], quat[pl, 2], quat[pl, 3], facts[pl, F_NORMAL],
+                               facts[pl, F_NORMAL + 1], facts[pl, F_NORMAL + 2])
+            off = facts[pl, F_OFFSET] + (nx * pos[pl, 0] + ny * pos[pl, 1] + nz * pos[pl, 2])
+            speed = math.sqrt(vel[pl, 0] ** 2 + vel[pl, 1] ** 2 + vel[pl, 2] ** 2)
+            if not (mid[f, 0] * nx + mid[f, 1] * ny + mid[f, 2] * nz) - off <= rad[f] + speed * T:
+                continue
+            i, j = min(pl, f), max(pl, f)
         if kind[i] != dynamic_code and kind[j] != dynamic_code:
             continue
         if (group[i] & mask[j]) == 0 or (group[j] & mask[i]) == 0:

@@ -27,7 +27,7 @@ against every body of the world.
 import numpy as np
 
 from .. import dynamics, quat
-from ..kinds import DYNAMIC, KINEMATIC
+from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Box, Plane, Polyhedron, Sphere
 from . import advancement
@@ -83,11 +83,11 @@ class Motion:
         """``(motion, flags)`` as the compiled search reads them (``advancement``): ``(pos, vel, acc,
         quat, omega, principal_q, moments)`` and ``(N, 3)`` bool (rotating, kinematic, dynamic)."""
         if self._arrays is None:
-            s, w, c = self.world.s, self.world, np.ascontiguousarray
+            s, bm, c = self.world.s, self.world.body_masks(), np.ascontiguousarray
             self._arrays = ((c(self.pos, dtype=float), c(self.vel, dtype=float), c(self.acc, dtype=float),
                              c(self.quat, dtype=float), c(self.omega, dtype=float), c(s.principal_q, dtype=float),
                              c(s.principal_moments, dtype=float)),
-                            np.stack([np.asarray(self.rotating, bool), w.kind == KINEMATIC, w.kind == DYNAMIC], axis=1))
+                            np.stack([np.asarray(self.rotating, bool), bm.kinematic, bm.dynamic], axis=1))
         return self._arrays
 
     def pose(self, i, tau):
@@ -107,7 +107,8 @@ def signed_distance(world, i, j, pi, qi, pj, qj):
     code, facts, verts, vrange = _shape_facts(world)
     p = np.array([pi, pj], dtype=float)
     q = np.array([qi, qj], dtype=float)
-    return float(advancement.distance(which, b.geom.arrays(), bvh, b.shape_of, b.rank, code, facts, verts, vrange,
+    rows = advancement.pair_rows(int(i), int(j), b.shape_of, b.rank)
+    return float(advancement.distance(which, b.geom.arrays(), bvh, rows, code, facts, verts, vrange,
                                       int(i), int(j), p, q, np.empty((2, 3, 3)), np.empty((4, 3), np.int64),
                                       np.empty((4, 7))))
 
@@ -182,8 +183,9 @@ def _shape_facts(world):
         vrange = np.zeros((n, 2), np.int64)
         verts = []
         start = 0
+        facts[:, advancement.F_EXTENT] = _extents(world)
         for k, sh in enumerate(world.shapes):
-            facts[k, advancement.F_EXTENT], facts[k, advancement.F_THIN] = _extent(sh), sh.thinnest()
+            facts[k, advancement.F_THIN] = sh.thinnest()
             if isinstance(sh, Plane):
                 code[k] = advancement.D_PLANE
                 facts[k, 0:3], facts[k, advancement.F_OFFSET] = sh.normal, sh.offset
@@ -236,33 +238,19 @@ def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
     advancement.path_spheres(pos, vel, acc, _extents(world), float(T), mid, rad)
     finite = np.flatnonzero(np.isfinite(rad))
     bi, bj = broadphase.candidate_pairs(mid[finite], np.repeat(rad[finite, None], 3, axis=1), 0.0)
-    planes, normal, offset, unbounded = _unbounded(world)
-    if not finite.size:
-        planes, unbounded = planes[:0], unbounded[:0]
+    # the only bodies without a finite extent are planes (every other shape is a sphere or a polyhedron)
+    code, facts = _shape_facts(world)[:2]
+    planes = np.flatnonzero(code == advancement.D_PLANE) if finite.size else np.zeros(0, np.int64)
     only_mask = np.zeros(0, bool)
     if only is not None:
         only_mask = np.zeros(n, bool)
         only_mask[list(only)] = True
-    size = len(bi) + finite.size * (planes.size + unbounded.size)
+    size = len(bi) + finite.size * planes.size
     out_i, out_j = np.empty(size, np.int64), np.empty(size, np.int64)
-    k = advancement.path_pairs(finite[bi], finite[bj], finite, planes, unbounded, pos, q, vel, acc, omega, mid, rad,
-                               normal, offset, float(T), world.kind, DYNAMIC, world.group, world.mask, only_mask,
+    k = advancement.path_pairs(finite[bi], finite[bj], finite, planes, pos, q, vel, acc, omega, mid, rad, facts,
+                               float(T), world.kind, DYNAMIC, world.group, world.mask, only_mask,
                                np.sort(np.asarray(exclude, np.int64)), out_i, out_j)
     return out_i[:k], out_j[:k]
-
-
-def _unbounded(world):
-    """``(planes (P,), their normals (P,3) and offsets (P,), other unbounded bodies (U,))``: the
-    bodies without a finite extent (cached)."""
-    def build():
-        typ = _types(world)
-        inf = np.flatnonzero(~np.isfinite(_extents(world)))
-        pl = inf[typ[inf] == 0]
-        normals = np.array([world.shapes[x].normal for x in pl], float).reshape(-1, 3)
-        offsets = np.array([world.shapes[x].offset for x in pl], float)
-        return pl.astype(np.int64), normals, offsets, inf[typ[inf] != 0].astype(np.int64)
-
-    return derived(world, "unbounded", (), build, key=len(world))
 
 
 def _closed_form_tois(world, motion, i, j, T):
@@ -271,11 +259,12 @@ def _closed_form_tois(world, motion, i, j, T):
     for the pairs that need the sampled search. Vectorised over pairs."""
     m = motion
     shapes = world.shapes
-    typ = _types(world)
+    typ = _shape_facts(world)[0]
+    plane, sphere = advancement.D_PLANE, advancement.D_SPHERE
     out = np.full(len(i), np.nan)
-    is_plane_i, is_plane_j = typ[i] == 0, typ[j] == 0
+    is_plane_i, is_plane_j = typ[i] == plane, typ[j] == plane
     # sphere–plane
-    sp = (is_plane_i & (typ[j] == 1)) | (is_plane_j & (typ[i] == 1))
+    sp = (is_plane_i & (typ[j] == sphere)) | (is_plane_j & (typ[i] == sphere))
     pl = np.where(is_plane_i, i, j)
     ot = np.where(is_plane_i, j, i)
     sp &= ~np.any(m.omega[pl] != 0, axis=1)
@@ -292,7 +281,7 @@ def _closed_form_tois(world, motion, i, j, T):
         c2 = 0.5 * np.einsum("ij,ij->i", m.acc[O] - m.acc[P], nw)
         out[k] = _first_quadratic_root(c0, c1, c2, T)
     # sphere–sphere with equal accelerations
-    ss = (typ[i] == 1) & (typ[j] == 1) & np.all(m.acc[i] == m.acc[j], axis=1)
+    ss = (typ[i] == sphere) & (typ[j] == sphere) & np.all(m.acc[i] == m.acc[j], axis=1)
     if ss.any():
         k = np.flatnonzero(ss)
         I, J = i[k], j[k]
@@ -304,13 +293,6 @@ def _closed_form_tois(world, motion, i, j, T):
         out[k] = _first_quadratic_root((d - R) * (d + R), 2 * np.einsum("ij,ij->i", dx, dv),
                                        np.einsum("ij,ij->i", dv, dv), T)
     return out
-
-
-def _types(world):
-    """Shape type code per body ``(N,)``: 0 plane, 1 sphere, 2 other (cached on the world)."""
-    return derived(world, "shape_types", (), lambda: np.array(
-        [0 if isinstance(sh, Plane) else 1 if isinstance(sh, Sphere) else 2 for sh in world.shapes], np.int64),
-        key=len(world))
 
 
 def earliest_event(world, motion, T, exclude, swept=False, only=None):
