@@ -38,7 +38,7 @@ from ..settings import Settings
 from ..shapes import Shape
 from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
                         show)
-from . import bounding, broadphase, dispatch, single
+from . import bounding, broadphase, pair_kernels, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
 from .vec3 import rotations
 
@@ -191,9 +191,10 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
     t2 = time.perf_counter()
     timings["bounding"] = t2 - t1
     counters = np.zeros(3, np.int64)
-    rows_i, rows_f, unsupported = dispatch.run(bodies.geom, bodies.shape_of, bodies.rank, a, b, pos, R, margin,
-                                               counters)
-    body_a, body_b, normal, pairs = dispatch.contact_columns(rows_i, rows_f, kk, ia, ib, swap)
+    geom = bodies.geom
+    rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_kernels.pair_contacts(
+        pair_kernels.which_table(), *geom.arrays(), pair_kernels.trees(geom), bodies.shape_of, bodies.rank, ia, ib,
+        swap, kk, a, b, pos, R, margin, counters)
     t3 = time.perf_counter()
     timings["narrow"] = t3 - t2
     k = len(body_a)

@@ -10,28 +10,25 @@ registers a kernel under the (A rank, B rank) pairs it handles (A of the higher 
            pos (N, 3), R (N, 3, 3), margin, counters (3,),      # poses; [vertex, edge_face, edge_hits]
            out_i (4K, 3), out_f (4K, 7)) -> rows               # (pair, feature, feature id), (point, normal, depth)
 
-``run`` calls the kernel of each type pair present in a batch (a handful of calls per detection).
+``pair_kernels.pair_contacts`` groups a batch's pairs by type pair (``group_by_type``) and calls each
+group's kernel through ``pair_kernels.call``, all in one compiled call per detection.
 """
 import numpy as np
 
 from ..jit import njit
-from .geometry import NRANK
 
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
                "margin", "counters", "out_i", "out_f")
 TABLE = {}   # (rank A, rank B) -> kernel
-EXTRA = {}   # (rank A, rank B) -> extra(geom): arrays passed after out_f (mesh–mesh: its trees)
 
 
-def collider(*keys, extra=None):
+def collider(*keys):
     """Register the decorated kernel for the shape-type pairs ``keys`` ((rank A, rank B) tuples).
-    ``extra(geom)``, when given, returns a tuple of arrays of the geometry table built for that
-    kernel alone (mesh–mesh's bounding-volume trees), passed after ``out_f``."""
+    A kernel that needs more than the table's arrays (mesh–mesh: its bounding-volume trees,
+    ``mesh_mesh.table_bvh``) gets them from ``pair_kernels.call``, after ``out_f``."""
     def register(kernel):
         for key in keys:
             TABLE[key] = kernel
-            if extra is not None:
-                EXTRA[key] = extra
         return kernel
     return register
 
@@ -52,37 +49,6 @@ def kernel_for(ra, rb):
     if not _LOADED:
         _load()
     return TABLE.get((ra, rb))
-
-
-def run(geom, shape_of, ranks, a, b, pos, R, margin, counters):
-    """Contacts of pairs ``a, b (K,)`` (``ranks[a] >= ranks[b]``): ``(rows_i (M, 3), rows_f (M, 7),
-    unsupported)``: the kernels' rows (``pair`` indexing the batch) and the number of pairs no kernel
-    handles (none today; plane–plane pairs are not contacts)."""
-    if not _LOADED:
-        _load()
-    arrays = geom.arrays()
-    K = len(a)
-    out_i, out_f = np.empty((4 * K, 3), np.int64), np.empty((4 * K, 7))
-    if K == 0:
-        return out_i, out_f, 0
-    # the pairs grouped by type pair (one compiled stable sort), each group one kernel call writing
-    # after the last
-    order, A, B, starts, keys = group_by_type(a, b, ranks, NRANK)
-    n, unsupported = 0, 0
-    for g in range(len(keys)):
-        s, e, key = int(starts[g]), int(starts[g + 1]), divmod(int(keys[g]), NRANK)
-        kernel = TABLE.get(key)
-        if kernel is None:
-            unsupported += (e - s) if keys[g] != 0 else 0   # plane–plane pairs are no contacts
-            continue
-        more = EXTRA.get(key)
-        m = kernel(*arrays, shape_of, A[s:e], B[s:e], pos, R, margin, counters, out_i[n:], out_f[n:],
-                   *(more(geom) if more is not None else ()))
-        out_i[n:n + m, 0] += s
-        n += m
-    rows_i = out_i[:n]
-    rows_i[:, 0] = order[rows_i[:, 0]]
-    return rows_i, out_f[:n], unsupported
 
 
 @njit

@@ -404,7 +404,7 @@ def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, roo
     return c
 
 
-@collider((MESH, MESH), extra=table_bvh)
+@collider((MESH, MESH))
 @njit
 def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
               out_i, out_f, nodes, boxes, perm, root, border):

@@ -5,10 +5,17 @@ argument breaks numba's on-disk cache (its index pickles the argument's type, a 
 kernel that a later process cannot restore). So the table's distinct kernels are listed here in a
 fixed order, ``index(ra, rb)`` maps a type pair to its place through ``dispatch.TABLE`` itself,
 and ``call`` branches on that place. A test checks that the list is exactly the table's kernels.
-Used by the compiled time-of-impact search (``response.advancement``) for the distance of a pair.
+Used by the compiled time-of-impact search (``response.advancement``) for the distance of a pair,
+and by ``pair_contacts``, the whole narrow phase of a detection in one compiled call.
 """
+import functools
+
+import numpy as np
+
 from ..jit import njit
 from . import dispatch
+from .dispatch import contact_columns, group_by_type
+from .geometry import NRANK
 from .cylinders import cylinder_plane, cylinder_sphere
 from .mesh_mesh import mesh_mesh, table_bvh
 from .meshes import mesh_poly, mesh_sphere
@@ -71,3 +78,43 @@ def call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
         return mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
                          counters, out_i, out_f, bvh[0], bvh[1], bvh[2], bvh[3], bvh[4])
     return 0
+
+
+@functools.cache
+def which_table():
+    """``(NRANK·NRANK,) int64``: the place in ``KERNELS`` of each type-pair key
+    ``rank A · NRANK + rank B`` (``dispatch.group_by_type``'s keys), −1 where no kernel takes it."""
+    return np.array([index(ra, rb) for ra in range(NRANK) for rb in range(NRANK)], np.int64)
+
+
+@njit
+def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, swap, kk,
+                  a, b, pos, R, margin, counters):
+    """The narrow phase of a batch in one compiled call: ``dispatch.run`` (the pairs grouped by type
+    pair, each group through its kernel) and ``dispatch.contact_columns``.
+
+    ``which = which_table()``; the geometry arrays as ``GeomTable.arrays()``, ``bvh = trees(geom)``;
+    ``ia, ib, swap (K,)`` the batch and ``kk (M,)`` its kept pairs, ``a, b (M,)`` their bodies in the
+    kernels' order (``bounding.kept_pairs``). Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
+    body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``, as ``run`` and
+    ``contact_columns`` (``rows_i[:, 0]`` indexing ``kk``)."""
+    M = a.shape[0]
+    out_i, out_f = np.empty((4 * M, 3), np.int64), np.empty((4 * M, 7))
+    n, unsupported = 0, 0
+    if M > 0:
+        order, A, B, starts, keys = group_by_type(a, b, rank, NRANK)
+        for g in range(keys.shape[0]):
+            s, e = starts[g], starts[g + 1]
+            w = which[keys[g]]
+            if w < 0:
+                if keys[g] != 0:   # plane–plane pairs are no contacts
+                    unsupported += e - s
+                continue
+            m = call(w, sf, si, verts, planes, faces, loops, edges, tris, shape_of, A[s:e], B[s:e], pos, R, margin,
+                     counters, out_i[n:], out_f[n:], bvh)
+            for r in range(n, n + m):
+                out_i[r, 0] = order[out_i[r, 0] + s]
+            n += m
+    rows_i, rows_f = out_i[:n], out_f[:n]
+    body_a, body_b, normal, pairs = contact_columns(rows_i, rows_f, kk, ia, ib, swap)
+    return rows_i, rows_f, body_a, body_b, normal, pairs, unsupported
