@@ -41,7 +41,7 @@ from .collision import detect_world
 from .collision.vec3 import rotations
 from .response import solver
 from .response import toi as toi_mod
-from .response import correction, impact, penalty_friction, prepare, resting
+from .response import correction, impact, penalty_friction, prepare, resting, resting_path
 from .response.cache import merge_records, record
 from .response.context import StepContext
 from .response.energy import kinematic_work
@@ -83,6 +83,8 @@ def _impulse_step(world, dt, m):
     ctx = StepContext.start(world, dt, m)
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
+        if ctx.k and resting_path.rest(ctx):   # every contact rests: the stages below in one compiled call
+            break
         if ctx.k:
             prepare.prepare_contacts(ctx)  # rows, coefficients, approach speeds; which touch, close, bounce
             impact.impact_solve(ctx)     # compression with friction, then restitution (its own stage)

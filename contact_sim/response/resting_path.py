@@ -1,0 +1,260 @@
+"""The step's stages after detection in one compiled call, when every contact rests.
+
+Most steps of the scenes users keep running (piles, stacks, a floor of parts) have no impact, no
+speculative contact that would overlap, no penetration to correct and no friction that slides:
+every contact rests, and the stages after detection reduce to prepare → resting solve (exact,
+island by island) → store impulses → advance. Run stage by stage from Python, those stages cost
+more in array calls and argument passing than in arithmetic (a 10-body resting step: about a
+quarter of its time in the kernels). ``rest`` runs them as one compiled call, the same kernels
+in the same order as the Python stages (``prepare.classify``, ``pgs.build_rows``,
+``cache._local_points``, ``cache._warm_start``, ``active_set.islands`` and ``solve_islands``,
+``resting._work_bound``, ``cache._warm_record``, ``free_motion.advance``), so the step is the
+same bit for bit; a test steps scenes both ways.
+
+The kernel first checks what the Python stages would branch on (an impact or a closing
+speculative contact, a penetration deeper than ``split_slop``, a contact between two immovable
+bodies, an island too large for the dense solve or left unfinished) and, if any holds, returns
+without having changed anything: the Python stages then run the step as before. It only moves
+the bodies once everything has succeeded.
+
+Shapes: ``N`` bodies, ``K`` contacts.
+"""
+import numpy as np
+
+from .. import dynamics
+from ..free_motion import advance
+from ..jit import njit
+from . import prepare
+from . import toi as toi_mod
+from .active_set import SOLVED, islands, solve_islands
+from .cache import MATCH_FRACTION, _local_points, _warm_record, _warm_start
+from .context import REST_REBOUND_FRACTION
+from .direct import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
+                     DIRECT_REGULARISATION)
+from .pgs import apply_ids, build_rows, sweeps
+from .resting import _work_bound
+
+#: ``_rest``'s answers: the step ran (``RESTED``), or why a Python stage has to run it
+RESTED, IMPACT, CORRECTION, IMMOVABLE, LARGE, UNFINISHED = range(6)
+
+
+def applies(ctx):
+    """Whether the step's models allow the compiled resting path at all: the impulse response with
+    resting contact and ``next_step`` times of impact (one sub-step), no kinematic body (their
+    pushes are capped by Python stages), the solver chosen automatically."""
+    m, world = ctx.models, ctx.world
+    return (ctx.first and m.response == "impulse" and m.resting and not ctx.exact_toi and not m.continuous
+            and ctx.swept_pair is None and world.settings.solver_method == "auto"
+            and not world.body_masks().any_kinematic)
+
+
+def rest(ctx):
+    """The stages after detection (``stepper._impulse_step``'s prepare, impact, resting,
+    correction plan, time of impact, store and advance) for the detected ``ctx.contacts`` in one
+    compiled call, when every contact rests. Returns True when it ran the step (the bodies moved;
+    ``ctx`` holds what ``_finish`` reads), False when the Python stages must (nothing changed)."""
+    if not applies(ctx):
+        return False
+    world, m = ctx.world, ctx.models
+    st = world.settings
+    s = world.s
+    bm = world.body_masks()
+    c = ctx.contacts
+    k = len(c)
+    cc = np.ascontiguousarray
+    e, mu_s, mu_d = prepare.coefficients(world, c, m)
+    old = world.contact_cache.warm
+    has_old = old is not None and len(old[0]) > 0
+    if not has_old:
+        old = _NO_OLD
+    local, wv = np.empty((k, 3)), np.empty((k, 4))
+    normal_impulse, vn0 = np.empty((2, k))
+    friction_impulse, impulse = np.empty((2, k, 3))
+    used = np.empty(k, np.bool_)
+    out = np.zeros(6)
+    status = _rest(
+        cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+        cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
+        s.pos, s.vel, s.quat, s.omega, cc(s.principal_q), cc(s.principal_moments), cc(world.inertia_body),
+        cc(world.inv_mass, dtype=float), prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity, ctx.gravity,
+        bm.dynamic, bm.rotating, bm.kinematic, cc(e, dtype=float).copy(), cc(mu_s, dtype=float),
+        cc(mu_d, dtype=float), m.friction and m.response != "kinematic",
+        cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
+        has_old, toi_mod._extents(world),
+        float(ctx.dt), float(st.contact_margin), ctx.speculative, toi_mod.TOI_TOLERANCE,
+        prepare.SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
+        float(st.split_slop), DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+        int(st.solver_iterations), float(st.solver_tolerance),
+        local, normal_impulse, friction_impulse, impulse, vn0, used, wv, out)
+    if status != RESTED:
+        return False
+    residual, deepest, rest_bound, drift, kick_error = (float(x) for x in out[:5])
+    ctx.iterations = max(ctx.iterations, int(out[5]))
+    ctx.residual = max(ctx.residual, residual)
+    ctx.max_penetration = max(ctx.max_penetration, deepest)
+    ctx.rest_bound += rest_bound
+    ctx.drift += drift
+    ctx.kick_error += kick_error
+    # what the contact cache keeps (copies: never views of the step's contacts)
+    ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local.copy(), wv)
+    c.normal_impulse, c.friction_impulse, c.impulse = normal_impulse, friction_impulse, impulse
+    c.relative_normal_velocity = vn0
+    if not used.all():   # speculative contacts that did nothing are not contacts of this step
+        c, local = c.select(used), local[used]
+    ctx.records.append((c, local))
+    ctx.first = False
+    return True
+
+
+_NO_OLD = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
+
+
+@njit
+def _min(x, y):
+    """numpy's ``minimum`` of two floats (the second on a tie: ``min(-0.0, 0.0)`` is ``0.0``)."""
+    return x if x < y else y
+
+
+@njit
+def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
+          inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, e, mu_s, mu_d, kinetic,
+          a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous, rebound_speed,
+          impact_speed, split_slop, direct_max, max_iterations, tolerance, local, normal_impulse, friction_impulse,
+          impulse, vn0, used, wv, out):
+    """``rest``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
+    (K,)``, ``point, normal, rel_vel (K,3)``, ``depth (K,)``; bodies as ``free_motion.advance`` and
+    ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``; ``e,
+    mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache ``a0, b0 (K0,)``, ``p0 (K0,3)``,
+    ``values (K0,4)``. Writes ``local (K,3)``, the impulse columns ``normal_impulse (K,)``,
+    ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that count ``used (K,)``, the
+    cache's ``wv (K,4)`` and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps]``.
+    Returns ``RESTED``, or with the world untouched why not (``IMPACT``, ``CORRECTION``,
+    ``IMMOVABLE``, ``LARGE``, ``UNFINISHED``)."""
+    k = a.shape[0]
+    n = pos.shape[0]
+    # ---- prepare (prepare.prepare_contacts): rows, points in A's frame, classes
+    vec, mat, num = np.empty((4, k, 3)), np.empty((6, k, 3, 3)), np.empty((2, k))   # the rows (rows.build_rows' blocks)
+    t1, t2, ra, rb = vec[0], vec[1], vec[2], vec[3]
+    ang_a, ang_b, iang_a, iang_b, K, dirs = mat[0], mat[1], mat[2], mat[3], mat[4], mat[5]
+    ima, imb = num[0], num[1]
+    build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, rel_vel, dynamic, True, t1, t2, ra, rb, ang_a, ang_b,
+               iang_a, iang_b, ima, imb, K, dirs)
+    _local_points(a, point, pos, R, local)
+    flags = np.empty((4, k), np.bool_)
+    touching, imp, closing, bounced = flags[0], flags[1], flags[2], flags[3]
+    spec_target = np.empty(k)
+    counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, np.zeros(0), False, toi_tolerance,
+                              simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, e, vn0,
+                              touching, imp, closing, spec_target, bounced)
+    # ---- what would take a Python stage: an impact or closing contact (impact stage), a
+    # penetration to correct (correction.plan), a contact nothing can move, a solve that is not
+    # the exact active set on every island (solver.solve_auto's other branches)
+    if counts.impact or counts.closing:
+        return IMPACT
+    if counts.deepest > split_slop:
+        for c in range(k):
+            if depth[c] > 0.0:
+                return CORRECTION
+    for c in range(k):
+        if not (dynamic[a[c]] or dynamic[b[c]]):
+            return IMMOVABLE
+    if k > direct_max:
+        return LARGE
+    order, start = islands(a, b, dynamic, n)
+    if DIRECT_FIRST < k:
+        for i in range(start.shape[0] - 1):
+            if start[i + 1] - start[i] > DIRECT_ISLAND_MAX:
+                return LARGE
+    # ---- resting solve (resting.resting_solve): the constant force over the step, warm started
+    v_end = np.empty((n, 3))
+    for i in range(n):
+        for x in range(3):
+            v_end[i, x] = vel[i, x] + gravity_rows[i, x] * dt
+    w_end = omega.copy()
+    v_start_end = v_end.copy()
+    w_start_end = w_end.copy()
+    target = np.empty(k)
+    for c in range(k):
+        target[c] = _min(2.0 * _min(depth[c], 0.0) / dt - vn0[c], 0.0)
+    warm = np.zeros((k, 3))
+    use_warm = has_old and k > 0 and _warm_start(a0, b0, p0, a, b, local, ext, MATCH_FRACTION, values, dt, dirs, mu_d,
+                                                 warm)
+    friction = False
+    if kinetic:
+        for c in range(k):
+            friction = friction or mu_s[c] > 0.0
+    zeros = np.zeros(k)
+    mus = mu_s if friction else zeros
+    mud = mu_d if friction else zeros
+    lam = np.zeros((k, 3))
+    status = np.empty(k, np.int64)
+    residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, zeros, mus,
+                             mud, friction, warm, use_warm, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
+                             DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v_end, w_end, True, lam, status)
+    iterations = 1
+    unfinished = np.flatnonzero(status != SOLVED)
+    if unfinished.shape[0]:
+        # sliding friction or an inconsistent set: Gauss–Seidel finishes those islands from the
+        # start the active set left (solver.solve_auto's direct branch, solver.solve)
+        iterations, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s,
+                                  mu_d, kinetic, lam, v_end, w_end, max_iterations, tolerance)
+        residual = max(res, residual)
+    rest_bound = _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, lam)
+    _warm_record(lam, dirs, wv)
+    for c in range(k):
+        for x in range(4):
+            wv[c, x] = wv[c, x] / dt
+    # ---- store impulses (stepper._store_impulses, record): the impact impulse (none) plus the
+    # resting impulse over the whole step
+    for c in range(k):
+        ln, l1, l2 = 0.0 + lam[c, 0] * 1.0, 0.0 + lam[c, 1] * 1.0, 0.0 + lam[c, 2] * 1.0
+        normal_impulse[c] = ln
+        for x in range(3):
+            friction_impulse[c, x] = l1 * t1[c, x] + l2 * t2[c, x]
+            impulse[c, x] = ln * normal[c, x] + friction_impulse[c, x]
+        used[c] = not speculative or touching[c] or ln > 0.0
+    # ---- advance (stepper._advance_stage): kick half, drift, kick half
+    half_dv = np.empty((n, 3))
+    half_dw = np.empty((n, 3))
+    for i in range(n):
+        for x in range(3):
+            half_dv[i, x] = 0.5 * (v_end[i, x] - v_start_end[i, x]) * 1.0
+            half_dw[i, x] = 0.5 * (w_end[i, x] - w_start_end[i, x]) * 1.0
+    drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
+                                kinematic, half_dv, half_dw, True, dt, dynamics.ISOTROPIC_TOLERANCE,
+                                dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
+    out[0], out[1], out[2], out[3], out[4], out[5] = residual, counts.deepest, rest_bound, drift, kick_error, iterations
+    return RESTED
+
+
+@njit
+def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic, lam, vel, omega,
+            iterations, tolerance):
+    """Gauss–Seidel on the contacts ``ids (U,)`` that the active set left unfinished, from their
+    impulses in ``lam (K,3)`` (``solver.solve`` on ``rows.select(ids)``: the warm impulses applied,
+    then ``pgs.sweeps`` on the gathered rows); writes their impulses into ``lam`` and the
+    velocities into ``vel, omega``. Returns ``(sweeps, residual)``."""
+    u = ids.shape[0]
+    ua, ub = a[ids], b[ids]
+    udirs, uang_a, uang_b, uiang_a, uiang_b, uK = dirs[ids], ang_a[ids], ang_b[ids], iang_a[ids], iang_b[ids], K[ids]
+    uima, uimb, utarget = ima[ids], imb[ids], target[ids]
+    ulam = lam[ids]
+    friction = False
+    if kinetic:
+        for i in range(u):
+            friction = friction or mu_s[ids[i]] > 0.0
+    zeros = np.zeros(u)
+    umus = mu_s[ids] if friction else zeros
+    umud = mu_d[ids] if friction else zeros
+    warm = False
+    for i in range(u):
+        for x in range(3):
+            warm = warm or ulam[i, x] != 0.0
+    if warm:
+        apply_ids(np.arange(u), ua, ub, udirs, uiang_a, uiang_b, uima, uimb, ulam, vel, omega)
+    it, residual = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, utarget, zeros, umus, umud,
+                          friction, ulam, vel, omega, iterations, tolerance)
+    for i in range(u):
+        for x in range(3):
+            lam[ids[i], x] = ulam[i, x]
+    return it, residual
