@@ -20,7 +20,10 @@
    bodies and are then discarded (no energy is added; ``response.correction``).
 
 ``_impulse_step`` reads as this list: one line per named stage around a ``StepContext``
-(``response.context``, Box2D's step context), which holds what the stages share.
+(``response.context``, Box2D's step context), which holds what the stages share. When every
+contact of a ``next_step`` step rests (no impact, nothing to correct: a settled pile, a stack, a
+floor of parts), ``response.resting_path`` runs the stages after detection as one compiled call,
+the same kernels in the same order, bit for bit; otherwise it declines and the stages run.
 
 Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
 (friction on) regularised Coulomb friction (``response.penalty_friction``).

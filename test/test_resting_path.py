@@ -1,0 +1,135 @@
+"""The compiled resting path (``response.resting_path``): when every contact of a step rests, one
+compiled call runs the stages after detection. It must give the Python stages' step bit for bit,
+and when it declines it must leave the world as it found it."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+import contact_sim as cs
+from contact_sim.response import resting_path
+from contact_sim.scene import default_scene_path
+
+
+def _pile(seed, n=6):
+    """Boxes, spheres and hulls dropped just above a plane, some onto each other."""
+    rng = np.random.default_rng(seed)
+    w = cs.World(materials={"m": cs.Material(restitution=0.2, friction=0.5)})
+    w.add_body("ground", cs.Plane(), kind="static", material="m")
+    for i in range(n):
+        kind = i % 3
+        q = rng.normal(size=4)
+        shape = (cs.Box(tuple(rng.uniform(0.1, 0.3, 3))) if kind == 0 else cs.Sphere(float(rng.uniform(0.05, 0.15)))
+                 if kind == 1 else cs.Convex(rng.uniform(-0.1, 0.1, (12, 3))))
+        w.add_body(f"b{i}", shape, mass=float(rng.uniform(0.5, 2.0)), material="m",
+                   position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.2 + 0.25 * i),
+                   orientation=tuple(q / np.linalg.norm(q)))
+    return w
+
+
+def _slider():
+    """A box sliding on a plane (friction 0.2): its contacts slide, so the active set leaves its
+    island unfinished and Gauss–Seidel finishes it. ``next_step``: with a few bodies ``auto`` would
+    pick exact times of impact, which the compiled path leaves to the Python stages."""
+    w = cs.World(settings=cs.Settings(toi="next_step"), materials={"m": cs.Material(restitution=0.0, friction=0.2)})
+    w.add_body("ground", cs.Plane(), kind="static", material="m")
+    w.add_body("box", cs.Box((0.4, 0.3, 0.2)), mass=1.0, material="m", position=(0, 0, 0.1), velocity=(2.0, 0.5, 0))
+    return w
+
+
+def _state(w):
+    return [getattr(w.s, f).copy() for f in ("pos", "quat", "vel", "omega")]
+
+
+def _same_step(wa, wb):
+    """What differs between two worlds after a step (state, contacts, statistics, contact cache)."""
+    diff = [f for f, x, y in zip(("pos", "quat", "vel", "omega"), _state(wa), _state(wb)) if not np.array_equal(x, y)]
+    for f in dataclasses.fields(wa.contacts):
+        x, y = getattr(wa.contacts, f.name), getattr(wb.contacts, f.name)
+        if not (x.shape == y.shape and np.array_equal(x, y)):
+            diff.append("contacts." + f.name)
+    if dataclasses.asdict(wa.last_solve) != dataclasses.asdict(wb.last_solve):
+        diff.append("last_solve")
+    ca, cb = wa.contact_cache.warm, wb.contact_cache.warm
+    if (ca is None) != (cb is None) or (ca is not None and not all(np.array_equal(x, y) for x, y in zip(ca, cb))):
+        diff.append("contact_cache")
+    return diff
+
+
+@pytest.fixture
+def answers(monkeypatch):
+    """The compiled path's answers (``RESTED`` or why not), step by step; with each declining call
+    it checks that the world was left as it was."""
+    seen = []
+    kernel = resting_path._rest
+
+    def watched(*args):
+        before = [x.copy() for x in args[6:10]]   # pos, vel, quat, omega
+        status = kernel(*args)
+        if status != resting_path.RESTED:
+            assert all(np.array_equal(x, y) for x, y in zip(before, args[6:10])), "declined but moved the bodies"
+        seen.append(status)
+        return status
+
+    monkeypatch.setattr(resting_path, "_rest", watched)
+    return seen
+
+
+def _both_ways(make, steps, monkeypatch, dt=None):
+    """Step two copies of a scene, one with the compiled path and one without, comparing each step."""
+    wa, wb = make(), make()
+    applies = resting_path.applies
+    for i in range(steps):
+        monkeypatch.setattr(resting_path, "applies", applies)
+        wa.step(dt)
+        monkeypatch.setattr(resting_path, "applies", lambda ctx: False)
+        wb.step(dt)
+        diff = _same_step(wa, wb)
+        assert not diff, f"step {i}: {diff}"
+    monkeypatch.setattr(resting_path, "applies", applies)
+    return wa
+
+
+@pytest.mark.parametrize("seed", [0, 1, 3])
+def test_a_settling_pile_steps_bit_for_bit_as_the_python_stages(seed, monkeypatch, answers):
+    _both_ways(lambda: _pile(seed), 400, monkeypatch, dt=0.005)
+    # not vacuous: the pile falls (impacts, corrections: declined) and then rests (compiled)
+    assert answers.count(resting_path.RESTED) > 100
+    assert resting_path.IMPACT in answers
+
+
+def test_sliding_friction_is_finished_by_gauss_seidel_in_the_compiled_path(monkeypatch, answers):
+    w = _both_ways(_slider, 60, monkeypatch, dt=0.005)
+    assert answers.count(resting_path.RESTED) > 30
+    # the box slid and slowed at the kinetic rate: μ g = 0.2 × 9.81 (the step's end velocity)
+    assert 0.0 < np.linalg.norm(w.s.vel[1, :2]) < np.hypot(2.0, 0.5) - 0.2 * 9.81 * 0.005 * 30
+
+
+def test_the_default_scene_steps_bit_for_bit_as_the_python_stages(monkeypatch, answers):
+    w0 = cs.load_scene(default_scene_path())
+    _both_ways(lambda: cs.load_scene(default_scene_path()), 900, monkeypatch, dt=w0.settings.dt)
+    assert answers[-100:] == [resting_path.RESTED] * 100   # settled: every step compiled
+    assert {resting_path.IMPACT, resting_path.CORRECTION} <= set(answers)
+
+
+@pytest.mark.exact
+def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
+    """A box on a plane, at rest: the resting impulse over a step is m g dt over its four corners,
+    with no moment, no net friction and nothing moving (exact to round-off)."""
+    w = cs.World(settings=cs.Settings(toi="next_step"))
+    w.add_body("ground", cs.Plane(), kind="static")
+    w.add_body("box", cs.Box((0.4, 0.4, 0.2)), mass=2.0, position=(0, 0, 0.1))
+    dt = 0.01
+    for _ in range(3):
+        w.step(dt)
+    assert answers == [resting_path.RESTED] * 3
+    assert len(w.contacts) == 4
+    assert w.contacts.normal_impulse.sum() == pytest.approx(2.0 * 9.81 * dt, rel=1e-12)
+    # no torque about the centre of mass: the corners' impulses balance under it (their split
+    # among the four redundant corners is not unique; the moment is)
+    moment = (w.contacts.normal_impulse[:, None] * (w.contacts.point[:, :2] - w.s.pos[1, :2])).sum(axis=0)
+    assert np.abs(moment).max() < 1e-15
+    # the corners' friction is redundant too (it may pull them in pairs): none in total
+    assert np.abs(w.contacts.friction_impulse.sum(axis=0)).max() < 1e-15
+    assert np.abs(w.s.vel[1]).max() < 1e-15 and np.abs(w.s.omega[1]).max() < 1e-15
+    assert w.s.pos[1, 2] == pytest.approx(0.1, abs=1e-15)
