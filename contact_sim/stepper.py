@@ -119,7 +119,7 @@ def _detect_stage(ctx):
     ctx.swept_pair = None
     if ctx.speculative and det_margin > margin and len(c):
         rel_vel, near = prepare.relative_velocity(world, c, m, closing=(ctx.t_left, margin))
-        if not near.all():
+        if near is not None:
             c, rel_vel = c.select(near), rel_vel[near]
     else:
         rel_vel = prepare.relative_velocity(world, c, m)

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import dynamics, free_motion, quat
+from . import dynamics, free_motion, quat, stepper
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
 from .kinds import DYNAMIC, KINDS, body_masks
@@ -473,8 +473,6 @@ class World(BodyInput):
         non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
         is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
-        from . import stepper  # the time-of-impact / response pipeline
-
         # the stepper edits the state arrays in place and replaces the other per-step attributes:
         # a copy of the one and a shallow copy of the other undo any step
         saved = self.s.copy(), dict(self.__dict__)
@@ -593,8 +591,6 @@ class World(BodyInput):
             lines.append(f"robot {r.name}: {len(r.bodies)} link bodies, {len(r.q)} joints")
         if self.disabled_pairs:
             lines.append(f"{len(self.disabled_pairs)} body pairs never tested (adjacent links, disable_collisions)")
-        from . import stepper
-
         lines += stepper.describe_models(self)
         return "\n".join(lines)
 

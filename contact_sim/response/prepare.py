@@ -130,24 +130,26 @@ def relative_velocity(world, c, m, closing=None):
     With ``closing = (dt, base)`` returns ``(rel_vel, near (K,) bool)`` from the same pass: the
     speculative contacts worth keeping, those within ``base`` (touching) and the separated ones
     whose gap can close within ``dt`` at the current normal velocity, ``gap ≤ max(−v_n, 0)·dt +
-    |g|·dt² + base``."""
+    |g|·dt² + base``; ``near`` is None when every contact is kept (the usual case)."""
     s = world.s
     k = len(c)
     out = np.empty((k, 3))
     near = np.empty(k if closing is not None else 0, np.bool_)
     dt, base = closing if closing is not None else (0.0, 0.0)
     cc = np.ascontiguousarray
-    _relative_velocity(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
-                       s.pos, s.vel, s.omega, world.kind, m.response == "kinematic", out, cc(c.normal, dtype=float),
-                       cc(c.depth, dtype=float), world.gravity_norm(), float(dt), float(base), near)
-    return out if closing is None else (out, near)
+    kept = _relative_velocity(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+                              s.pos, s.vel, s.omega, world.kind, m.response == "kinematic", out,
+                              cc(c.normal, dtype=float), cc(c.depth, dtype=float), world.gravity_norm(), float(dt),
+                              float(base), near)
+    return out if closing is None else (out, None if kept == k else near)
 
 
 @njit
 def _relative_velocity(a, b, point, pos, vel, omega, kind, particles, out, normal, depth, g, dt, base, near):
     """``out[c] = (v_a + ω_a × (p − x_a)) − (v_b + ω_b × (p − x_b))``, ω not counted for dynamic
     bodies when ``particles``; ``near[c]`` (when ``near`` has ``K`` rows) the closing filter
-    ``−depth ≤ max(−n·out, 0)·dt + g·dt² + base``."""
+    ``−depth ≤ max(−n·out, 0)·dt + g·dt² + base``. Returns how many are near."""
+    kept = 0
     for c in range(a.shape[0]):
         ia, ib = a[c], b[c]
         for side in range(2):
@@ -168,6 +170,8 @@ def _relative_velocity(a, b, point, pos, vel, omega, kind, particles, out, norma
         if near.shape[0]:
             vn = normal[c, 0] * out[c, 0] + normal[c, 1] * out[c, 1] + normal[c, 2] * out[c, 2]
             near[c] = -depth[c] <= max(-vn, 0.0) * dt + g * dt * dt + base
+            kept += near[c]
+    return kept
 
 
 def speculative_margin(world, dt):

@@ -71,7 +71,7 @@ def rest(ctx):
     normal_impulse, vn0 = np.empty((2, k))
     friction_impulse, impulse = np.empty((2, k, 3))
     used = np.empty(k, np.bool_)
-    out = np.zeros(6)
+    out = np.zeros(7)
     status = _rest(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
@@ -88,8 +88,8 @@ def rest(ctx):
         local, normal_impulse, friction_impulse, impulse, vn0, used, wv, out)
     if status != RESTED:
         return False
-    residual, deepest, rest_bound, drift, kick_error = (float(x) for x in out[:5])
-    ctx.iterations = max(ctx.iterations, int(out[5]))
+    residual, deepest, rest_bound, drift, kick_error, sweeps, kept = out.tolist()
+    ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
     ctx.max_penetration = max(ctx.max_penetration, deepest)
     ctx.rest_bound += rest_bound
@@ -99,7 +99,7 @@ def rest(ctx):
     ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local.copy(), wv)
     c.normal_impulse, c.friction_impulse, c.impulse = normal_impulse, friction_impulse, impulse
     c.relative_normal_velocity = vn0
-    if not used.all():   # speculative contacts that did nothing are not contacts of this step
+    if kept < k:   # speculative contacts that did nothing are not contacts of this step
         c, local = c.select(used), local[used]
     ctx.records.append((c, local))
     ctx.first = False
@@ -127,7 +127,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache ``a0, b0 (K0,)``, ``p0 (K0,3)``,
     ``values (K0,4)``. Writes ``local (K,3)``, the impulse columns ``normal_impulse (K,)``,
     ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that count ``used (K,)``, the
-    cache's ``wv (K,4)`` and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps]``.
+    cache's ``wv (K,4)`` and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps, used]``.
     Returns ``RESTED``, or with the world untouched why not (``IMPACT``, ``CORRECTION``,
     ``IMMOVABLE``, ``LARGE``, ``UNFINISHED``)."""
     k = a.shape[0]
@@ -206,6 +206,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
             wv[c, x] = wv[c, x] / dt
     # ---- store impulses (stepper._store_impulses, record): the impact impulse (none) plus the
     # resting impulse over the whole step
+    kept = 0
     for c in range(k):
         ln, l1, l2 = 0.0 + lam[c, 0] * 1.0, 0.0 + lam[c, 1] * 1.0, 0.0 + lam[c, 2] * 1.0
         normal_impulse[c] = ln
@@ -213,6 +214,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
             friction_impulse[c, x] = l1 * t1[c, x] + l2 * t2[c, x]
             impulse[c, x] = ln * normal[c, x] + friction_impulse[c, x]
         used[c] = not speculative or touching[c] or ln > 0.0
+        kept += used[c]
     # ---- advance (stepper._advance_stage): kick half, drift, kick half
     half_dv = np.empty((n, 3))
     half_dw = np.empty((n, 3))
@@ -223,7 +225,8 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
                                 kinematic, half_dv, half_dw, True, dt, dynamics.ISOTROPIC_TOLERANCE,
                                 dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
-    out[0], out[1], out[2], out[3], out[4], out[5] = residual, counts.deepest, rest_bound, drift, kick_error, iterations
+    out[0], out[1], out[2], out[3], out[4] = residual, counts.deepest, rest_bound, drift, kick_error
+    out[5], out[6] = iterations, kept
     return RESTED
 
 
