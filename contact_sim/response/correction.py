@@ -23,11 +23,17 @@ def plan(ctx):
     vp = np.zeros_like(world.s.vel)
     wp = np.zeros_like(world.s.omega)
     ctx.solve(ctx.rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / ctx.dt)
+    cap(ctx, pen, vp, wp)
+
+
+def cap(ctx, pen, vp, wp):
+    """``ctx.pseudo = (vp, wp)`` (N,3), the plan's solution for the penetrating contacts ``pen``,
+    scaled down where it would move a body farther than the overlaps justify."""
     # no body needs to move farther than all the overlaps together (a stack's top box moves by the
     # sum of the ones below). A body squeezed between immovable ones (a kinematic paddle and a
     # wall) has no separation that clears both: the solve's pseudo-velocities then grow with every
     # sweep and threw such a body metres up in one step; twice that sum caps the plan's scale
-    reach = 2.0 * st.split_beta * float(c.depth[pen].sum())
+    reach = 2.0 * ctx.world.settings.split_beta * float(ctx.contacts.depth[pen].sum())
     far = float(np.sqrt(np.max(np.einsum("ij,ij->i", vp, vp)))) * ctx.dt
     if far > reach:
         vp *= reach / far

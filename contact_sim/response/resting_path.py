@@ -1,21 +1,21 @@
 """The step's stages after detection in one compiled call, when every contact rests.
 
-Most steps of the scenes users keep running (piles, stacks, a floor of parts) have no impact, no
-speculative contact that would overlap, no penetration to correct and no friction that slides:
-every contact rests, and the stages after detection reduce to prepare → resting solve (exact,
-island by island) → store impulses → advance. Run stage by stage from Python, those stages cost
-more in array calls and argument passing than in arithmetic (a 10-body resting step: about a
-quarter of its time in the kernels). ``rest`` runs them as one compiled call, the same kernels
-in the same order as the Python stages (``prepare.classify``, ``pgs.build_rows``,
-``cache._local_points``, ``cache._warm_start``, ``active_set.islands`` and ``solve_islands``,
-``resting._work_bound``, ``cache._warm_record``, ``free_motion.advance``), so the step is the
-same bit for bit; a test steps scenes both ways.
+Most steps of the scenes users keep running (piles, stacks, a floor of parts) have no impact and
+no speculative contact that would overlap: every contact rests, and the stages after detection
+reduce to prepare → resting solve (exact, island by island; Gauss–Seidel finishing the islands
+that slide) → position correction's plan → store impulses → advance. Run stage by stage from
+Python, those stages cost more in array calls and argument passing than in arithmetic (a 10-body
+resting step: about a quarter of its time in the kernels). ``rest`` runs them as one compiled
+call, the same kernels in the same order as the Python stages (``prepare.classify``,
+``pgs.build_rows``, ``cache._local_points``, ``cache._warm_start``, ``active_set.islands`` and
+``solve_islands``, ``pgs.sweeps``, ``resting._work_bound``, ``cache._warm_record``,
+``free_motion.advance``), so the step is the same bit for bit; a test steps scenes both ways.
 
-The kernel first checks what the Python stages would branch on (an impact or a closing
-speculative contact, a penetration deeper than ``split_slop``, a contact between two immovable
-bodies, an island too large for the dense solve or left unfinished) and, if any holds, returns
-without having changed anything: the Python stages then run the step as before. It only moves
-the bodies once everything has succeeded.
+The kernel answers why not when a Python stage would branch elsewhere (an impact or a closing
+speculative contact, a contact between two immovable bodies, a solve that ``solver.solve_auto``
+would not give to the dense active set), having changed nothing: the Python stages then run the
+step as before. It moves the bodies only once everything has succeeded. The correction's cap and
+its displacement after the step stay in Python (``correction.cap``, ``correction.apply``).
 
 Shapes: ``N`` bodies, ``K`` contacts.
 """
@@ -24,9 +24,9 @@ import numpy as np
 from .. import dynamics
 from ..free_motion import advance
 from ..jit import njit
-from . import prepare
+from . import correction, prepare
 from . import toi as toi_mod
-from .active_set import SOLVED, islands, solve_islands
+from .active_set import SOLVED, TOO_LARGE, islands, solve_islands
 from .cache import MATCH_FRACTION, _local_points, _warm_record, _warm_start
 from .context import REST_REBOUND_FRACTION
 from .direct import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
@@ -35,7 +35,7 @@ from .pgs import apply_ids, build_rows, sweeps
 from .resting import _work_bound
 
 #: ``_rest``'s answers: the step ran (``RESTED``), or why a Python stage has to run it
-RESTED, IMPACT, CORRECTION, IMMOVABLE, LARGE, UNFINISHED = range(6)
+RESTED, IMPACT, IMMOVABLE, LARGE = range(4)
 
 
 def applies(ctx):
@@ -71,7 +71,8 @@ def rest(ctx):
     normal_impulse, vn0 = np.empty((2, k))
     friction_impulse, impulse = np.empty((2, k, 3))
     used = np.empty(k, np.bool_)
-    out = np.zeros(7)
+    vp, wp = np.zeros((2, len(world), 3))
+    out = np.zeros(8)
     status = _rest(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
@@ -83,16 +84,18 @@ def rest(ctx):
         has_old, toi_mod._extents(world),
         float(ctx.dt), float(st.contact_margin), ctx.speculative, toi_mod.TOI_TOLERANCE,
         prepare.SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
-        float(st.split_slop), DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+        float(st.split_slop), float(st.split_beta), DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance),
-        local, normal_impulse, friction_impulse, impulse, vn0, used, wv, out)
+        local, normal_impulse, friction_impulse, impulse, vn0, used, wv, vp, wp, out)
     if status != RESTED:
         return False
-    residual, deepest, rest_bound, drift, kick_error, sweeps, kept = out.tolist()
+    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
     ctx.max_penetration = max(ctx.max_penetration, deepest)
     ctx.rest_bound += rest_bound
+    if planned:   # the correction moves the bodies after the step (correction.apply)
+        correction.cap(ctx, np.flatnonzero(c.depth > 0), vp, wp)
     ctx.drift += drift
     ctx.kick_error += kick_error
     # what the contact cache keeps (copies: never views of the step's contacts)
@@ -119,17 +122,17 @@ def _min(x, y):
 def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
           inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, e, mu_s, mu_d, kinetic,
           a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous, rebound_speed,
-          impact_speed, split_slop, direct_max, max_iterations, tolerance, local, normal_impulse, friction_impulse,
-          impulse, vn0, used, wv, out):
+          impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local, normal_impulse,
+          friction_impulse, impulse, vn0, used, wv, vp, wp, out):
     """``rest``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
     (K,)``, ``point, normal, rel_vel (K,3)``, ``depth (K,)``; bodies as ``free_motion.advance`` and
     ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``; ``e,
     mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache ``a0, b0 (K0,)``, ``p0 (K0,3)``,
     ``values (K0,4)``. Writes ``local (K,3)``, the impulse columns ``normal_impulse (K,)``,
     ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that count ``used (K,)``, the
-    cache's ``wv (K,4)`` and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps, used]``.
-    Returns ``RESTED``, or with the world untouched why not (``IMPACT``, ``CORRECTION``,
-    ``IMMOVABLE``, ``LARGE``, ``UNFINISHED``)."""
+    cache's ``wv (K,4)``, the correction's pseudo-velocities ``vp, wp (N,3)`` (zeros in) and ``out =
+    [residual, deepest, rest_bound, drift, kick_error, sweeps, used, planned]``. Returns ``RESTED``,
+    or with the world untouched why not (``IMPACT``, ``IMMOVABLE``, ``LARGE``)."""
     k = a.shape[0]
     n = pos.shape[0]
     # ---- prepare (prepare.prepare_contacts): rows, points in A's frame, classes
@@ -151,20 +154,26 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     # the exact active set on every island (solver.solve_auto's other branches)
     if counts.impact or counts.closing:
         return IMPACT
-    if counts.deepest > split_slop:
-        for c in range(k):
-            if depth[c] > 0.0:
-                return CORRECTION
     for c in range(k):
         if not (dynamic[a[c]] or dynamic[b[c]]):
             return IMMOVABLE
-    if k > direct_max:
-        return LARGE
-    order, start = islands(a, b, dynamic, n)
-    if DIRECT_FIRST < k:
-        for i in range(start.shape[0] - 1):
-            if start[i + 1] - start[i] > DIRECT_ISLAND_MAX:
-                return LARGE
+    # ---- position correction's plan (correction.plan): split-impulse pseudo-velocities ``vp, wp``
+    # for the penetrating contacts, frictionless; the cap on how far they move stays in Python
+    planned = False
+    if counts.deepest > split_slop:
+        pen = np.flatnonzero(depth > 0.0)
+        if pen.shape[0]:
+            p = pen.shape[0]
+            ptarget = np.empty(p)
+            for i in range(p):
+                ptarget[i] = split_beta * depth[pen[i]] / dt
+            pzeros = np.zeros(p)
+            plan, _, _ = _exact(a[pen], b[pen], dirs[pen], ang_a[pen], ang_b[pen], iang_a[pen], iang_b[pen], ima[pen],
+                                imb[pen], K[pen], ptarget, pzeros, pzeros, False, np.zeros((p, 3)), False, dynamic,
+                                direct_max, max_iterations, tolerance, vp, wp, np.zeros((p, 3)))
+            if plan != RESTED:
+                return plan
+            planned = True
     # ---- resting solve (resting.resting_solve): the constant force over the step, warm started
     v_end = np.empty((n, 3))
     for i in range(n):
@@ -179,26 +188,12 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     warm = np.zeros((k, 3))
     use_warm = has_old and k > 0 and _warm_start(a0, b0, p0, a, b, local, ext, MATCH_FRACTION, values, dt, dirs, mu_d,
                                                  warm)
-    friction = False
-    if kinetic:
-        for c in range(k):
-            friction = friction or mu_s[c] > 0.0
-    zeros = np.zeros(k)
-    mus = mu_s if friction else zeros
-    mud = mu_d if friction else zeros
     lam = np.zeros((k, 3))
-    status = np.empty(k, np.int64)
-    residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, zeros, mus,
-                             mud, friction, warm, use_warm, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
-                             DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v_end, w_end, True, lam, status)
-    iterations = 1
-    unfinished = np.flatnonzero(status != SOLVED)
-    if unfinished.shape[0]:
-        # sliding friction or an inconsistent set: Gauss–Seidel finishes those islands from the
-        # start the active set left (solver.solve_auto's direct branch, solver.solve)
-        iterations, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s,
-                                  mu_d, kinetic, lam, v_end, w_end, max_iterations, tolerance)
-        residual = max(res, residual)
+    solved, iterations, residual = _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
+                                          kinetic, warm, use_warm, dynamic, direct_max, max_iterations, tolerance,
+                                          v_end, w_end, lam)
+    if solved != RESTED:
+        return solved
     rest_bound = _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, lam)
     _warm_record(lam, dirs, wv)
     for c in range(k):
@@ -226,7 +221,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
                                 kinematic, half_dv, half_dw, True, dt, dynamics.ISOTROPIC_TOLERANCE,
                                 dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
     out[0], out[1], out[2], out[3], out[4] = residual, counts.deepest, rest_bound, drift, kick_error
-    out[5], out[6] = iterations, kept
+    out[5], out[6], out[7] = iterations, kept, planned
     return RESTED
 
 
@@ -261,3 +256,45 @@ def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, 
         for x in range(3):
             lam[ids[i], x] = ulam[i, x]
     return it, residual
+
+
+@njit
+def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic, warm, use_warm, dynamic,
+           direct_max, max_iterations, tolerance, vel, omega, lam):
+    """``solver.solve_auto``'s exact branch on the rows given (``k`` contacts; ``warm (k,3)`` read
+    when ``use_warm``): the active set per island (``active_set.solve_islands``), the impulses
+    applied to ``vel, omega (N,3)``, Gauss–Seidel finishing the islands it left unfinished
+    (``_finish``). Returns ``(RESTED, sweeps, residual)``, or ``LARGE`` where ``solve_auto`` would
+    take another branch (more than ``direct_max`` contacts; Gauss–Seidel first for a large island;
+    the sparse active set for an island the dense kernel does not take): ``vel, omega`` may then
+    hold part of a solve, and the caller discards them."""
+    k = a.shape[0]
+    if k > direct_max:
+        return LARGE, 0, 0.0
+    order, start = islands(a, b, dynamic, vel.shape[0])
+    if DIRECT_FIRST < k:
+        for i in range(start.shape[0] - 1):
+            if start[i + 1] - start[i] > DIRECT_ISLAND_MAX:
+                return LARGE, 0, 0.0
+    friction = False
+    if kinetic:
+        for c in range(k):
+            friction = friction or mu_s[c] > 0.0
+    zeros = np.zeros(k)
+    mus = mu_s if friction else zeros
+    mud = mu_d if friction else zeros
+    status = np.empty(k, np.int64)
+    residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, zeros, mus, mud,
+                             friction, warm, use_warm, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
+                             DIRECT_MAX_ROUNDS, vel, omega, True, lam, status)
+    for c in range(k):
+        if status[c] == TOO_LARGE:   # larger than the dense kernel takes, or its factorisation failed
+            return LARGE, 0, 0.0
+    unfinished = np.flatnonzero(status != SOLVED)
+    if unfinished.shape[0] == 0:
+        return RESTED, 1, residual
+    # sliding friction or an inconsistent set: Gauss–Seidel finishes those islands from the start
+    # the active set left (solver.solve_auto's direct branch, solver.solve)
+    sweeps, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic,
+                          lam, vel, omega, max_iterations, tolerance)
+    return RESTED, sweeps, max(res, residual)
