@@ -142,3 +142,18 @@ def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
     assert np.abs(w.contacts.friction_impulse.sum(axis=0)).max() < 1e-15
     assert np.abs(w.s.vel[1]).max() < 1e-15 and np.abs(w.s.omega[1]).max() < 1e-15
     assert w.s.pos[1, 2] == pytest.approx(0.1, abs=1e-15)
+
+
+def test_an_island_too_large_for_the_dense_solve_is_left_to_the_python_stages(monkeypatch, answers):
+    """A tower of 36 boxes: one island of 144 contacts, more than the dense kernel takes
+    (``DIRECT_ISLAND_MAX``), which ``solve_auto`` gives to the sparse active set: declined."""
+    def tower():
+        w = cs.World(settings=cs.Settings(toi="next_step"))
+        w.add_body("ground", cs.Plane(), kind="static")
+        for i in range(36):
+            w.add_body(f"b{i}", cs.Box((0.3, 0.3, 0.1)), mass=1.0, position=(0, 0, 0.05 + 0.1 * i))
+        return w
+
+    w, _ = _both_ways(tower, 10, monkeypatch, answers, dt=0.005)
+    assert answers == [resting_path.LARGE] * 10
+    assert len(w.contacts) == 144
