@@ -48,6 +48,7 @@ bench: $(STAMP)
 	$(PY) -m pip install --quiet pybullet mujoco $(QUIET)
 	$(PY) bench/bench_detect.py
 	$(PY) bench/bench_response.py
+	$(PY) bench/bench_default.py
 	$(PY) bench/bench_accuracy.py
 	$(PY) bench/bench_node.py
 	$(PY) bench/bench_mesh_mesh.py

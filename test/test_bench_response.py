@@ -42,3 +42,17 @@ def test_quick_run_writes_every_row_for_every_engine(tmp_path):
     pile = [r for r in rows if r["scene"] == "pile_64"]
     assert all(r["escaped"] != "" for r in pile)
     assert "contact_sim ÷ pybullet" in proc.stdout and "rod ÷ cube" in proc.stdout
+
+
+def test_default_scene_benchmark_writes_every_phase(tmp_path):
+    """``bench/bench_default.py``: a short run writes one row per phase with positive times."""
+    proc = subprocess.run([sys.executable, os.path.join(REPO, "bench", "bench_default.py"), "--seconds", "3.5",
+                           "--repeats", "1", "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-4000:]
+    with open(tmp_path / "default_scene.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["phase"].split(" (")[0] for r in rows] == ["falling and hitting", "bouncing, sliding", "resting",
+                                                         "whole run"]
+    for r in rows:
+        p50, p99, mx = float(r["p50_ms"]), float(r["p99_ms"]), float(r["max_ms"])
+        assert float(r["wall_s_per_sim_s"]) > 0 and 0 < p50 <= p99 <= mx, r
