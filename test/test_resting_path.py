@@ -157,3 +157,23 @@ def test_an_island_too_large_for_the_dense_solve_is_left_to_the_python_stages(mo
     w, _ = _both_ways(tower, 10, monkeypatch, answers, dt=0.005)
     assert answers == [resting_path.LARGE] * 10
     assert len(w.contacts) == 144
+
+
+def test_a_kinematic_push_is_left_to_the_python_stages(monkeypatch, answers):
+    """A kinematic paddle moving at 0.5 m/s into a ball resting beside a box: while it is apart the
+    step is compiled (a kinematic body in the world is no reason to decline), while it pushes the
+    Python stages cap the push (``PUSHED``); bit-identical both ways."""
+    def paddle():
+        w = cs.World(settings=cs.Settings(toi="next_step"),
+                     materials={"m": cs.Material(restitution=0.2, friction=0.4)})
+        w.add_body("ground", cs.Plane(), kind="static", material="m")
+        w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.16),
+                   velocity=(0.5, 0, 0), material="m")
+        w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0, 0, 0.1), material="m")
+        w.add_body("box", cs.Box((0.2, 0.2, 0.2)), mass=1.0, position=(1.5, 0, 0.1), material="m")
+        return w
+
+    w, _ = _both_ways(paddle, 150, monkeypatch, answers, dt=0.01)
+    assert answers[:40].count(resting_path.RESTED) > 30
+    assert resting_path.PUSHED in answers
+    assert w.s.pos[2, 0] > 0.2   # the ball was pushed

@@ -12,10 +12,11 @@ call, the same kernels in the same order as the Python stages (``prepare.classif
 ``free_motion.advance``), so the step is the same bit for bit; a test steps scenes both ways.
 
 The kernel answers why not when a Python stage would branch elsewhere (an impact or a closing
-speculative contact, a contact between two immovable bodies, a solve that ``solver.solve_auto``
-would not give to the dense active set), having changed nothing: the Python stages then run the
-step as before. It moves the bodies only once everything has succeeded. The correction's cap and
-its displacement after the step stay in Python (``correction.cap``, ``correction.apply``).
+speculative contact, a contact between two immovable bodies or with a kinematic body, whose push
+the Python stages cap, a solve that ``solver.solve_auto`` would not give to the dense active set),
+having changed nothing: the Python stages then run the step as before. It moves the bodies only
+once everything has succeeded. The correction's cap and its displacement after the step stay in
+Python (``correction.cap``, ``correction.apply``).
 
 Shapes: ``N`` bodies, ``K`` contacts.
 """
@@ -35,17 +36,16 @@ from .pgs import apply_ids, build_rows, sweeps
 from .resting import _work_bound
 
 #: ``_rest``'s answers: the step ran (``RESTED``), or why a Python stage has to run it
-RESTED, IMPACT, IMMOVABLE, LARGE = range(4)
+RESTED, IMPACT, IMMOVABLE, LARGE, PUSHED = range(5)
 
 
 def applies(ctx):
     """Whether the step's models allow the compiled resting path at all: the impulse response with
-    resting contact and ``next_step`` times of impact (one sub-step), no kinematic body (their
-    pushes are capped by Python stages), the solver chosen automatically."""
+    resting contact and ``next_step`` times of impact (one sub-step), the solver chosen
+    automatically."""
     m, world = ctx.models, ctx.world
     return (ctx.first and m.response == "impulse" and m.resting and not ctx.exact_toi and not m.continuous
-            and ctx.swept_pair is None and world.settings.solver_method == "auto"
-            and not world.body_masks().any_kinematic)
+            and ctx.swept_pair is None and world.settings.solver_method == "auto")
 
 
 def rest(ctx):
@@ -132,7 +132,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that count ``used (K,)``, the
     cache's ``wv (K,4)``, the correction's pseudo-velocities ``vp, wp (N,3)`` (zeros in) and ``out =
     [residual, deepest, rest_bound, drift, kick_error, sweeps, used, planned]``. Returns ``RESTED``,
-    or with the world untouched why not (``IMPACT``, ``IMMOVABLE``, ``LARGE``)."""
+    or with the world untouched why not (``IMPACT``, ``IMMOVABLE``, ``LARGE``, ``PUSHED``)."""
     k = a.shape[0]
     n = pos.shape[0]
     # ---- prepare (prepare.prepare_contacts): rows, points in A's frame, classes
@@ -157,6 +157,8 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     for c in range(k):
         if not (dynamic[a[c]] or dynamic[b[c]]):
             return IMMOVABLE
+        if kinematic[a[c]] or kinematic[b[c]]:
+            return PUSHED   # a kinematic body pushes: the solves' push cap (energy.push_cap) is Python's
     # ---- position correction's plan (correction.plan): split-impulse pseudo-velocities ``vp, wp``
     # for the penetrating contacts, frictionless; the cap on how far they move stays in Python
     planned = False
