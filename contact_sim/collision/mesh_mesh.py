@@ -114,10 +114,8 @@ def table_bvh(geom):
     N, Bx, P = [np.zeros((1, 4), np.int64)], [np.zeros((1, 6))], [np.zeros(1, np.int64)]
     border = np.ones((len(geom.tris), 3), np.bool_)
     nb = 1
-    for s, shape in enumerate(geom.shapes):
-        if geom.si[s, SI_RANK] != MESH:
-            continue
-        nodes, boxes, perm, bd = shape_bvh(shape)
+    for s in np.flatnonzero(geom.si[:, SI_RANK] == MESH).tolist():   # the meshes' rows only
+        nodes, boxes, perm, bd = shape_bvh(geom.shapes[s])
         border[geom.si[s, SI_T0]:geom.si[s, SI_T0] + len(bd)] = bd
         nodes = nodes.copy()
         inner = nodes[:, 3] == 0
