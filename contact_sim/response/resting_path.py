@@ -84,7 +84,8 @@ def rest(ctx):
         has_old, toi_mod._extents(world),
         float(ctx.dt), float(st.contact_margin), ctx.speculative, toi_mod.TOI_TOLERANCE,
         prepare.SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
-        float(st.split_slop), float(st.split_beta), DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+        float(st.split_slop), float(st.split_beta),
+        DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance),
         local, normal_impulse, friction_impulse, impulse, vn0, used, wv, vp, wp, out)
     if status != RESTED:
@@ -297,6 +298,6 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
         return RESTED, 1, residual
     # sliding friction or an inconsistent set: Gauss–Seidel finishes those islands from the start
     # the active set left (solver.solve_auto's direct branch, solver.solve)
-    sweeps, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic,
-                          lam, vel, omega, max_iterations, tolerance)
+    sweeps, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
+                          kinetic, lam, vel, omega, max_iterations, tolerance)
     return RESTED, sweeps, max(res, residual)
