@@ -90,14 +90,16 @@ def which_table():
 @njit
 def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, swap, kk,
                   a, b, pos, R, margin, counters):
-    """The narrow phase of a batch in one compiled call: ``dispatch.run`` (the pairs grouped by type
-    pair, each group through its kernel) and ``dispatch.contact_columns``.
+    """The narrow phase of a batch in one compiled call: the pairs grouped by type pair
+    (``dispatch.group_by_type``), each group through its kernel (``call``), then the contact
+    columns (``dispatch.contact_columns``).
 
     ``which = which_table()``; the geometry arrays as ``GeomTable.arrays()``, ``bvh = trees(geom)``;
     ``ia, ib, swap (K,)`` the batch and ``kk (M,)`` its kept pairs, ``a, b (M,)`` their bodies in the
     kernels' order (``bounding.kept_pairs``). Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
-    body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``, as ``run`` and
-    ``contact_columns`` (``rows_i[:, 0]`` indexing ``kk``)."""
+    body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
+    (``rows_i[:, 0]`` indexing ``kk``), the columns of ``contact_columns``, and the number of pairs
+    no kernel takes (plane–plane pairs are no contacts)."""
     M = a.shape[0]
     out_i, out_f = np.empty((4 * M, 3), np.int64), np.empty((4 * M, 7))
     n, unsupported = 0, 0

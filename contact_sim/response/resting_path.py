@@ -150,9 +150,8 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, np.zeros(0), False, toi_tolerance,
                               simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, e, vn0,
                               touching, imp, closing, spec_target, bounced)
-    # ---- what would take a Python stage: an impact or closing contact (impact stage), a
-    # penetration to correct (correction.plan), a contact nothing can move, a solve that is not
-    # the exact active set on every island (solver.solve_auto's other branches)
+    # ---- what takes the Python stages: an impact or closing contact (the impact stage), a contact
+    # nothing can move, a kinematic push (below: a solve solver.solve_auto gives to another method)
     if counts.impact or counts.closing:
         return IMPACT
     for c in range(k):
@@ -240,18 +239,11 @@ def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, 
     udirs, uang_a, uang_b, uiang_a, uiang_b, uK = dirs[ids], ang_a[ids], ang_b[ids], iang_a[ids], iang_b[ids], K[ids]
     uima, uimb, utarget = ima[ids], imb[ids], target[ids]
     ulam = lam[ids]
-    friction = False
-    if kinetic:
-        for i in range(u):
-            friction = friction or mu_s[ids[i]] > 0.0
+    friction = kinetic and np.any(mu_s[ids] > 0.0)
     zeros = np.zeros(u)
     umus = mu_s[ids] if friction else zeros
     umud = mu_d[ids] if friction else zeros
-    warm = False
-    for i in range(u):
-        for x in range(3):
-            warm = warm or ulam[i, x] != 0.0
-    if warm:
+    if np.any(ulam != 0.0):
         apply_ids(np.arange(u), ua, ub, udirs, uiang_a, uiang_b, uima, uimb, ulam, vel, omega)
     it, residual = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, utarget, zeros, umus, umud,
                           friction, ulam, vel, omega, iterations, tolerance)
@@ -279,10 +271,7 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
         for i in range(start.shape[0] - 1):
             if start[i + 1] - start[i] > DIRECT_ISLAND_MAX:
                 return LARGE, 0, 0.0
-    friction = False
-    if kinetic:
-        for c in range(k):
-            friction = friction or mu_s[c] > 0.0
+    friction = kinetic and np.any(mu_s > 0.0)
     zeros = np.zeros(k)
     mus = mu_s if friction else zeros
     mud = mu_d if friction else zeros
