@@ -12,7 +12,6 @@ It also says whether the two trajectories stayed bit-identical. Prints a table a
 ``bench/results/ab.csv``.
 """
 import argparse
-import csv
 import os
 import shutil
 import statistics
@@ -74,6 +73,7 @@ def main():
     sys.path[:0] = [old_package(args.old), ROOT, HERE]
     warnings.simplefilter("ignore")
     import numpy as np
+    from report import write_rows
 
     import contact_sim as new
     import contact_sim_old as old
@@ -99,12 +99,7 @@ def main():
         rows.append({"scene": name, "old": args.old, "old_ms": f"{o:.4f}", "new_ms": f"{n:.4f}",
                      "old_over_new": f"{ratio:.3f}", "bit_identical": same})
         print(f"{name:<16} {o:>12.3f} {n:>10.3f} {ratio:>8.2f}  {'yes' if same else 'no'}")
-    os.makedirs(os.path.dirname(args.out), exist_ok=True)
-    with open(args.out, "w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        wr.writeheader()
-        wr.writerows(rows)
-    print(f"wrote {args.out}")
+    print(f"wrote {write_rows(args.out, rows)}")
     return 0
 
 

@@ -9,7 +9,6 @@ the median over rounds of the mean time per call; contact_sim and FCL take turns
 Prints a table and writes ``bench/results/collide.csv``.
 """
 import argparse
-import csv
 import os
 import statistics
 import sys
@@ -20,6 +19,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 import contact_sim as cs  # noqa: E402
+from report import write_rows  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -86,13 +86,7 @@ def main(argv=None):
     print(f"{'pair':<24} {'call':<34} {'µs per call':>12} {'contacts':>9}")
     for r in rows:
         print(f"{r['pair']:<24} {r['call']:<34} {r['us_per_call']:>12} {r['contacts']!s:>9}")
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    path = os.path.join(HERE, "results", "collide.csv")
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print(f"wrote {path}")
+    print(f"wrote {write_rows(os.path.join(HERE, 'results', 'collide.csv'), rows)}")
     return 0
 
 

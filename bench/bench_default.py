@@ -13,13 +13,14 @@ shared machine drifts by 2×). The issue-13 target: ≤ 0.1 wall s per simulated
 real time) and p99 < 1 ms. Prints a table and writes ``bench/results/default_scene.csv``.
 """
 import argparse
-import csv
 import os
 import statistics
 import time
 import warnings
 
 import numpy as np
+
+from report import write_rows
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PHASES = (("falling and hitting (0–1 s)", 0.0, 1.0), ("bouncing, sliding (1–3 s)", 1.0, 3.0),
@@ -68,12 +69,7 @@ def main():
         print(f"{name:30s} {rt:12.3f} {p50:8.3f} {p99:8.3f} {mx:8.2f}")
         rows.append({"phase": name, "wall_s_per_sim_s": f"{rt:.4f}", "p50_ms": f"{p50:.4f}", "p99_ms": f"{p99:.4f}",
                      "max_ms": f"{mx:.3f}", "dt": f"{dt:.6g}", "seconds": args.seconds, "repeats": args.repeats})
-    os.makedirs(args.out, exist_ok=True)
-    out = os.path.join(args.out, "default_scene.csv")
-    with open(out, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    out = write_rows(os.path.join(args.out, "default_scene.csv"), rows)
     print(f"wrote {out}; target (issue 13): whole run ≤ 0.1 wall s per simulated s, p99 < 1 ms")
 
 

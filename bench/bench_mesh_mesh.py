@@ -10,7 +10,6 @@ ray-cast against every triangle, every triangle pair of the two meshes examined)
 lecture's tests without the hierarchy. Writes ``bench/results/mesh_mesh.csv``.
 """
 import argparse
-import csv
 import os
 import sys
 import time
@@ -21,6 +20,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import contact_sim as cs  # noqa: E402
 from contact_sim.collision import mesh_mesh  # noqa: E402
+from report import write_rows  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -96,11 +96,7 @@ def main(argv=None):
         r = rows[-1]
         print(f"{r['triangles']:7d} triangles: tree {r['tree_ms']:.3f} ms, no tree {r['no_tree_ms']:.3f} ms, "
               f"fcl {r['fcl_ms']:.3f} ms per query; hits {hits}/{len(P)} (no tree {hits0}, fcl {fh})", flush=True)
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "mesh_mesh.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(os.path.join(HERE, "results", "mesh_mesh.csv"), rows)
 
 
 if __name__ == "__main__":

@@ -10,13 +10,14 @@ timing. Prints a table (ms per step, median over rounds, and old ÷ new) and wri
 ``bench/results/versions.csv``.
 """
 import argparse
-import csv
 import inspect
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
+
+from report import write_rows
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -116,12 +117,7 @@ def main():
         rows.append({"scene": n, "old": args.old, "new": args.new or "working tree", "old_ms": f"{o:.4f}",
                      "new_ms": f"{w:.4f}", "old_over_new": f"{o / w:.2f}"})
         print(f"{n:<14} {o:>14.3f} {w:>14.3f} {o / w:>8.2f}")
-    os.makedirs(os.path.dirname(args.out), exist_ok=True)
-    with open(args.out, "w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        wr.writeheader()
-        wr.writerows(rows)
-    print(f"wrote {args.out}")
+    print(f"wrote {write_rows(args.out, rows)}")
     return 0
 
 

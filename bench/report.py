@@ -25,6 +25,23 @@ def rows(name):
         return list(csv.DictReader(fh))
 
 
+def write_rows(path, table):
+    """Write ``table`` (dicts with the same keys, in column order) as CSV at ``path``, making its
+    folder: the benchmarks' writer, beside ``rows``, the reader. Returns ``path``."""
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(table[0]))
+        w.writeheader()
+        w.writerows(table)
+    return path
+
+
+def table(columns, cells):
+    """A markdown table: the header ``columns`` and one row per list of cell strings in ``cells``."""
+    return (["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+            + ["| " + " | ".join(row) + " |" for row in cells])
+
+
 def f(x, fmt):
     try:
         return format(float(x), fmt)
@@ -40,24 +57,20 @@ def detection():
            "500 mixed bodies (a third each spheres, boxes, 32-point hulls), one process, engines taking turns on the "
            "same poses; warm = the query repeated (median), cold = the first query after building the world "
            "(contact_sim: after `load_scene`, shape preparation included). FCL = python-fcl's dynamic AABB tree on "
-           "primitives, every colliding pair.", "",
-           "| scene | touching pairs | contact_sim warm ms | MuJoCo | FCL | FCL + contacts | pybullet | trimesh (FCL meshes) "
-           "| contact_sim cold ms | ours / FCL warm |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
-    for x in r:
-        out.append(f"| {x['scene']} | {x['touching_pairs']} | {f(x['ours_warm_ms'], '.3f')} | "
-                   f"{f(x.get('mujoco_warm_ms'), '.3f')} | {f(x.get('fcl_warm_ms'), '.3f')} | "
-                   f"{f(x.get('fcl+contacts_warm_ms'), '.3f')} | {f(x.get('pybullet_warm_ms'), '.3f')} | "
-                   f"{f(x.get('trimesh_warm_ms'), '.3f')} | {f(x['ours_cold_ms'], '.1f')} | "
-                   f"{f(x.get('ours_over_fcl_warm'), '.2f')} |")
+           "primitives, every colliding pair.", ""]
+    out += table(["scene", "touching pairs", "contact_sim warm ms", "MuJoCo", "FCL", "FCL + contacts", "pybullet",
+                  "trimesh (FCL meshes)", "contact_sim cold ms", "ours / FCL warm"],
+                 [[x["scene"], x["touching_pairs"], f(x["ours_warm_ms"], ".3f"), f(x.get("mujoco_warm_ms"), ".3f"),
+                   f(x.get("fcl_warm_ms"), ".3f"), f(x.get("fcl+contacts_warm_ms"), ".3f"),
+                   f(x.get("pybullet_warm_ms"), ".3f"), f(x.get("trimesh_warm_ms"), ".3f"), f(x["ours_cold_ms"], ".1f"),
+                   f(x.get("ours_over_fcl_warm"), ".2f")] for x in r])
     s = rows("detect_scale.csv")
     if s:
         out += ["", f"Scale (the 6 m scene's density), warm ms; fitted exponent t ∝ n^k: contact_sim "
-                    f"{f(s[0].get('fitted_exponent'), '.2f')}, FCL {f(s[0].get('fcl_fitted_exponent'), '.2f')}.", "",
-                "| bodies | touching pairs | contact_sim ms | FCL ms | ours / FCL |", "|---|---|---|---|---|"]
-        for x in s:
-            out.append(f"| {x['bodies']} | {x['touching_pairs']} | {f(x['ours_warm_ms'], '.3f')} | "
-                       f"{f(x['fcl_warm_ms'], '.3f')} | {f(x['ours_over_fcl'], '.2f')} |")
+                    f"{f(s[0].get('fitted_exponent'), '.2f')}, FCL {f(s[0].get('fcl_fitted_exponent'), '.2f')}.", ""]
+        out += table(["bodies", "touching pairs", "contact_sim ms", "FCL ms", "ours / FCL"],
+                     [[x["bodies"], x["touching_pairs"], f(x["ours_warm_ms"], ".3f"), f(x["fcl_warm_ms"], ".3f"),
+                       f(x["ours_over_fcl"], ".2f")] for x in s])
     return out + [""]
 
 
@@ -70,16 +83,16 @@ def response():
            "taking turns (chunks of the same simulated interval, order rotated); ratio = contact_sim's time ÷ the "
            "peer's (> 1: contact_sim slower). Penetration, escapes and drift are computed from each engine's "
            "final poses in numpy, the same way for all. Scene specifications: the docstring of "
-           "`bench/bench_response.py`.", "",
-           "| scene | engine | wall s per simulated s | step ms (median) | ratio | final max penetration mm | "
-           "escaped | top drift mm | contact_sim detection / rest of step ms |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "`bench/bench_response.py`.", ""]
+    cells = []
     for x in r:
         ratio = f"{f(x['ratio'], '.3g')} ({x['ratio_meaning']})" if x.get("ratio") else ""
         split = (f"{f(x['detect_ms'], '.3f')} / {f(x['rest_ms'], '.3f')}" if x.get("detect_ms") else "")
-        out.append(f"| {x['scene']} | {x['engine']} | {f(x['wall_s_per_sim_s'], '.3g')} | {f(x['step_ms'], '.3g')} | "
-                   f"{ratio} | {f(x['max_penetration_mm'], '.3g')} | {x['escaped'] or '–'} | "
-                   f"{f(x['top_drift_mm'], '.3g')} | {split or '–'} |")
+        cells.append([x["scene"], x["engine"], f(x["wall_s_per_sim_s"], ".3g"), f(x["step_ms"], ".3g"), ratio,
+                      f(x["max_penetration_mm"], ".3g"), x["escaped"] or "–", f(x["top_drift_mm"], ".3g"),
+                      split or "–"])
+    out += table(["scene", "engine", "wall s per simulated s", "step ms (median)", "ratio", "final max penetration mm",
+                  "escaped", "top drift mm", "contact_sim detection / rest of step ms"], cells)
     out += ["", "Settings each engine ran with:", ""]
     scenes = {}
     for x in r:   # one line per engine and settings, naming the scenes that ran with them
@@ -111,11 +124,10 @@ def mesh_mesh():
     out = ["### Mesh–mesh (`bench/bench_mesh_mesh.py`)", "",
            "Two tori at 100 random poses within 2.4 m of each other (about 60 % intersect), median time of one `cs.collide` "
            "(contacts: points, normals, depths) with the per-mesh AABB tree and without it (one leaf holding "
-           "every triangle), and python-fcl's BVH yes/no beside it; the verdicts agree.", "",
-           "| triangles per mesh | tree (ms) | no tree (ms) | python-fcl verdict (ms) |", "|---|---|---|---|"]
-    for x in r:
-        out.append(f"| {x['triangles']} | {f(x['tree_ms'], '.3f')} | {f(x['no_tree_ms'], '.3f')} | "
-                   f"{f(x['fcl_ms'], '.3f')} |")
+           "every triangle), and python-fcl's BVH yes/no beside it; the verdicts agree.", ""]
+    out += table(["triangles per mesh", "tree (ms)", "no tree (ms)", "python-fcl verdict (ms)"],
+                 [[x["triangles"], f(x["tree_ms"], ".3f"), f(x["no_tree_ms"], ".3f"), f(x["fcl_ms"], ".3f")]
+                  for x in r])
     return out + [""]
 
 
@@ -125,10 +137,9 @@ def single_pair():
         return []
     out = ["### One pair, the stateless query (`bench/bench_collide.py`)", "",
            "`cs.collide` called in a loop (the pose given three ways), python-fcl's `collide` asking for up to "
-           "4 contacts beside it, µs per call (median of rounds):", "",
-           "| pair | call | µs per call | contacts |", "|---|---|---|---|"]
-    for x in r:
-        out.append(f"| {x['pair']} | {x['call']} | {f(x['us_per_call'], '.2f')} | {x['contacts']} |")
+           "4 contacts beside it, µs per call (median of rounds):", ""]
+    out += table(["pair", "call", "µs per call", "contacts"],
+                 [[x["pair"], x["call"], f(x["us_per_call"], ".2f"), x["contacts"]] for x in r])
     return out + [""]
 
 
@@ -140,11 +151,10 @@ def default_scene():
     out = ["### The default scene (`bench/bench_default.py`)", "",
            f"The shipped scene (`config/scenes/default.yaml`, dt {x0['dt']} s) stepped from a fresh load for "
            f"{x0['seconds']} simulated s, kernels loaded beforehand; medians of {x0['repeats']} repeats. "
-           "Target (issue 13): ≤ 0.1 wall s per simulated s over the run, step p99 < 1 ms.", "",
-           "| phase | wall s per simulated s | step p50 ms | step p99 ms | step max ms |", "|---|---|---|---|---|"]
-    for x in r:
-        out.append(f"| {x['phase']} | {f(x['wall_s_per_sim_s'], '.3f')} | {f(x['p50_ms'], '.3f')} | "
-                   f"{f(x['p99_ms'], '.3f')} | {f(x['max_ms'], '.2f')} |")
+           "Target (issue 13): ≤ 0.1 wall s per simulated s over the run, step p99 < 1 ms.", ""]
+    out += table(["phase", "wall s per simulated s", "step p50 ms", "step p99 ms", "step max ms"],
+                 [[x["phase"], f(x["wall_s_per_sim_s"], ".3f"), f(x["p50_ms"], ".3f"), f(x["p99_ms"], ".3f"),
+                   f(x["max_ms"], ".2f")] for x in r])
     return out + [""]
 
 
@@ -157,11 +167,10 @@ def robot():
            f"A {x0['links']}-link arm of about {x0['triangles_per_link']}-triangle convex mesh links sweeping through "
            f"{x0['objects']} static boxes, spheres and cylinders at 100 Hz: each tick sets the joints, then steps "
            "the world (tick) or only detects (query); python-fcl checks the same poses as MoveIt does (BVH links, "
-           "primitive objects, contact data):", "",
-           "| measurement | p50 ms | p99 ms | colliding pairs per tick |", "|---|---|---|---|"]
-    for x in r:
-        out.append(f"| {x['measurement']} | {f(x['p50_ms'], '.3f')} | {f(x['p99_ms'], '.3f')} | "
-                   f"{x['colliding_pairs_per_tick']} |")
+           "primitive objects, contact data):", ""]
+    out += table(["measurement", "p50 ms", "p99 ms", "colliding pairs per tick"],
+                 [[x["measurement"], f(x["p50_ms"], ".3f"), f(x["p99_ms"], ".3f"), x["colliding_pairs_per_tick"]]
+                  for x in r])
     return out + [""]
 
 
@@ -193,19 +202,16 @@ def hard_cases():
         return []
     with open(path) as fh:
         lines = [ln.strip() for ln in fh if ln.strip()]
-    out = ["### Hard cases and stability scenes (`make test ARGS=\"-m hard -s\"`, `make stability`; each a test with its thresholds)", "",
-           "| case | measured |", "|---|---|"]
-    for ln in lines:
-        case, _, value = ln.partition(": ")
-        out.append(f"| {case} | {value} |")
+    out = ["### Hard cases and stability scenes (`make test ARGS=\"-m hard -s\"`, `make stability`; each a test with its thresholds)", ""]
+    out += table(["case", "measured"], [ln.partition(": ")[::2] for ln in lines])   # (case, value)
     return out + [""]
 
 
 def block():
     head = [BEGIN, f"Measured on this project's machine ({platform.machine()}, 2 cores, shared), "
                    "regenerated by `make bench` and `python bench/report.py`.", ""]
-    return "\n".join(head + hard_cases() + accuracy() + response() + default_scene() + detection() + single_pair() + mesh_mesh()
-                     + robot() + node() + [END])
+    return "\n".join(head + hard_cases() + accuracy() + response() + default_scene() + detection() + single_pair()
+                     + mesh_mesh() + robot() + node() + [END])
 
 
 def main():
