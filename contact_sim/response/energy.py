@@ -1,8 +1,12 @@
 """Energy bookkeeping of a step: what position correction, kinematic bodies and the resting model
 may add to the total energy (reported in ``StepStats``), and the restitution stage's energetic cap."""
+import math
+
 import numpy as np
 
-from .. import dynamics, free_motion, quat
+from .. import dynamics, quat
+from ..free_motion import _qrot
+from ..jit import njit
 from ..kinds import DYNAMIC, KINEMATIC
 from ..vec import cross
 
@@ -35,15 +39,55 @@ def kinematic_work(world, c):
 def kinetic_energy(world, idx):
     """Kinetic energy (J, a float) of the bodies ``idx (k,)``, linear plus rotational."""
     s = world.s
-    rigid = idx[~world.particle[idx]]
-    return float(0.5 * np.sum(world.mass[idx] * np.einsum("ij,ij->i", s.vel[idx], s.vel[idx]))
-                 + rotational_energy(world, rigid).sum())
+    c = np.ascontiguousarray
+    return float(kinetic(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
+                         c(world.inertia_body), s.vel, s.omega))
 
 
 def energetic_cap(world, idx, kinetic0, vel_c, omega_c):
     """Scale the restitution stage's velocity change back so that the impact ends with no more
-    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx``); returns the
-    factor applied (1 when nothing was needed).
+    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx (k,)``; ``vel_c,
+    omega_c (k,3)`` their velocities after compression); returns the factor applied (1 when
+    nothing was needed). The kernel, ``restitution_cap``, is the one the compiled step calls."""
+    s = world.s
+    c = np.ascontiguousarray
+    return float(restitution_cap(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
+                                 c(world.inertia_body), float(kinetic0), c(vel_c, dtype=float),
+                                 c(omega_c, dtype=float), s.vel, s.omega))
+
+
+@njit
+def _spin_product(quat, inertia_body, i, ux, uy, uz, wx, wy, wz):
+    """``uᵀ R I Rᵀ w`` for body ``i``: the body-frame vectors ``Rᵀu, Rᵀw`` (the conjugate turn)
+    through its body-frame inertia, as ``free_motion.rotational_energies`` forms ``ωᵀIω``."""
+    qx, qy, qz, qw = -quat[i, 0], -quat[i, 1], -quat[i, 2], quat[i, 3]
+    u = _qrot(qx, qy, qz, qw, ux, uy, uz)
+    w = _qrot(qx, qy, qz, qw, wx, wy, wz)
+    e = 0.0
+    for r in range(3):
+        e += u[r] * (inertia_body[i, r, 0] * w[0] + inertia_body[i, r, 1] * w[1] + inertia_body[i, r, 2] * w[2])
+    return e
+
+
+@njit
+def kinetic(idx, mass, particle, quat, inertia_body, vel, omega):
+    """Kinetic energy (J) of the bodies ``idx (k,)``: ``½ Σ m|v|² + ½ Σ ωᵀI_wω`` (no rotation for
+    particles); ``quat (N,4)``, ``inertia_body (N,3,3)``, ``vel, omega (N,3)``. A loop, not numpy's
+    pairwise sums, so that the compiled step and the Python stages add in one order."""
+    lin = 0.0
+    rot = 0.0
+    for i in idx:
+        lin += mass[i] * (vel[i, 0] * vel[i, 0] + vel[i, 1] * vel[i, 1] + vel[i, 2] * vel[i, 2])
+        if not particle[i]:
+            rot += _spin_product(quat, inertia_body, i, omega[i, 0], omega[i, 1], omega[i, 2], omega[i, 0],
+                                 omega[i, 1], omega[i, 2])
+    return 0.5 * lin + 0.5 * rot
+
+
+@njit
+def restitution_cap(idx, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega):
+    """``energetic_cap``'s kernel: ``idx (k,)`` the bodies, ``vel_c, omega_c (k,3)`` their velocities
+    after compression, ``vel, omega (N,3)`` after restitution (rescaled in place). Returns the factor.
 
     Newton's rule, one target ``−e·v_n0`` per contact, is exact for one contact and for contacts
     that close at one speed; contacts closing at different speeds (a tumbling box meeting a wall
@@ -51,36 +95,37 @@ def energetic_cap(world, idx, kinetic0, vel_c, omega_c):
     approach had: energy from nothing. Stronge's energetic view bounds the rebound by the energy the
     compression stored; the velocities after restitution are ``v_c + s·Δv`` and the kinetic energy is
     quadratic in ``s``, so the largest ``s ≤ 1`` that keeps it at ``kinetic0`` is a root."""
-    s = world.s
-    if idx.size == 0:
+    if idx.shape[0] == 0:
         return 1.0
-    kinetic1 = kinetic_energy(world, idx)
-    if kinetic1 <= kinetic0:
+    if kinetic(idx, mass, particle, quat, inertia_body, vel, omega) <= kinetic0:
         return 1.0
-    dv, dw = s.vel[idx] - vel_c, s.omega[idx] - omega_c
-    rigid = ~world.particle[idx]
-    iw = dynamics.rotate_inertia(quat.to_matrix(s.quat[idx]), world.inertia_body[idx])
-    iw[~rigid] = 0.0
-    m = world.mass[idx]
     # K(s) = K_c + b s + a s², K_c the energy after compression
-    a = 0.5 * (np.sum(m * np.einsum("ij,ij->i", dv, dv)) + np.einsum("ni,nij,nj->", dw, iw, dw))
-    b = np.sum(m * np.einsum("ij,ij->i", vel_c, dv)) + np.einsum("ni,nij,nj->", omega_c, iw, dw)
-    kc = 0.5 * (np.sum(m * np.einsum("ij,ij->i", vel_c, vel_c)) + np.einsum("ni,nij,nj->", omega_c, iw, omega_c))
+    a, b, kc = 0.0, 0.0, 0.0
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        dv = vel[i] - vel_c[j]
+        dw = omega[i] - omega_c[j]
+        m = mass[i]
+        a += m * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2])
+        b += m * (vel_c[j, 0] * dv[0] + vel_c[j, 1] * dv[1] + vel_c[j, 2] * dv[2])
+        kc += m * (vel_c[j, 0] * vel_c[j, 0] + vel_c[j, 1] * vel_c[j, 1] + vel_c[j, 2] * vel_c[j, 2])
+        if not particle[i]:
+            wc = omega_c[j]
+            a += _spin_product(quat, inertia_body, i, dw[0], dw[1], dw[2], dw[0], dw[1], dw[2])
+            b += _spin_product(quat, inertia_body, i, wc[0], wc[1], wc[2], dw[0], dw[1], dw[2])
+            kc += _spin_product(quat, inertia_body, i, wc[0], wc[1], wc[2], wc[0], wc[1], wc[2])
+    a *= 0.5
+    kc *= 0.5
     room = max(kinetic0 - kc, 0.0)
     if a <= 0.0:
         return 1.0
-    f = float(np.clip((-b + np.sqrt(max(b * b + 4.0 * a * room, 0.0))) / (2.0 * a), 0.0, 1.0))
-    s.vel[idx] = vel_c + f * dv
-    s.omega[idx] = omega_c + f * dw
+    f = min(max((-b + math.sqrt(max(b * b + 4.0 * a * room, 0.0))) / (2.0 * a), 0.0), 1.0)
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        for x in range(3):
+            vel[i, x] = vel_c[j, x] + f * (vel[i, x] - vel_c[j, x])
+            omega[i, x] = omega_c[j, x] + f * (omega[i, x] - omega_c[j, x])
     return f
-
-
-def rotational_energy(world, idx):
-    """Rotational kinetic energy ``(k,)`` (J) of the bodies ``idx``."""
-    s = world.s
-    out = np.empty(len(idx))
-    free_motion.rotational_energies(s.quat, world.inertia_body, s.omega, np.asarray(idx, dtype=np.int64), out)
-    return out
 
 
 def kinematic_push(world, a, b, point):

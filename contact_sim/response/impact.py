@@ -13,7 +13,7 @@ import numpy as np
 
 from ..kinds import DYNAMIC
 from . import kinematic as kinematic_mod
-from . import solver
+from . import pgs
 from .energy import energetic_cap, kinematic_push, kinetic_energy, push_cap
 
 
@@ -65,7 +65,11 @@ def impact_solve(ctx):
         res = ctx.solve(ctx.rows.select(hi), s.vel, s.omega, target_n=-e[hi] * vn0[hi])
         lam[hi, 0] += res.impulse[:, 0] * energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
         ctx.note(res, residual=False)
-    ctx.vn1 = solver.row_velocity(ctx.rows, s.vel, s.omega)[:, 0]
+    r = ctx.rows
+    cc = np.ascontiguousarray
+    ctx.vn1 = np.empty(len(c))
+    pgs.normal_velocities(cc(r.a, dtype=np.int64), cc(r.b, dtype=np.int64), cc(r.dirs), cc(r.ang_a), cc(r.ang_b),
+                          s.vel, s.omega, ctx.vn1)
 
 
 def _kinematic_impacts(world, c, rel_vel, e, which):

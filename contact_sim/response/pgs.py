@@ -94,6 +94,15 @@ def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv):
         rv[d] = s
 
 
+@njit
+def normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, out):
+    """The contacts' normal relative velocities ``out (K,)`` (``_row_velocity``'s first row)."""
+    rv = np.empty(3)
+    for c in range(a.shape[0]):
+        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
+        out[c] = rv[0]
+
+
 @njit(inline="always")
 def _apply(c, ia, ib, d0, d1, d2, dirs, iang_a, iang_b, ima, imb, vel, omega):
     """Apply the impulse change ``(d0, d1, d2)`` of contact ``c`` (on A; its negative on B)."""

@@ -32,11 +32,13 @@ from .cache import MATCH_FRACTION, _local_points, _warm_record, _warm_start
 from .context import REST_REBOUND_FRACTION
 from .direct import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
                      DIRECT_REGULARISATION)
-from .pgs import apply_ids, build_rows, sweeps
+from .energy import kinetic as kinetic_energy
+from .energy import restitution_cap
+from .pgs import apply_ids, build_rows, normal_velocities, sweeps
 from .resting import _work_bound
 
 #: ``_rest``'s answers: the step ran (``RESTED``), or why a Python stage has to run it
-RESTED, IMPACT, IMMOVABLE, LARGE, PUSHED = range(5)
+RESTED, IMMOVABLE, LARGE, PUSHED = range(4)
 
 
 def applies(ctx):
@@ -70,15 +72,16 @@ def rest(ctx):
     local, wv = np.empty((k, 3)), np.empty((k, 4))
     normal_impulse, vn0 = np.empty((2, k))
     friction_impulse, impulse = np.empty((2, k, 3))
-    used = np.empty(k, np.bool_)
+    used, resting = np.empty((2, k), np.bool_)
     vp, wp = np.zeros((2, len(world), 3))
-    out = np.zeros(8)
+    out = np.zeros(10)
     status = _rest(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
         s.pos, s.vel, s.quat, s.omega, cc(s.principal_q), cc(s.principal_moments), cc(world.inertia_body),
         cc(world.inv_mass, dtype=float), prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity, ctx.gravity,
-        bm.dynamic, bm.rotating, bm.kinematic, cc(e, dtype=float).copy(), cc(mu_s, dtype=float),
+        bm.dynamic, bm.rotating, bm.kinematic, cc(world.mass, dtype=float), cc(world.particle),
+        cc(e, dtype=float).copy(), cc(mu_s, dtype=float),
         cc(mu_d, dtype=float), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, toi_mod._extents(world),
@@ -87,10 +90,10 @@ def rest(ctx):
         float(st.split_slop), float(st.split_beta),
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance),
-        local, normal_impulse, friction_impulse, impulse, vn0, used, wv, vp, wp, out)
+        local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out)
     if status != RESTED:
         return False
-    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned = out.tolist()
+    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
     ctx.max_penetration = max(ctx.max_penetration, deepest)
@@ -99,8 +102,12 @@ def rest(ctx):
         correction.cap(ctx, np.flatnonzero(c.depth > 0), vp, wp)
     ctx.drift += drift
     ctx.kick_error += kick_error
-    # what the contact cache keeps (copies: never views of the step's contacts)
-    ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local.copy(), wv)
+    # what the contact cache keeps of the resting solve (copies: never views of the step's contacts)
+    if rested and n_rest == k:
+        ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local.copy(), wv)
+    elif rested:
+        ri = np.flatnonzero(resting)
+        ctx.warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), local[ri].copy(), wv[:int(n_rest)].copy())
     c.normal_impulse, c.friction_impulse, c.impulse = normal_impulse, friction_impulse, impulse
     c.relative_normal_velocity = vn0
     if kept < k:   # speculative contacts that did nothing are not contacts of this step
@@ -121,19 +128,21 @@ def _min(x, y):
 
 @njit
 def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
-          inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, e, mu_s, mu_d, kinetic,
+          inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s, mu_d, kinetic,
           a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous, rebound_speed,
           impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local, normal_impulse,
-          friction_impulse, impulse, vn0, used, wv, vp, wp, out):
+          friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out):
     """``rest``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
     (K,)``, ``point, normal, rel_vel (K,3)``, ``depth (K,)``; bodies as ``free_motion.advance`` and
-    ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``; ``e,
-    mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache ``a0, b0 (K0,)``, ``p0 (K0,3)``,
-    ``values (K0,4)``. Writes ``local (K,3)``, the impulse columns ``normal_impulse (K,)``,
-    ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that count ``used (K,)``, the
-    cache's ``wv (K,4)``, the correction's pseudo-velocities ``vp, wp (N,3)`` (zeros in) and ``out =
-    [residual, deepest, rest_bound, drift, kick_error, sweeps, used, planned]``. Returns ``RESTED``,
-    or with the world untouched why not (``IMPACT``, ``IMMOVABLE``, ``LARGE``, ``PUSHED``)."""
+    ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass
+    (N,)``, ``particle (N,) bool``; ``e, mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache
+    ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``. Writes ``local (K,3)``, the impulse columns
+    ``normal_impulse (K,)``, ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that
+    count ``used (K,)``, those the resting solve took ``resting (K,)`` and the cache's values of
+    them ``wv (K,4)`` (the first of its rows), the correction's pseudo-velocities ``vp, wp (N,3)``
+    (zeros in) and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps, used,
+    planned, resting solve ran, contacts resting]``. Returns ``RESTED``, or with the world
+    untouched why not (``IMMOVABLE``, ``LARGE``, ``PUSHED``)."""
     k = a.shape[0]
     n = pos.shape[0]
     # ---- prepare (prepare.prepare_contacts): rows, points in A's frame, classes
@@ -150,15 +159,27 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, np.zeros(0), False, toi_tolerance,
                               simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, e, vn0,
                               touching, imp, closing, spec_target, bounced)
-    # ---- what takes the Python stages: an impact or closing contact (the impact stage), a contact
-    # nothing can move, a kinematic push (below: a solve solver.solve_auto gives to another method)
-    if counts.impact or counts.closing:
-        return IMPACT
+    # ---- what takes the Python stages: a contact nothing can move, a kinematic push (below: a solve
+    # solver.solve_auto gives to another method)
     for c in range(k):
         if not (dynamic[a[c]] or dynamic[b[c]]):
             return IMMOVABLE
         if kinematic[a[c]] or kinematic[b[c]]:
             return PUSHED   # a kinematic body pushes: the solves' push cap (energy.push_cap) is Python's
+    # the step's velocities: the world's only once nothing can decline any more
+    vel_s, omega_s = vel.copy(), omega.copy()
+    # ---- impact (impact.impact_solve): compression with friction, then restitution, capped
+    lam_i = np.zeros((k, 3))
+    vn1 = vn0
+    it_i, residual_i = 0, 0.0
+    if counts.impact or counts.closing:
+        vn1 = np.empty(k)
+        status, it_i, residual_i = _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing,
+                                           bounced, spec_target, speculative, e, vn0, mu_s, mu_d, kinetic, dynamic,
+                                           mass, particle, quat, inertia_body, direct_max, max_iterations, tolerance,
+                                           vel_s, omega_s, lam_i, vn1)
+        if status != RESTED:
+            return status
     # ---- position correction's plan (correction.plan): split-impulse pseudo-velocities ``vp, wp``
     # for the penetrating contacts, frictionless; the cap on how far they move stays in Python
     planned = False
@@ -176,55 +197,138 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
             if plan != RESTED:
                 return plan
             planned = True
-    # ---- resting solve (resting.resting_solve): the constant force over the step, warm started
-    v_end = np.empty((n, 3))
-    for i in range(n):
-        for x in range(3):
-            v_end[i, x] = vel[i, x] + gravity_rows[i, x] * dt
-    w_end = omega.copy()
-    v_start_end = v_end.copy()
-    w_start_end = w_end.copy()
-    target = np.empty(k)
-    for c in range(k):
-        target[c] = _min(2.0 * _min(depth[c], 0.0) / dt - vn0[c], 0.0)
-    warm = np.zeros((k, 3))
-    use_warm = has_old and k > 0 and _warm_start(a0, b0, p0, a, b, local, ext, MATCH_FRACTION, values, dt, dirs, mu_d,
-                                                 warm)
-    lam = np.zeros((k, 3))
-    solved, iterations, residual = _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
-                                          kinetic, warm, use_warm, dynamic, direct_max, max_iterations, tolerance,
-                                          v_end, w_end, lam)
-    if solved != RESTED:
-        return solved
-    rest_bound = _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, lam)
-    _warm_record(lam, dirs, wv)
-    for c in range(k):
-        for x in range(4):
-            wv[c, x] = wv[c, x] / dt
-    # ---- store impulses (stepper._store_impulses, record): the impact impulse (none) plus the
-    # resting impulse over the whole step
+    # ---- resting solve (resting.resting_solve): the constant force over the step, warm started, on
+    # every contact but those that just rebounded (none when every contact rebounded)
+    rested = not (counts.bounced > 0 and np.all(vn1 > impact_speed))
+    kr, it_r, residual_r, rest_bound = 0, 0, 0.0, 0.0
+    lam_r = np.zeros((k, 3))
+    v_end, w_end = vel_s + 0.0, omega_s + 0.0
+    v_start_end, w_start_end = v_end, w_end
+    if rested:
+        for c in range(k):
+            resting[c] = not (bounced[c] and vn1[c] > impact_speed)
+            kr += resting[c]
+        ri = np.flatnonzero(resting)
+        # every contact rests (the usual case): the arrays as they are, no gathers
+        whole = kr == k
+        sa, sb = (a, b) if whole else (a[ri], b[ri])
+        sdirs, sang_a, sang_b = (dirs, ang_a, ang_b) if whole else (dirs[ri], ang_a[ri], ang_b[ri])
+        siang_a, siang_b, sK = (iang_a, iang_b, K) if whole else (iang_a[ri], iang_b[ri], K[ri])
+        sima, simb, slocal = (ima, imb, local) if whole else (ima[ri], imb[ri], local[ri])
+        smu_s, smu_d = (mu_s, mu_d) if whole else (mu_s[ri], mu_d[ri])
+        for i in range(n):
+            for x in range(3):
+                v_end[i, x] = vel_s[i, x] + gravity_rows[i, x] * dt
+        w_end = omega_s.copy()
+        v_start_end = v_end.copy()
+        w_start_end = w_end.copy()
+        target = np.empty(kr)
+        for j in range(kr):
+            c = ri[j]
+            target[j] = _min(2.0 * _min(depth[c], 0.0) / dt - vn1[c], 0.0)
+        warm = np.zeros((kr, 3))
+        use_warm = has_old and kr > 0 and _warm_start(a0, b0, p0, sa, sb, slocal, ext, MATCH_FRACTION, values, dt,
+                                                      sdirs, smu_d, warm)
+        lam = np.zeros((kr, 3))
+        solved, it_r, residual_r = _exact(sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK, target,
+                                          smu_s, smu_d, kinetic, warm, use_warm, dynamic, direct_max, max_iterations,
+                                          tolerance, v_end, w_end, lam)
+        if solved != RESTED:
+            return solved
+        rest_bound = _work_bound(sa, sb, sdirs, sang_a, sang_b, vel_s, omega_s, lam)
+        _warm_record(lam, sdirs, wv[:kr])
+        for j in range(kr):
+            for x in range(4):
+                wv[j, x] = wv[j, x] / dt
+            for x in range(3):
+                lam_r[ri[j], x] = lam[j, x]
+    # ---- store impulses (stepper._store_impulses, record): the impact impulse plus the resting
+    # impulse over the whole step
     kept = 0
     for c in range(k):
-        ln, l1, l2 = 0.0 + lam[c, 0] * 1.0, 0.0 + lam[c, 1] * 1.0, 0.0 + lam[c, 2] * 1.0
+        if rested:
+            ln, l1, l2 = lam_i[c, 0] + lam_r[c, 0] * 1.0, lam_i[c, 1] + lam_r[c, 1] * 1.0, lam_i[c, 2] + lam_r[c, 2] * 1.0
+        else:
+            ln, l1, l2 = lam_i[c, 0], lam_i[c, 1], lam_i[c, 2]
         normal_impulse[c] = ln
         for x in range(3):
             friction_impulse[c, x] = l1 * t1[c, x] + l2 * t2[c, x]
             impulse[c, x] = ln * normal[c, x] + friction_impulse[c, x]
         used[c] = not speculative or touching[c] or ln > 0.0
         kept += used[c]
-    # ---- advance (stepper._advance_stage): kick half, drift, kick half
-    half_dv = np.empty((n, 3))
-    half_dw = np.empty((n, 3))
-    for i in range(n):
-        for x in range(3):
-            half_dv[i, x] = 0.5 * (v_end[i, x] - v_start_end[i, x]) * 1.0
-            half_dw[i, x] = 0.5 * (w_end[i, x] - w_start_end[i, x]) * 1.0
+    # ---- advance (stepper._advance_stage): kick half, drift, kick half (free motion when nothing rests)
+    vel[:] = vel_s
+    omega[:] = omega_s
+    half_dv = np.zeros((n if rested else 0, 3))
+    half_dw = np.zeros((n if rested else 0, 3))
+    if rested:
+        for i in range(n):
+            for x in range(3):
+                half_dv[i, x] = 0.5 * (v_end[i, x] - v_start_end[i, x]) * 1.0
+                half_dw[i, x] = 0.5 * (w_end[i, x] - w_start_end[i, x]) * 1.0
     drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
-                                kinematic, half_dv, half_dw, True, dt, dynamics.ISOTROPIC_TOLERANCE,
+                                kinematic, half_dv, half_dw, rested, dt, dynamics.ISOTROPIC_TOLERANCE,
                                 dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
-    out[0], out[1], out[2], out[3], out[4] = residual, counts.deepest, rest_bound, drift, kick_error
-    out[5], out[6], out[7] = iterations, kept, planned
+    out[0], out[1], out[2], out[3] = max(residual_i, residual_r), counts.deepest, rest_bound, drift
+    out[4] = kick_error if rested else 0.0
+    out[5], out[6], out[7], out[8], out[9] = max(it_i, it_r), kept, planned, rested, kr
     return RESTED
+
+
+@njit
+def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, speculative,
+            e, vn0, mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body, direct_max, max_iterations,
+            tolerance, vel, omega, lam, vn1):
+    """``impact.impact_solve`` (the impulse response) on the rows of ``_rest``: the touching pairs
+    that approach and the closing speculative ones are stopped (compression, with friction), those
+    that bounce get their rebound (restitution, normal only) scaled by the energetic cap
+    (``energy.restitution_cap``). Updates ``vel, omega (N,3)``, writes the impulses ``lam (K,3)``
+    and the normal velocities after ``vn1 (K,)``. Returns ``(RESTED, sweeps, residual)``, or
+    ``(LARGE, 0, 0.0)`` for a solve ``solver.solve_auto`` gives to another method."""
+    ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
+    nt = ti.shape[0]
+    bounces = False
+    for c in ti:
+        bounces = bounces or e[c] * bounced[c] > 0.0
+    # the kinetic energy the impact starts from, for the restitution stage's cap
+    mark = np.zeros(vel.shape[0], np.bool_)
+    for c in ti:
+        mark[a[c]] = True
+        mark[b[c]] = True
+    bodies0 = np.flatnonzero(mark & dynamic)   # np.unique's order: ascending
+    kinetic0 = kinetic_energy(bodies0, mass, particle, quat, inertia_body, vel, omega) if bounces else 0.0
+    target = np.empty(nt)
+    for j in range(nt):
+        target[j] = 0.0 if touching[ti[j]] or not speculative else spec_target[ti[j]]
+    lam_t = np.zeros((nt, 3))
+    status, it, residual = _exact(a[ti], b[ti], dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti], ima[ti],
+                                  imb[ti], K[ti], target, mu_s[ti], mu_d[ti], kinetic, np.zeros((nt, 3)), False,
+                                  dynamic, direct_max, max_iterations, tolerance, vel, omega, lam_t)
+    if status != RESTED:
+        return status, 0, 0.0
+    for j in range(nt):
+        for x in range(3):
+            lam[ti[j], x] += lam_t[j, x] * 1.0
+    vel_c, omega_c = vel[bodies0], omega[bodies0]   # copies: the velocities after compression
+    hi = np.flatnonzero(bounced & (lam[:, 0] > 0.0) & (e > 0.0))   # e = 0: the compression was the whole impact
+    nh = hi.shape[0]
+    if nh:
+        target_h = np.empty(nh)
+        for j in range(nh):
+            target_h[j] = -e[hi[j]] * vn0[hi[j]]
+        zeros = np.zeros(nh)
+        lam_h = np.zeros((nh, 3))
+        status, it_h, _ = _exact(a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi], iang_b[hi], ima[hi],
+                                 imb[hi], K[hi], target_h, zeros, zeros, False, np.zeros((nh, 3)), False, dynamic,
+                                 direct_max, max_iterations, tolerance, vel, omega, lam_h)
+        if status != RESTED:
+            return status, 0, 0.0
+        f = restitution_cap(bodies0, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega)
+        for j in range(nh):
+            lam[hi[j], 0] += lam_h[j, 0] * f
+        it = max(it, it_h)
+    normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, vn1)
+    return RESTED, it, residual
 
 
 @njit
