@@ -20,10 +20,11 @@
    bodies and are then discarded (no energy is added; ``response.correction``).
 
 ``_impulse_step`` reads as this list: one line per named stage around a ``StepContext``
-(``response.context``, Box2D's step context), which holds what the stages share. When every
-contact of a ``next_step`` step rests (no impact, nothing to correct: a settled pile, a stack, a
-floor of parts), ``response.resting_path`` runs the stages after detection as one compiled call,
-the same kernels in the same order, bit for bit; otherwise it declines and the stages run.
+(``response.context``, Box2D's step context), which holds what the stages share. A ``next_step``
+step of the impulse response (one sub-step: impacts, resting contact, the correction's plan) runs
+the stages after detection as one compiled call (``response.compiled_step``), the same kernels in
+the same order, bit for bit; where the stages would take another branch (a kinematic body's push
+cap, a solve too large for the dense active set) it declines and the stages run.
 
 Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
 (friction on) regularised Coulomb friction (``response.penalty_friction``).
@@ -44,7 +45,7 @@ from .collision import detect_world
 from .collision.vec3 import rotations
 from .response import solver
 from .response import toi as toi_mod
-from .response import correction, impact, penalty_friction, prepare, resting, resting_path
+from .response import compiled_step, correction, impact, penalty_friction, prepare, resting
 from .response.cache import merge_records, record
 from .response.context import StepContext
 from .response.energy import kinematic_work
@@ -86,7 +87,7 @@ def _impulse_step(world, dt, m):
     ctx = StepContext.start(world, dt, m)
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
-        if ctx.k and resting_path.rest(ctx):   # every contact rests: the stages below in one compiled call
+        if ctx.k and compiled_step.run(ctx):   # the stages below in one compiled call (next_step, no push)
             break
         if ctx.k:
             prepare.prepare_contacts(ctx)  # rows, coefficients, approach speeds; which touch, close, bounce

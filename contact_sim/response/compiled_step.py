@@ -1,22 +1,23 @@
-"""The step's stages after detection in one compiled call, when every contact rests.
+"""A ``next_step`` sub-step's stages after detection in one compiled call.
 
-Most steps of the scenes users keep running (piles, stacks, a floor of parts) have no impact and
-no speculative contact that would overlap: every contact rests, and the stages after detection
-reduce to prepare → resting solve (exact, island by island; Gauss–Seidel finishing the islands
-that slide) → position correction's plan → store impulses → advance. Run stage by stage from
-Python, those stages cost more in array calls and argument passing than in arithmetic (a 10-body
-resting step: about a quarter of its time in the kernels). ``rest`` runs them as one compiled
-call, the same kernels in the same order as the Python stages (``prepare.classify``,
-``pgs.build_rows``, ``cache._local_points``, ``cache._warm_start``, ``active_set.islands`` and
-``solve_islands``, ``pgs.sweeps``, ``resting._work_bound``, ``cache._warm_record``,
+With ``next_step`` times of impact (every world of more than a few bodies under ``auto``) a step
+is one sub-step: prepare → impact (compression with friction, then restitution under the
+energetic cap) → resting solve (exact, island by island; Gauss–Seidel finishing the islands that
+slide) → position correction's plan → store impulses → advance. Run stage by stage from Python,
+those stages cost more in array calls and argument passing than in arithmetic (a 10-body resting
+step: about a quarter of its time in the kernels; an impact step of the default scene ~1.5 ms
+against ~0.3 ms compiled). ``run`` runs them as one compiled call, the same kernels in the same
+order as the Python stages (``prepare.classify``, ``pgs.build_rows``, ``cache._local_points``,
+``active_set.islands`` and ``solve_islands``, ``pgs.sweeps``, ``energy.restitution_cap``,
+``pgs.normal_velocities``, ``cache._warm_start``, ``resting._work_bound``, ``cache._warm_record``,
 ``free_motion.advance``), so the step is the same bit for bit; a test steps scenes both ways.
 
-The kernel answers why not when a Python stage would branch elsewhere (an impact or a closing
-speculative contact, a contact between two immovable bodies or with a kinematic body, whose push
-the Python stages cap, a solve that ``solver.solve_auto`` would not give to the dense active set),
-having changed nothing: the Python stages then run the step as before. It moves the bodies only
-once everything has succeeded. The correction's cap and its displacement after the step stay in
-Python (``correction.cap``, ``correction.apply``).
+The kernel answers why not when a Python stage would branch elsewhere (a contact between two
+immovable bodies, a contact with a kinematic body, whose push the Python stages cap, a solve that
+``solver.solve_auto`` would not give to the dense active set), having changed nothing: the Python
+stages then run the step as before. It moves the bodies only once everything has succeeded. The
+correction's cap and its displacement after the step stay in Python (``correction.cap``,
+``correction.apply``).
 
 Shapes: ``N`` bodies, ``K`` contacts.
 """
@@ -37,12 +38,12 @@ from .energy import restitution_cap
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
 from .resting import _work_bound
 
-#: ``_rest``'s answers: the step ran (``RESTED``), or why a Python stage has to run it
-RESTED, IMMOVABLE, LARGE, PUSHED = range(4)
+#: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it
+DONE, IMMOVABLE, LARGE, PUSHED = range(4)
 
 
 def applies(ctx):
-    """Whether the step's models allow the compiled resting path at all: the impulse response with
+    """Whether the step's models allow the compiled step at all: the impulse response with
     resting contact and ``next_step`` times of impact (one sub-step), the solver chosen
     automatically."""
     m, world = ctx.models, ctx.world
@@ -50,10 +51,10 @@ def applies(ctx):
             and ctx.swept_pair is None and world.settings.solver_method == "auto")
 
 
-def rest(ctx):
+def run(ctx):
     """The stages after detection (``stepper._impulse_step``'s prepare, impact, resting,
     correction plan, time of impact, store and advance) for the detected ``ctx.contacts`` in one
-    compiled call, when every contact rests. Returns True when it ran the step (the bodies moved;
+    compiled call. Returns True when it ran the step (the bodies moved;
     ``ctx`` holds what ``_finish`` reads), False when the Python stages must (nothing changed)."""
     if not applies(ctx):
         return False
@@ -75,7 +76,7 @@ def rest(ctx):
     used, resting = np.empty((2, k), np.bool_)
     vp, wp = np.zeros((2, len(world), 3))
     out = np.zeros(10)
-    status = _rest(
+    status = _step(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
         s.pos, s.vel, s.quat, s.omega, cc(s.principal_q), cc(s.principal_moments), cc(world.inertia_body),
@@ -91,7 +92,7 @@ def rest(ctx):
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance),
         local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out)
-    if status != RESTED:
+    if status != DONE:
         return False
     residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
@@ -127,12 +128,12 @@ def _min(x, y):
 
 
 @njit
-def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
+def _step(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
           inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s, mu_d, kinetic,
           a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous, rebound_speed,
           impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local, normal_impulse,
           friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out):
-    """``rest``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
+    """``run``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
     (K,)``, ``point, normal, rel_vel (K,3)``, ``depth (K,)``; bodies as ``free_motion.advance`` and
     ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass
     (N,)``, ``particle (N,) bool``; ``e, mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache
@@ -141,7 +142,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     count ``used (K,)``, those the resting solve took ``resting (K,)`` and the cache's values of
     them ``wv (K,4)`` (the first of its rows), the correction's pseudo-velocities ``vp, wp (N,3)``
     (zeros in) and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps, used,
-    planned, resting solve ran, contacts resting]``. Returns ``RESTED``, or with the world
+    planned, resting solve ran, contacts resting]``. Returns ``DONE``, or with the world
     untouched why not (``IMMOVABLE``, ``LARGE``, ``PUSHED``)."""
     k = a.shape[0]
     n = pos.shape[0]
@@ -178,7 +179,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
                                            bounced, spec_target, speculative, e, vn0, mu_s, mu_d, kinetic, dynamic,
                                            mass, particle, quat, inertia_body, direct_max, max_iterations, tolerance,
                                            vel_s, omega_s, lam_i, vn1)
-        if status != RESTED:
+        if status != DONE:
             return status
     # ---- position correction's plan (correction.plan): split-impulse pseudo-velocities ``vp, wp``
     # for the penetrating contacts, frictionless; the cap on how far they move stays in Python
@@ -194,7 +195,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
             plan, _, _ = _exact(a[pen], b[pen], dirs[pen], ang_a[pen], ang_b[pen], iang_a[pen], iang_b[pen], ima[pen],
                                 imb[pen], K[pen], ptarget, pzeros, pzeros, False, np.zeros((p, 3)), False, dynamic,
                                 direct_max, max_iterations, tolerance, vp, wp, np.zeros((p, 3)))
-            if plan != RESTED:
+            if plan != DONE:
                 return plan
             planned = True
     # ---- resting solve (resting.resting_solve): the constant force over the step, warm started, on
@@ -233,7 +234,7 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
         solved, it_r, residual_r = _exact(sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK, target,
                                           smu_s, smu_d, kinetic, warm, use_warm, dynamic, direct_max, max_iterations,
                                           tolerance, v_end, w_end, lam)
-        if solved != RESTED:
+        if solved != DONE:
             return solved
         rest_bound = _work_bound(sa, sb, sdirs, sang_a, sang_b, vel_s, omega_s, lam)
         _warm_record(lam, sdirs, wv[:kr])
@@ -272,18 +273,18 @@ def _rest(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
     out[0], out[1], out[2], out[3] = max(residual_i, residual_r), counts.deepest, rest_bound, drift
     out[4] = kick_error if rested else 0.0
     out[5], out[6], out[7], out[8], out[9] = max(it_i, it_r), kept, planned, rested, kr
-    return RESTED
+    return DONE
 
 
 @njit
 def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, speculative,
             e, vn0, mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body, direct_max, max_iterations,
             tolerance, vel, omega, lam, vn1):
-    """``impact.impact_solve`` (the impulse response) on the rows of ``_rest``: the touching pairs
+    """``impact.impact_solve`` (the impulse response) on the rows of ``_step``: the touching pairs
     that approach and the closing speculative ones are stopped (compression, with friction), those
     that bounce get their rebound (restitution, normal only) scaled by the energetic cap
     (``energy.restitution_cap``). Updates ``vel, omega (N,3)``, writes the impulses ``lam (K,3)``
-    and the normal velocities after ``vn1 (K,)``. Returns ``(RESTED, sweeps, residual)``, or
+    and the normal velocities after ``vn1 (K,)``. Returns ``(DONE, sweeps, residual)``, or
     ``(LARGE, 0, 0.0)`` for a solve ``solver.solve_auto`` gives to another method."""
     ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
     nt = ti.shape[0]
@@ -304,7 +305,7 @@ def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, clo
     status, it, residual = _exact(a[ti], b[ti], dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti], ima[ti],
                                   imb[ti], K[ti], target, mu_s[ti], mu_d[ti], kinetic, np.zeros((nt, 3)), False,
                                   dynamic, direct_max, max_iterations, tolerance, vel, omega, lam_t)
-    if status != RESTED:
+    if status != DONE:
         return status, 0, 0.0
     for j in range(nt):
         for x in range(3):
@@ -321,14 +322,14 @@ def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, clo
         status, it_h, _ = _exact(a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi], iang_b[hi], ima[hi],
                                  imb[hi], K[hi], target_h, zeros, zeros, False, np.zeros((nh, 3)), False, dynamic,
                                  direct_max, max_iterations, tolerance, vel, omega, lam_h)
-        if status != RESTED:
+        if status != DONE:
             return status, 0, 0.0
         f = restitution_cap(bodies0, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega)
         for j in range(nh):
             lam[hi[j], 0] += lam_h[j, 0] * f
         it = max(it, it_h)
     normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, vn1)
-    return RESTED, it, residual
+    return DONE, it, residual
 
 
 @njit
@@ -363,7 +364,7 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
     """``solver.solve_auto``'s exact branch on the rows given (``k`` contacts; ``warm (k,3)`` read
     when ``use_warm``): the active set per island (``active_set.solve_islands``), the impulses
     applied to ``vel, omega (N,3)``, Gauss–Seidel finishing the islands it left unfinished
-    (``_finish``). Returns ``(RESTED, sweeps, residual)``, or ``LARGE`` where ``solve_auto`` would
+    (``_finish``). Returns ``(DONE, sweeps, residual)``, or ``LARGE`` where ``solve_auto`` would
     take another branch (more than ``direct_max`` contacts; Gauss–Seidel first for a large island;
     the sparse active set for an island the dense kernel does not take): ``vel, omega`` may then
     hold part of a solve, and the caller discards them."""
@@ -388,9 +389,9 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
             return LARGE, 0, 0.0
     unfinished = np.flatnonzero(status != SOLVED)
     if unfinished.shape[0] == 0:
-        return RESTED, 1, residual
+        return DONE, 1, residual
     # sliding friction or an inconsistent set: Gauss–Seidel finishes those islands from the start
     # the active set left (solver.solve_auto's direct branch, solver.solve)
     sweeps, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
                           kinetic, lam, vel, omega, max_iterations, tolerance)
-    return RESTED, sweeps, max(res, residual)
+    return DONE, sweeps, max(res, residual)

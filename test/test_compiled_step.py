@@ -1,13 +1,13 @@
-"""The compiled resting path (``response.resting_path``): when every contact of a step rests, one
-compiled call runs the stages after detection. It must give the Python stages' step bit for bit,
-and when it declines it must leave the world as it found it."""
+"""The compiled step (``response.compiled_step``): a ``next_step`` step's stages after detection
+(impacts, resting contact, the correction's plan) in one compiled call. It must give the Python
+stages' step bit for bit, and when it declines it must leave the world as it found it."""
 import dataclasses
 
 import numpy as np
 import pytest
 
 import contact_sim as cs
-from contact_sim.response import resting_path
+from contact_sim.response import compiled_step
 from contact_sim.scene import default_scene_path
 
 
@@ -58,20 +58,20 @@ def _same_step(wa, wb):
 
 @pytest.fixture
 def answers(monkeypatch):
-    """The compiled path's answers (``RESTED`` or why not), step by step; with each declining call
+    """The compiled path's answers (``DONE`` or why not), step by step; with each declining call
     it checks that the world was left as it was."""
     seen = []
-    kernel = resting_path._rest
+    kernel = compiled_step._step
 
     def watched(*args):
         before = [x.copy() for x in args[6:10]]   # pos, vel, quat, omega
         status = kernel(*args)
-        if status != resting_path.RESTED:
+        if status != compiled_step.DONE:
             assert all(np.array_equal(x, y) for x, y in zip(before, args[6:10])), "declined but moved the bodies"
         seen.append(status)
         return status
 
-    monkeypatch.setattr(resting_path, "_rest", watched)
+    monkeypatch.setattr(compiled_step, "_step", watched)
     return seen
 
 
@@ -80,20 +80,20 @@ def _both_ways(make, steps, monkeypatch, answers, dt=None):
     returns the compiled world and, per step, its ``last_solve``, the compiled path's answer (None
     when it was not asked) and the fastest approach among its contacts (m/s, 0 without)."""
     wa, wb = make(), make()
-    applies = resting_path.applies
+    applies = compiled_step.applies
     solves = []
     for i in range(steps):
-        monkeypatch.setattr(resting_path, "applies", applies)
+        monkeypatch.setattr(compiled_step, "applies", applies)
         asked = len(answers)
         wa.step(dt)
         answer = answers[-1] if len(answers) > asked else None
-        monkeypatch.setattr(resting_path, "applies", lambda ctx: False)
+        monkeypatch.setattr(compiled_step, "applies", lambda ctx: False)
         wb.step(dt)
         diff = _same_step(wa, wb)
         assert not diff, f"step {i}: {diff}"
         vn = wa.contacts.relative_normal_velocity
         solves.append((wa.last_solve, answer, float(max(-vn.min(), 0.0)) if len(vn) else 0.0))
-    monkeypatch.setattr(resting_path, "applies", applies)
+    monkeypatch.setattr(compiled_step, "applies", applies)
     return wa, solves
 
 
@@ -102,20 +102,20 @@ def test_a_settling_pile_steps_bit_for_bit_as_the_python_stages(seed, monkeypatc
     _, solves = _both_ways(lambda: _pile(seed), 400, monkeypatch, answers, dt=0.005)
     # not vacuous: the pile falls (impacts, some bouncing: compiled) and then rests (compiled), some
     # steps with a position correction planned in the compiled call
-    assert answers.count(resting_path.RESTED) > 300
+    assert answers.count(compiled_step.DONE) > 300
     assert _bounces(solves) > 0
-    assert any(s.correction_energy != 0.0 for s, a, _ in solves if a == resting_path.RESTED)
+    assert any(s.correction_energy != 0.0 for s, a, _ in solves if a == compiled_step.DONE)
 
 
 def _bounces(solves):
     """Compiled steps with an impact fast enough to bounce (approach beyond 0.5 m/s)."""
-    return sum(a == resting_path.RESTED and approach > 0.5 for _, a, approach in solves)
+    return sum(a == compiled_step.DONE and approach > 0.5 for _, a, approach in solves)
 
 
 def test_sliding_friction_is_finished_by_gauss_seidel_in_the_compiled_path(monkeypatch, answers):
     w, solves = _both_ways(_slider, 60, monkeypatch, answers, dt=0.005)
-    assert max(s.iterations for s, a, _ in solves if a == resting_path.RESTED) > 1   # Gauss–Seidel sweeps
-    assert answers.count(resting_path.RESTED) > 30
+    assert max(s.iterations for s, a, _ in solves if a == compiled_step.DONE) > 1   # Gauss–Seidel sweeps
+    assert answers.count(compiled_step.DONE) > 30
     # the box slid and slowed at the kinetic rate: μ g = 0.2 × 9.81 (the step's end velocity)
     assert 0.0 < np.linalg.norm(w.s.vel[1, :2]) < np.hypot(2.0, 0.5) - 0.2 * 9.81 * 0.005 * 30
 
@@ -123,7 +123,7 @@ def test_sliding_friction_is_finished_by_gauss_seidel_in_the_compiled_path(monke
 def test_the_default_scene_steps_bit_for_bit_as_the_python_stages(monkeypatch, answers):
     w0 = cs.load_scene(default_scene_path())
     _, solves = _both_ways(lambda: cs.load_scene(default_scene_path()), 900, monkeypatch, answers, dt=w0.settings.dt)
-    assert answers == [resting_path.RESTED] * len(answers)   # falling, bouncing, resting: every step compiled
+    assert answers == [compiled_step.DONE] * len(answers)   # falling, bouncing, resting: every step compiled
     assert len(answers) > 800 and _bounces(solves) > 5
 
 
@@ -137,7 +137,7 @@ def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
     dt = 0.01
     for _ in range(3):
         w.step(dt)
-    assert answers == [resting_path.RESTED] * 3
+    assert answers == [compiled_step.DONE] * 3
     assert len(w.contacts) == 4
     assert w.contacts.normal_impulse.sum() == pytest.approx(2.0 * 9.81 * dt, rel=1e-12)
     # no torque about the centre of mass: the corners' impulses balance under it (their split
@@ -148,6 +148,27 @@ def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
     assert np.abs(w.contacts.friction_impulse.sum(axis=0)).max() < 1e-15
     assert np.abs(w.s.vel[1]).max() < 1e-15 and np.abs(w.s.omega[1]).max() < 1e-15
     assert w.s.pos[1, 2] == pytest.approx(0.1, abs=1e-15)
+
+
+@pytest.mark.exact
+def test_a_ball_bounces_by_newtons_rule_through_the_compiled_path(answers):
+    """A ball falling onto a plane (e = 0.5, no friction): the step that hits it runs compiled, the
+    normal impulse is m (1 + e) |v_n| of the approach speed recorded, and the ball ends the step at
+    −e v_n less the step's gravity (leaving: no resting force holds it)."""
+    w = cs.World(settings=cs.Settings(toi="next_step"), materials={"m": cs.Material(restitution=0.5, friction=0.0)})
+    w.add_body("ground", cs.Plane(), kind="static", material="m")
+    w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0, 0, 0.3), velocity=(0, 0, -2.0), material="m")
+    dt = 0.005
+    for _ in range(200):
+        w.step(dt)
+        if len(w.contacts) and w.contacts.normal_impulse[0] > 0:
+            break
+    assert answers and answers[-1] == compiled_step.DONE and len(w.contacts) == 1
+    vn = w.contacts.relative_normal_velocity[0]
+    assert vn < -2.0
+    assert w.contacts.normal_impulse[0] == pytest.approx(0.5 * 1.5 * -vn, rel=1e-13)
+    assert w.s.vel[1, 2] == pytest.approx(-0.5 * vn - 9.81 * dt, rel=1e-13)
+    assert np.abs(w.s.vel[1, :2]).max() == 0.0 and np.abs(w.s.omega[1]).max() == 0.0
 
 
 def test_an_island_too_large_for_the_dense_solve_is_left_to_the_python_stages(monkeypatch, answers):
@@ -161,7 +182,7 @@ def test_an_island_too_large_for_the_dense_solve_is_left_to_the_python_stages(mo
         return w
 
     w, _ = _both_ways(tower, 10, monkeypatch, answers, dt=0.005)
-    assert answers == [resting_path.LARGE] * 10
+    assert answers == [compiled_step.LARGE] * 10
     assert len(w.contacts) == 144
 
 
@@ -180,6 +201,6 @@ def test_a_kinematic_push_is_left_to_the_python_stages(monkeypatch, answers):
         return w
 
     w, _ = _both_ways(paddle, 150, monkeypatch, answers, dt=0.01)
-    assert answers[:40].count(resting_path.RESTED) > 30
-    assert resting_path.PUSHED in answers
+    assert answers[:40].count(compiled_step.DONE) > 30
+    assert compiled_step.PUSHED in answers
     assert w.s.pos[2, 0] > 0.2   # the ball was pushed
