@@ -320,13 +320,18 @@ def _header_cdr(frame_id, stamp_ns):
     return struct.pack("<iII", int(stamp_ns // 1_000_000_000), int(stamp_ns % 1_000_000_000), len(fid)) + fid
 
 
-def _doubles_seq(out, rows):
-    """Append a ``sequence`` of structs of doubles (``rows (N, k)``) to the CDR body ``out``."""
+def _doubles_seq(out, left, right):
+    """Append a ``sequence`` of structs of doubles, ``left (N, a)`` then ``right (N, b)`` in each
+    (a transform: translation, rotation), to the CDR body ``out``."""
+    left, right = np.asarray(left), np.asarray(right)
+    a = left.shape[1]
+    rows = np.empty((len(left), a + right.shape[1]), "<f8")   # np.hstack's copies without its overhead
+    rows[:, :a], rows[:, a:] = left, right                     # (a ValueError if their lengths differ, as hstack)
     out += b"\0" * (_align(len(out), 4) - len(out))
     out += struct.pack("<I", len(rows))
     if len(rows):
         out += b"\0" * (_align(len(out), 8) - len(out))
-        out += np.ascontiguousarray(rows, "<f8").tobytes()
+        out += rows.tobytes()
 
 
 def multidof_cdr(names_blob, positions, orientations, linear, angular, force, torque, frame_id, stamp_ns):
@@ -337,10 +342,10 @@ def multidof_cdr(names_blob, positions, orientations, linear, angular, force, to
     out = bytearray(_header_cdr(frame_id, stamp_ns))
     out += b"\0" * (_align(len(out), 4) - len(out))
     out += names_blob
-    _doubles_seq(out, np.hstack([positions, orientations]))
-    _doubles_seq(out, np.hstack([linear, angular]))
-    _doubles_seq(out, np.hstack([force, torque]))
-    return b"\x00\x01\x00\x00" + bytes(out)
+    _doubles_seq(out, positions, orientations)
+    _doubles_seq(out, linear, angular)
+    _doubles_seq(out, force, torque)
+    return b"\x00\x01\x00\x00" + out
 
 
 def multidof_to_arrays(msg, what="set_body_states"):
@@ -373,20 +378,22 @@ def contact_wrenches(contacts, origins, duration):
     if not k:
         return np.zeros((n, 3)), np.zeros((n, 3))
     j = contacts.impulse / duration
-    a, b = contacts.body_a, contacts.body_b
+    ab = np.concatenate((contacts.body_a, contacts.body_b)).reshape(2, k)
     # per contact, (j, r × j) with r from A's origin, then from B's: the wrench on A, and minus that on B
     w = np.empty((2, k, 6))
     w[:, :, :3] = j
-    r = contacts.point - origins[np.stack([a, b])]                     # (2, k, 3)
+    r = contacts.point - origins[ab]                                    # (2, k, 3)
     r0, r1, r2, j0, j1, j2 = r[..., 0], r[..., 1], r[..., 2], j[:, 0], j[:, 1], j[:, 2]
     w[..., 3], w[..., 4], w[..., 5] = r1 * j2 - r2 * j1, r2 * j0 - r0 * j2, r0 * j1 - r1 * j0
     # summed per body and column in one bincount per side (np.add.at is ~10x slower), A's sum minus
     # B's: the same additions in the same order as one bincount per column, so the same bits
-    bins = np.arange(6)
-    wa = np.bincount((a[:, None] * 6 + bins).ravel(), w[0].ravel(), 6 * n)
-    wb = np.bincount((b[:, None] * 6 + bins).ravel(), w[1].ravel(), 6 * n)
-    wrench = (wa - wb).reshape(n, 6)
+    bins = (ab * 6)[..., None] + _SIX                                   # (2, k, 6): body * 6 + column
+    wrench = np.bincount(bins[0].ravel(), w[0].ravel(), 6 * n) - np.bincount(bins[1].ravel(), w[1].ravel(), 6 * n)
+    wrench = wrench.reshape(n, 6)
     return wrench[:, :3], wrench[:, 3:]
+
+
+_SIX = np.arange(6)
 
 
 class PoseError(ValueError):
