@@ -453,15 +453,15 @@ def contact_marker_specs(contacts, impulse_scale=1.0, max_arrows=10, ns="contact
               np.asarray(contacts.point, float).reshape(-1, 3))]
     k = len(contacts)
     if k and max_arrows > 0:
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", invalid="ignore"):     # one context: each costs ~4 us
             mag = np.linalg.norm(contacts.impulse, axis=1)
-        # the impulses drawn (not zero, not NaN), largest first, ties in contact order: a stable sort
-        # of those alone orders them as one of all the contacts would; an infinite magnitude ranks
-        # as the largest float (its tie with one that large in contact order, as nan_to_num made it)
-        drawn = np.flatnonzero(mag > 0)
-        order = drawn[np.argsort(-np.minimum(mag[drawn], _FLOAT_MAX), kind="stable")]
-        start = contacts.point[order]
-        with np.errstate(over="ignore", invalid="ignore"):
+            # the impulses drawn (not zero, not NaN), largest first, ties in contact order: a stable
+            # sort of those alone orders them as one of all the contacts would; an infinite magnitude
+            # ranks as the largest float (its tie with one that large in contact order, as
+            # nan_to_num made it)
+            drawn = np.flatnonzero(mag > 0)
+            order = drawn[np.argsort(-np.minimum(mag[drawn], _FLOAT_MAX), kind="stable")]
+            start = contacts.point[order]
             end = start + impulse_scale * contacts.impulse[order]
         seg = np.empty((len(order), 2, 3), np.result_type(start, end))   # start, end, start, ... (np.stack: 10x slower)
         seg[:, 0], seg[:, 1] = start, end
