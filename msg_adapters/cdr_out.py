@@ -21,7 +21,8 @@ _ENCAPSULATION = b"\x00\x01\x00\x00"
 
 
 class CdrWriter:
-    """Appends CDR primitives to a body (``bytes()`` then prepends the encapsulation)."""
+    """Appends CDR primitives to a body, one call each: for the parts built once (the contacts'
+    fields, a Marker's empty tail); the per-tick writers below pack whole runs of fields at once."""
 
     def __init__(self):
         self.out = bytearray()
@@ -41,25 +42,10 @@ class CdrWriter:
         self.align(4)
         self.out += struct.pack("<I", len(b)) + b
 
-    def doubles_seq(self, rows):
-        """A sequence of structs of doubles (``rows (N, k)``: points, poses)."""
-        self.pack(4, "I", len(rows))
-        if len(rows):
-            self.align(8)
-            self.out += np.ascontiguousarray(rows, "<f8").tobytes()
-
-    def octets(self, data):
-        """A ``sequence<uint8>``."""
-        self.pack(4, "I", len(data))
-        self.out += data
-
     def header(self, frame_id, stamp_ns):
         """``std_msgs/Header``."""
         self.pack(4, "iI", int(stamp_ns // 1_000_000_000), int(stamp_ns % 1_000_000_000))
         self.string(frame_id)
-
-    def bytes(self):
-        return _ENCAPSULATION + bytes(self.out)
 
 
 def _header_cdr(frame_id, stamp_ns):

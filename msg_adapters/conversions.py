@@ -115,7 +115,12 @@ _CONTACT_RUNS = np.dtype({
 })
 assert all(CONTACT_DTYPE.fields[n][1] == _CONTACT_RUNS.fields["f8"][1] + 8 * i for i, n in enumerate(_F8_NAMES))
 assert all(CONTACT_DTYPE.fields[n][1] == _CONTACT_RUNS.fields["u4"][1] + 4 * i for i, n in enumerate(_U4_NAMES))
-assert [n for n, _ in CONTACT_FIELDS][:3] == ["x", "y", "z"] and len(_F8_NAMES) + len(_U4_NAMES) + 3 == len(CONTACT_FIELDS)
+assert [n for n, _ in CONTACT_FIELDS][:3] == ["x", "y", "z"]
+# the float64 columns as contacts_to_array fills them
+assert _F8_NAMES == [f"{v}_{ax}" for v in ("point", "normal") for ax in "xyz"] + ["depth"] + \
+    [f"impulse_{ax}" for ax in "xyz"] + ["normal_impulse"] + [f"friction_impulse_{ax}" for ax in "xyz"] + \
+    ["relative_normal_velocity"]
+assert _U4_NAMES == ["body_a", "body_b", "feature"]
 
 
 def contacts_to_array(contacts):
