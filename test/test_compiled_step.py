@@ -65,11 +65,11 @@ def answers(monkeypatch):
 
     def watched(*args):
         before = [x.copy() for x in args[6:10]]   # pos, vel, quat, omega
-        status = kernel(*args)
-        if status != compiled_step.DONE:
+        result = kernel(*args)
+        if result[0] != compiled_step.DONE:
             assert all(np.array_equal(x, y) for x, y in zip(before, args[6:10])), "declined but moved the bodies"
-        seen.append(status)
-        return status
+        seen.append(result[0])
+        return result
 
     monkeypatch.setattr(compiled_step, "_step", watched)
     return seen
@@ -148,6 +148,27 @@ def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
     assert np.abs(w.contacts.friction_impulse.sum(axis=0)).max() < 1e-15
     assert np.abs(w.s.vel[1]).max() < 1e-15 and np.abs(w.s.omega[1]).max() < 1e-15
     assert w.s.pos[1, 2] == pytest.approx(0.1, abs=1e-15)
+
+
+@pytest.mark.parametrize("rule", cs.settings.COMBINE_RULES)
+def test_mixed_materials_combine_in_the_kernel_as_in_the_python_stages(rule, monkeypatch, answers):
+    """Three materials under each combine rule (a bouncing ball on a sliding box on the ground):
+    the kernel's coefficients (``prepare.coefficient_rows``) are ``prepare.coefficients``' bit for bit."""
+    def scene():
+        w = cs.World(settings=cs.Settings(toi="next_step", combine=rule),
+                     materials={"rubber": cs.Material(restitution=0.8, friction=0.9, static_friction=1.1),
+                                "steel": cs.Material(restitution=0.3, friction=0.2),
+                                "wood": cs.Material(restitution=0.5, friction=0.6, static_friction=0.7)})
+        w.add_body("ground", cs.Plane(), kind="static", material="wood")
+        w.add_body("box", cs.Box((0.6, 0.6, 0.2)), mass=2.0, position=(0, 0, 0.1), velocity=(1.0, 0, 0),
+                   material="steel")
+        w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0.1, 0, 0.5), velocity=(0.5, 0, -1.0),
+                   material="rubber")
+        return w
+
+    _, solves = _both_ways(scene, 80, monkeypatch, answers, dt=0.005)
+    assert answers.count(compiled_step.DONE) == len(answers) > 70
+    assert _bounces(solves) > 0
 
 
 @pytest.mark.exact

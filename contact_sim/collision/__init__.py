@@ -26,6 +26,7 @@ Margin semantics: a pair whose separation is ≤ ``margin`` is reported, with ``
 sphere or a plane and the separating-axis separation for two polyhedra (≤ the true distance,
 exact at 0), so depth is continuous in the poses and exactly 0 when touching.
 """
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -234,7 +235,7 @@ def detect_world(world, margin=None, R=None):
     """
     t0 = time.perf_counter()
     margin = float(world.settings.contact_margin if margin is None else margin)
-    if not np.isfinite(margin) or margin < 0:
+    if not math.isfinite(margin) or margin < 0:
         raise ContactSimError(f"detect_world: margin must be a finite number >= 0, got {margin!r}")
     bv = world.settings.bounding_volume
     stats = DetectionStats(bodies=len(world.shapes), bounding_volume=bv, margin=margin)

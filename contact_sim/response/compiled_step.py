@@ -26,6 +26,7 @@ import numpy as np
 from .. import dynamics
 from ..free_motion import advance
 from ..jit import njit
+from ..settings import COMBINE_RULES
 from . import correction, prepare
 from . import toi as toi_mod
 from .active_set import SOLVED, TOO_LARGE, islands, solve_islands
@@ -65,33 +66,25 @@ def run(ctx):
     c = ctx.contacts
     k = len(c)
     cc = np.ascontiguousarray
-    e, mu_s, mu_d = prepare.coefficients(world, c, m)
     old = world.contact_cache.warm
     has_old = old is not None and len(old[0]) > 0
     if not has_old:
         old = _NO_OLD
-    local, wv = np.empty((k, 3)), np.empty((k, 4))
-    normal_impulse, vn0 = np.empty((2, k))
-    friction_impulse, impulse = np.empty((2, k, 3))
-    used, resting = np.empty((2, k), np.bool_)
-    vp, wp = np.zeros((2, len(world), 3))
-    out = np.zeros(10)
-    status = _step(
+    (status, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out) = _step(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
         s.pos, s.vel, s.quat, s.omega, cc(s.principal_q), cc(s.principal_moments), cc(world.inertia_body),
         cc(world.inv_mass, dtype=float), prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity, ctx.gravity,
         bm.dynamic, bm.rotating, bm.kinematic, cc(world.mass, dtype=float), cc(world.particle),
-        cc(e, dtype=float).copy(), cc(mu_s, dtype=float),
-        cc(mu_d, dtype=float), m.friction and m.response != "kinematic",
+        cc(world.restitution, dtype=float), cc(world.friction, dtype=float), cc(world.static_friction, dtype=float),
+        COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, toi_mod._extents(world),
         float(ctx.dt), float(st.contact_margin), ctx.speculative, toi_mod.TOI_TOLERANCE,
         prepare.SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
         float(st.split_slop), float(st.split_beta),
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
-        int(st.solver_iterations), float(st.solver_tolerance),
-        local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out)
+        int(st.solver_iterations), float(st.solver_tolerance))
     if status != DONE:
         return False
     residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest = out.tolist()
@@ -129,21 +122,47 @@ def _min(x, y):
 
 @njit
 def _step(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
-          inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s, mu_d, kinetic,
-          a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous, rebound_speed,
-          impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local, normal_impulse,
-          friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out):
+          inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, restitution, friction,
+          static_friction, rule, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance,
+          simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance):
     """``run``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
     (K,)``, ``point, normal, rel_vel (K,3)``, ``depth (K,)``; bodies as ``free_motion.advance`` and
     ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass
-    (N,)``, ``particle (N,) bool``; ``e, mu_s, mu_d (K,)`` (``e`` overwritten); the contact cache
-    ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``. Writes ``local (K,3)``, the impulse columns
-    ``normal_impulse (K,)``, ``friction_impulse, impulse (K,3)``, ``vn0 (K,)``, the contacts that
-    count ``used (K,)``, those the resting solve took ``resting (K,)`` and the cache's values of
-    them ``wv (K,4)`` (the first of its rows), the correction's pseudo-velocities ``vp, wp (N,3)``
-    (zeros in) and ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps, used,
-    planned, resting solve ran, contacts resting]``. Returns ``DONE``, or with the world
-    untouched why not (``IMMOVABLE``, ``LARGE``, ``PUSHED``)."""
+    (N,)``, ``particle (N,) bool``, their materials ``restitution, friction, static_friction (N,)``
+    combined by ``rule`` (``prepare.coefficient_rows``); the contact cache ``a0, b0 (K0,)``, ``p0
+    (K0,3)``, ``values (K0,4)``. Returns ``(status, local (K,3), normal_impulse (K,),
+    friction_impulse, impulse (K,3), vn0 (K,), used (K,), resting (K,), wv (K,4), vp, wp (N,3),
+    out (10,))``: ``status`` ``DONE``, or with the world untouched why not (``IMMOVABLE``,
+    ``LARGE``, ``PUSHED``); the points in A's frame, the impulse columns, the approach speeds, the
+    contacts that count, those the resting solve took and the cache's values of them (the first of
+    ``wv``'s rows), the correction's pseudo-velocities, and ``out = [residual, deepest,
+    rest_bound, drift, kick_error, sweeps, used, planned, resting solve ran, contacts resting]``.
+    The outputs are allocated here: from Python each allocation and argument costs more."""
+    k, n = a.shape[0], pos.shape[0]
+    local, wv = np.empty((k, 3)), np.empty((k, 4))
+    normal_impulse, vn0 = np.empty(k), np.empty(k)
+    friction_impulse, impulse = np.empty((k, 3)), np.empty((k, 3))
+    used, resting = np.empty(k, np.bool_), np.empty(k, np.bool_)
+    vp, wp = np.zeros((n, 3)), np.zeros((n, 3))
+    out = np.zeros(10)
+    e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
+    prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
+    status = _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments,
+                        inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic,
+                        mass, particle, e, mu_s, mu_d, kinetic, a0, b0, p0, values, has_old, ext, dt, margin,
+                        speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop,
+                        split_beta, direct_max, max_iterations, tolerance, local, normal_impulse, friction_impulse,
+                        impulse, vn0, used, resting, wv, vp, wp, out)
+    return status, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out
+
+
+@njit
+def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body,
+               inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s,
+               mu_d, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous,
+               rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local,
+               normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out):
+    """``_step`` into its outputs (``e`` is overwritten: zero where the rebound rests); returns the status."""
     k = a.shape[0]
     n = pos.shape[0]
     # ---- prepare (prepare.prepare_contacts): rows, points in A's frame, classes

@@ -241,6 +241,41 @@ def coefficients(world, c, m):
     return e, mu_s, mu_d
 
 
+@njit
+def coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d):
+    """``coefficients`` in a loop, for the compiled step: ``a, b (K,)`` the contacts' bodies, the
+    bodies' materials ``(N,)``, ``rule`` the index of ``settings.combine`` in ``COMBINE_RULES``;
+    writes ``e, mu_s, mu_d (K,)`` (friction zero unless ``kinetic``). The same operations as
+    ``settings.combine`` and ``np.maximum``, so the same values."""
+    for c in range(a.shape[0]):
+        ia, ib = a[c], b[c]
+        e[c] = _combine(restitution[ia], restitution[ib], rule)
+        if kinetic:
+            d = _combine(friction[ia], friction[ib], rule)
+            st = _combine(static_friction[ia], static_friction[ib], rule)
+            mu_s[c] = st if st >= d else d
+            mu_d[c] = d
+        else:
+            mu_s[c] = 0.0
+            mu_d[c] = 0.0
+
+
+@njit
+def _combine(x, y, rule):
+    """``settings.combine`` of two coefficients (``rule`` an index into ``COMBINE_RULES``)."""
+    if x == y:
+        return x
+    if rule == 0:
+        return 0.5 * (x + y)
+    if rule == 1:
+        return x if x <= y else y
+    if rule == 2:
+        return x if x >= y else y
+    if rule == 3:
+        return x * y
+    return math.sqrt(x * y)
+
+
 def _uniform_material(world):
     """``(restitution, static friction, dynamic friction)`` when every body has the same
     coefficients, else ``None`` (cached; the arrays are replaced when a body is added)."""
