@@ -47,18 +47,24 @@ def plain_margin(margin):
 
 
 class PairPlan:
-    """What a shape pair needs for the fast path: its kernel's place in ``pair_kernels``, the
-    kernel's A/B order, the geometry arrays."""
+    """What a shape pair needs for the fast path: its compiled entry and the arguments that do not
+    change from call to call (``tail``: the kernel's place in ``pair_kernels``, whether the kernel's
+    A is the second shape, the geometry arrays, the two shapes' geometry rows, [the mesh trees]).
+
+    Fewer arguments make a cheaper call: numba checks the type of each one on every call, a tuple
+    of arrays costing most, so the mesh–mesh trees go only to that kernel's entry, and the body
+    index arrays ``a``, ``b``, ``shape_of`` are made inside the compiled call."""
 
     def __init__(self, bodies):
         r = bodies.rank
-        self.swap = bool(r[0] < r[1])
-        self.a = np.array([1 if self.swap else 0], np.int64)
-        self.b = np.array([0 if self.swap else 1], np.int64)
-        self.which = pair_kernels.index(int(max(r)), int(min(r)))
-        self.arrays = bodies.geom.arrays()
-        self.bvh = pair_kernels.trees(bodies.geom)   # mesh–mesh: the trees
-        self.shape_of = bodies.shape_of
+        swap = bool(r[0] < r[1])
+        which = pair_kernels.index(int(max(r)), int(min(r)))
+        s0, s1 = int(bodies.shape_of[0]), int(bodies.shape_of[1])
+        self.tail = (which, swap, *bodies.geom.arrays(), s0, s1, LENGTH_LIMIT)
+        self.entry = _one_pair
+        if which == pair_kernels.MESH_MESH:
+            self.entry = _one_pair_trees
+            self.tail += tuple(pair_kernels.trees(bodies.geom))
 
 
 _OUT_I = np.zeros((4, 5), np.int64)
@@ -76,24 +82,44 @@ def collide_fast(plan, pose_a, pose_b, margin):
     # one block per kind: the kernel's rows (point, normal, depth; pair, feature, id) and, beside
     # them, the zero response columns and the body indices (views into the blocks, as the batch's)
     out_i, out_f = _OUT_I.copy(), np.zeros((4, 15))
-    k = _one_pair(plan.which, f(pa[0]), f(pa[1]), f(pa[2]), f(qa[0]), f(qa[1]), f(qa[2]), f(qa[3]),
-                  f(pb[0]), f(pb[1]), f(pb[2]), f(qb[0]), f(qb[1]), f(qb[2]), f(qb[3]), f(margin), plan.swap,
-                  *plan.arrays, plan.shape_of, plan.a, plan.b, out_i, out_f, plan.bvh, LENGTH_LIMIT)
-    if k < 0:
-        return None
+    k = plan.entry(f(pa[0]), f(pa[1]), f(pa[2]), f(qa[0]), f(qa[1]), f(qa[2]), f(qa[3]), f(pb[0]), f(pb[1]),
+                   f(pb[2]), f(qb[0]), f(qb[1]), f(qb[2]), f(qb[3]), f(margin), out_i, out_f, *plan.tail)
+    if k <= 0:
+        # no contact: the shared zero-length columns (nothing in them to change), not eleven views
+        return None if k < 0 else Contacts.empty()
     fr, i = out_f[:k], out_i[:k]
     return Contacts(i[:, 3], i[:, 4], fr[:, 0:3], fr[:, 3:6], fr[:, 6], fr[:, 7:10], fr[:, 10], fr[:, 11:14],
                     fr[:, 14], i[:, 1], i[:, 2])
 
 
 @njit
-def _one_pair(which, x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, swap, sf, si, verts,
-              planes, faces, loops, edges, tris, shape_of, a, b, out_i, out_f, bvh, limit):
+def _one_pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap,
+              sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit):
+    """``_one_pair_trees`` for every kernel but mesh–mesh (which reads no trees: placeholders)."""
+    bvh = (np.zeros((1, 4), np.int64), np.zeros((1, 6)), np.zeros(1, np.int64), np.full(2, -1, np.int64),
+           np.ones((1, 3), np.bool_))
+    return _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap,
+                 sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit, bvh)
+
+
+@njit
+def _one_pair_trees(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which,
+                    swap, sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit, nodes, boxes, perm, root,
+                    border):
+    """The pair's contacts from its two poses (14 numbers), ``pair_kernels.trees`` as its five arrays
+    (``_pair``)."""
+    return _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap,
+                 sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit, (nodes, boxes, perm, root, border))
+
+
+@njit
+def _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap, sf, si,
+          verts, planes, faces, loops, edges, tris, s0, s1, limit, bvh):
     """The pair's contacts from its two poses (14 numbers): −1 when a coordinate is not finite or
     beyond ``limit``, or a quaternion is not finite or (near) zero; else the quaternions
-    normalised, the rotations (``vec3.rotations``), the kernel (``pair_kernels.call``) into
-    ``out_i (4, ≥3)``, ``out_f (4, ≥7)``, normals from B to A (negated when ``swap``); returns
-    the rows written."""
+    normalised, the rotations (``vec3.rotations``), the kernel ``which`` (``pair_kernels.call``) on
+    geometry rows ``s0, s1`` (A = the second when ``swap``) into ``out_i (4, ≥3)``,
+    ``out_f (4, ≥7)``, normals from B to A (negated when ``swap``); returns the rows written."""
     pos, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
     pos[0, 0], pos[0, 1], pos[0, 2], pos[1, 0], pos[1, 1], pos[1, 2] = x0, y0, z0, x1, y1, z1
     q[0, 0], q[0, 1], q[0, 2], q[0, 3], q[1, 0], q[1, 1], q[1, 2], q[1, 3] = qx0, qy0, qz0, qw0, qx1, qy1, qz1, qw1
@@ -107,6 +133,9 @@ def _one_pair(which, x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, 
         if not np.sqrt(q[r, 0] * q[r, 0] + q[r, 1] * q[r, 1] + q[r, 2] * q[r, 2] + q[r, 3] * q[r, 3]) >= 1e-12:
             return -1
     unit_rotations(q, R)
+    shape_of, a, b = np.empty(2, np.int64), np.empty(1, np.int64), np.empty(1, np.int64)
+    shape_of[0], shape_of[1] = s0, s1
+    a[0], b[0] = (1, 0) if swap else (0, 1)   # bodies in the kernel's order: A of the higher rank
     counters = np.zeros(3, np.int64)
     k = pair_kernels.call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
                           counters, out_i, out_f, bvh)
