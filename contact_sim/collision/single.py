@@ -19,22 +19,30 @@ _NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
 
 
 def _plain(v, n):
-    """``v`` as ``n`` Python numbers (a list, or ``v`` itself) when it is plainly that, else None."""
+    """``v`` as ``n`` Python floats (a list, or ``v`` itself when it holds only floats) when it is
+    plainly ``n`` numbers, else None. (The compiled call takes floats: an int would compile another
+    version of it, and a float passed as it is costs nothing to convert.)"""
     t = type(v)
     if t is np.ndarray:
-        return v.tolist() if v.shape == (n,) and v.dtype.kind in "fi" else None
+        if v.shape != (n,):
+            return None
+        k = v.dtype.kind
+        return v.tolist() if k == "f" else [float(x) for x in v.tolist()] if k == "i" else None
     if (t is tuple or t is list) and len(v) == n:
+        convert = False
         for x in v:
             tx = type(x)
-            # numpy scalars too (a tuple made from an array's elements): not numpy's bool
-            if tx is not float and tx is not int and tx is not np.float64 and tx is not np.int64:
-                return None
-        return v
+            if tx is not float:
+                # numpy scalars too (a tuple made from an array's elements): not numpy's bool
+                if tx is not int and tx is not np.float64 and tx is not np.int64:
+                    return None
+                convert = True
+        return [float(x) for x in v] if convert else v
     return None
 
 
 def plain_pose(pose):
-    """``(position, orientation)`` as 3 and 4 plain numbers when ``pose`` is plainly that, else None
+    """``(position, orientation)`` as 3 and 4 Python floats when ``pose`` is plainly that, else None
     (their values are checked in the compiled call)."""
     if (type(pose) is not tuple and type(pose) is not list) or len(pose) != 2:
         return None
@@ -77,13 +85,10 @@ def collide_fast(plan, pose_a, pose_b, margin):
     a, b = plain_pose(pose_a), plain_pose(pose_b)
     if a is None or b is None:
         return None
-    (pa, qa), (pb, qb) = a, b
-    f = float
     # one block per kind: the kernel's rows (point, normal, depth; pair, feature, id) and, beside
     # them, the zero response columns and the body indices (views into the blocks, as the batch's)
     out_i, out_f = _OUT_I.copy(), np.zeros((4, 15))
-    k = plan.entry(f(pa[0]), f(pa[1]), f(pa[2]), f(qa[0]), f(qa[1]), f(qa[2]), f(qa[3]), f(pb[0]), f(pb[1]),
-                   f(pb[2]), f(qb[0]), f(qb[1]), f(qb[2]), f(qb[3]), f(margin), out_i, out_f, *plan.tail)
+    k = plan.entry(*a[0], *a[1], *b[0], *b[1], float(margin), out_i, out_f, *plan.tail)
     if k <= 0:
         # no contact: the shared zero-length columns (nothing in them to change), not eleven views
         return None if k < 0 else Contacts.empty()
