@@ -242,12 +242,16 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
               out_i, out_f):
     """Convex polyhedra A and B: SAT with Gauss-map pruning, then the edge or face contacts."""
     nv, npl, ne = col_max(si, SI_NV, shape_of, a, b), col_max(si, SI_NP, shape_of, a, b), col_max(si, SI_NE, shape_of, a, b)
-    VA, VB = np.empty((nv, 3)), np.empty((nv, 3))
-    NA, NB = np.empty((npl, 3)), np.empty((npl, 3))
-    dA, dB = np.empty(npl), np.empty(npl)
-    side, NBt = np.empty(npl), np.empty((3, npl))
-    eb2, eb3 = np.empty(ne, np.int64), np.empty(ne, np.int64)
-    probe_all = np.empty((8, 3))
+    # scratch as views of one block per type (an allocation costs about what a box's face axes do)
+    F = np.empty(6 * nv + 12 * npl + 24)
+    VA, VB = F[:3 * nv].reshape((nv, 3)), F[3 * nv:6 * nv].reshape((nv, 3))
+    o = 6 * nv
+    NA, NB = F[o:o + 3 * npl].reshape((npl, 3)), F[o + 3 * npl:o + 6 * npl].reshape((npl, 3))
+    NBt = F[o + 6 * npl:o + 9 * npl].reshape((3, npl))
+    dA, dB, side = F[o + 9 * npl:o + 10 * npl], F[o + 10 * npl:o + 11 * npl], F[o + 11 * npl:o + 12 * npl]
+    probe_all = F[o + 12 * npl:o + 12 * npl + 24].reshape((8, 3))
+    eb = np.empty(2 * ne, np.int64)
+    eb2, eb3 = eb[:ne], eb[ne:]
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
