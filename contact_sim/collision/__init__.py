@@ -321,7 +321,6 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     within ``validate.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
     its world bounds (positions, shape sizes, margin), as a world would check them.
     """
-    t0 = time.perf_counter()
     if settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin):
         hit = _PAIR_CACHE.get((id(shape_a), id(shape_b)))
         if hit is None or hit[0][0] is not shape_a or hit[0][1] is not shape_b:   # (cached shapes were checked)
@@ -336,6 +335,7 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
             c = single.collide_fast(plan, pose_a, pose_b, margin)
             if c is not None:
                 return c
+    t0 = time.perf_counter()   # (the stats' total: the fast path keeps none)
     st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
     _check_shape(shape_a, "collide: shape_a", st)
     _check_shape(shape_b, "collide: shape_b", st)

@@ -93,8 +93,13 @@ def collide_fast(plan, pose_a, pose_b, margin):
         # no contact: the shared zero-length columns (nothing in them to change), not eleven views
         return None if k < 0 else Contacts.empty()
     fr, i = out_f[:k], out_i[:k]
-    return Contacts(i[:, 3], i[:, 4], fr[:, 0:3], fr[:, 3:6], fr[:, 6], fr[:, 7:10], fr[:, 10], fr[:, 11:14],
-                    fr[:, 14], i[:, 1], i[:, 2])
+    return Contacts(i[_C3], i[_C4], fr[_C0_3], fr[_C3_6], fr[_C6], fr[_C7_10], fr[_C10], fr[_C11_14], fr[_C14],
+                    i[_C1], i[_C2])
+
+
+# the column views' index tuples, built once (an index written in place is built on every call)
+_C0_3, _C3_6, _C7_10, _C11_14 = (np.s_[:, j:j + 3] for j in (0, 3, 7, 11))
+_C1, _C2, _C3, _C4, _C6, _C10, _C14 = (np.s_[:, j] for j in (1, 2, 3, 4, 6, 10, 14))
 
 
 @njit
