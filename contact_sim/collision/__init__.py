@@ -36,8 +36,8 @@ from ..errors import ContactSimError
 from ..memo import derived
 from ..settings import Settings
 from ..shapes import Shape
-from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
-                        show)
+from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, LENGTH_LIMIT, POINTS, POSITION, POSITIONS, Flag,
+                        Nested, Rows, show)
 from . import bounding, broadphase, pair_kernels, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
 from .vec3 import rotations
@@ -321,7 +321,10 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     within ``validate.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
     its world bounds (positions, shape sizes, margin), as a world would check them.
     """
-    if settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin):
+    # the fast path (``single``) for plainly valid input; a margin that is plainly one is a float or
+    # an int (not a bool, not a numpy number) within the limit
+    if (settings is None and stats is False and bounding_volume == "auto" and type(margin) in single.NUMBER
+            and 0 <= margin <= LENGTH_LIMIT):
         hit = _PAIR_CACHE.get((id(shape_a), id(shape_b)))
         if hit is None or hit[0][0] is not shape_a or hit[0][1] is not shape_b:   # (cached shapes were checked)
             hit = None

@@ -15,7 +15,7 @@ from ..validate import LENGTH_LIMIT
 from . import pair_kernels
 from .vec3 import unit_rotations
 
-_NUMBER = (float, int)   # not bool: the checks refuse booleans for numbers
+NUMBER = (float, int)   # a plain margin's types (not bool: the checks refuse booleans for numbers)
 
 
 def _plain(v, n):
@@ -39,19 +39,6 @@ def _plain(v, n):
                 convert = True
         return [float(x) for x in v] if convert else v
     return None
-
-
-def plain_pose(pose):
-    """``(position, orientation)`` as 3 and 4 Python floats when ``pose`` is plainly that, else None
-    (their values are checked in the compiled call)."""
-    if (type(pose) is not tuple and type(pose) is not list) or len(pose) != 2:
-        return None
-    p, q = _plain(pose[0], 3), _plain(pose[1], 4)
-    return None if p is None or q is None else (p, q)
-
-
-def plain_margin(margin):
-    return type(margin) in _NUMBER and 0 <= margin <= LENGTH_LIMIT
 
 
 class PairPlan:
@@ -82,13 +69,19 @@ _OUT_I[:, 4] = 1      # the kernel writes columns 0-2; columns 3 and 4 are body_
 def collide_fast(plan, pose_a, pose_b, margin):
     """Contacts of one pair on the fast path (``body_a = 0``, ``body_b = 1``), or None when the
     poses are not plainly valid (the full checks then say why)."""
-    a, b = plain_pose(pose_a), plain_pose(pose_b)
-    if a is None or b is None:
+    # each pose as 3 and 4 Python floats when it is plainly that (their values are checked in the
+    # compiled call); written out here, not a helper per pose: a Python call costs what this does
+    ta, tb = type(pose_a), type(pose_b)
+    if (ta is not tuple and ta is not list) or (tb is not tuple and tb is not list) or len(pose_a) != 2 \
+            or len(pose_b) != 2:
+        return None
+    pa, qa, pb, qb = _plain(pose_a[0], 3), _plain(pose_a[1], 4), _plain(pose_b[0], 3), _plain(pose_b[1], 4)
+    if pa is None or qa is None or pb is None or qb is None:
         return None
     # one block per kind: the kernel's rows (point, normal, depth; pair, feature, id) and, beside
     # them, the zero response columns and the body indices (views into the blocks, as the batch's)
     out_i, out_f = _OUT_I.copy(), np.zeros((4, 15))
-    k = plan.entry(*a[0], *a[1], *b[0], *b[1], float(margin), out_i, out_f, *plan.tail)
+    k = plan.entry(*pa, *qa, *pb, *qb, float(margin), out_i, out_f, *plan.tail)
     if k <= 0:
         # no contact: the shared zero-length columns (nothing in them to change), not eleven views
         return None if k < 0 else Contacts.empty()
