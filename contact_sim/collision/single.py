@@ -44,18 +44,20 @@ def _plain(v, n):
 class PairPlan:
     """What a shape pair needs for the fast path: its compiled entry and the arguments that do not
     change from call to call (``tail``: the kernel's place in ``pair_kernels``, whether the kernel's
-    A is the second shape, the geometry arrays, the two shapes' geometry rows, [the mesh trees]).
+    A is the second shape, the geometry arrays packed (``pack``), the two shapes' geometry rows,
+    [the mesh trees]).
 
-    Fewer arguments make a cheaper call: numba checks the type of each one on every call, a tuple
-    of arrays costing most, so the mesh–mesh trees go only to that kernel's entry, and the body
-    index arrays ``a``, ``b``, ``shape_of`` are made inside the compiled call."""
+    Fewer arguments make a cheaper call: numba checks the type of each one on every call (an
+    array costs about four numbers, a tuple of arrays most), so the eight geometry arrays go as two,
+    the mesh–mesh trees only to that kernel's entry, and the body index arrays ``a``, ``b``,
+    ``shape_of`` are made inside the compiled call."""
 
     def __init__(self, bodies):
         r = bodies.rank
         swap = bool(r[0] < r[1])
         which = pair_kernels.index(int(max(r)), int(min(r)))
         s0, s1 = int(bodies.shape_of[0]), int(bodies.shape_of[1])
-        self.tail = (which, swap, *bodies.geom.arrays(), s0, s1, LENGTH_LIMIT)
+        self.tail = (which, swap, *pack(bodies.geom.arrays()), s0, s1, LENGTH_LIMIT)
         self.entry = _one_pair
         if which == pair_kernels.MESH_MESH:
             self.entry = _one_pair_trees
@@ -95,22 +97,56 @@ _C0_3, _C3_6, _C7_10, _C11_14 = (np.s_[:, j:j + 3] for j in (0, 3, 7, 11))
 _C1, _C2, _C3, _C4, _C6, _C10, _C14 = (np.s_[:, j] for j in (1, 2, 3, 4, 6, 10, 14))
 
 
+def pack(arrays):
+    """The geometry arrays ``GeomTable.arrays()`` (``sf, si, verts, planes, faces, loops, edges,
+    tris``) as one float block and one int block, for ``_unpack``: ``(F (·,), I (·,))``, ``I``
+    starting with each array's rows and columns (``loops`` is 1-D: columns 0)."""
+    sf, si, verts, planes, faces, loops, edges, tris = arrays
+    head = [n for x in arrays for n in (x.shape[0], x.shape[1] if x.ndim == 2 else 0)]
+    return (np.concatenate([np.ravel(x).astype(np.float64) for x in (sf, verts, planes)]),
+            np.concatenate([np.array(head, np.int64)] + [np.ravel(x).astype(np.int64) for x in (si, faces, loops, edges,
+                                                                                                  tris)]))
+
+
+@njit
+def _unpack(F, I):
+    """The eight geometry arrays from ``pack``'s blocks: contiguous views, so of the arrays' own
+    types (no other compiled version of a kernel)."""
+    sf = F[:I[0] * I[1]].reshape((I[0], I[1]))
+    o = I[0] * I[1]
+    verts = F[o:o + I[4] * I[5]].reshape((I[4], I[5]))
+    o += I[4] * I[5]
+    planes = F[o:o + I[6] * I[7]].reshape((I[6], I[7]))
+    o = 16
+    si = I[o:o + I[2] * I[3]].reshape((I[2], I[3]))
+    o += I[2] * I[3]
+    faces = I[o:o + I[8] * I[9]].reshape((I[8], I[9]))
+    o += I[8] * I[9]
+    loops = I[o:o + I[10]]
+    o += I[10]
+    edges = I[o:o + I[12] * I[13]].reshape((I[12], I[13]))
+    o += I[12] * I[13]
+    tris = I[o:o + I[14] * I[15]].reshape((I[14], I[15]))
+    return sf, si, verts, planes, faces, loops, edges, tris
+
+
 @njit
 def _one_pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap,
-              sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit):
+              F, I, s0, s1, limit):
     """``_one_pair_trees`` for every kernel but mesh–mesh (which reads no trees: placeholders)."""
     bvh = (np.zeros((1, 4), np.int64), np.zeros((1, 6)), np.zeros(1, np.int64), np.full(2, -1, np.int64),
            np.ones((1, 3), np.bool_))
+    sf, si, verts, planes, faces, loops, edges, tris = _unpack(F, I)
     return _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap,
                  sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit, bvh)
 
 
 @njit
 def _one_pair_trees(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which,
-                    swap, sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit, nodes, boxes, perm, root,
-                    border):
-    """The pair's contacts from its two poses (14 numbers), ``pair_kernels.trees`` as its five arrays
-    (``_pair``)."""
+                    swap, F, I, s0, s1, limit, nodes, boxes, perm, root, border):
+    """The pair's contacts from its two poses (14 numbers), the geometry as ``pack``'s two blocks,
+    ``pair_kernels.trees`` as its five arrays (``_pair``)."""
+    sf, si, verts, planes, faces, loops, edges, tris = _unpack(F, I)
     return _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin, out_i, out_f, which, swap,
                  sf, si, verts, planes, faces, loops, edges, tris, s0, s1, limit, (nodes, boxes, perm, root, border))
 
