@@ -27,7 +27,9 @@ def _plain(v, n):
         if v.shape != (n,):
             return None
         k = v.dtype.kind
-        return v.tolist() if k == "f" else [float(x) for x in v.tolist()] if k == "i" else None
+        if k == "f" and v.dtype.itemsize <= 8:
+            return v.tolist()   # Python floats already (a long double's elements would not be)
+        return [float(x) for x in v.tolist()] if k == "f" or k == "i" else None
     if (t is tuple or t is list) and len(v) == n:
         convert = False
         for x in v:
