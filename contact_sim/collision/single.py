@@ -2,10 +2,14 @@
 
 For plainly valid input (numbers, finite, within ``LENGTH_LIMIT``, a non-zero quaternion, margin a
 plain number, default bounding volume, no settings, no statistics) the pair skips the batch
-machinery: one compiled call (``_one_pair``) checks the numbers, builds both rotations and runs the
-pair's kernel (``pair_kernels.call``). Anything else returns ``None`` here and goes through the
-full checks (which name the problem) and the batch pipeline; both paths run the same kernels, so
-they give the same contacts.
+machinery: one compiled call (``_one_pair``; ``_one_pair_trees`` for mesh–mesh; both ``_pair``)
+checks the numbers, builds both rotations and runs the pair's kernel (``pair_kernels.call``).
+Anything else returns ``None`` here and goes through the full checks (which name the problem) and
+the batch pipeline; both paths run the same kernels, so they give the same contacts.
+
+Most of a call's time is its Python side (reading the poses, numba checking each argument's type,
+building the ``Contacts`` views), so that side is kept to the fewest operations: what does not
+change between calls is prepared once per shape pair (``PairPlan``).
 """
 import numpy as np
 
