@@ -120,12 +120,6 @@ def _edges(P, n, e, s, length):
 
 
 @njit
-def _rows(F, start, n):
-    """``F[start:start + 3n]`` as an ``(n, 3)`` view."""
-    return F[start:start + 3 * n].reshape((n, 3))
-
-
-@njit
 def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin, sup_u, sup_sep, sup_v,
                ref_is_a, pair, out_i, out_f, k):
     """Contacts of a face–face patch; returns the new row count.
@@ -146,18 +140,16 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
     l0, M2 = facesI[fi, 0], facesI[fi, 1]
     M1 = loopR.shape[0]
     C = 1 + M2 + M1 + M1 * M2
-    # the scratch arrays below as views of one block per type: an allocation costs about as much
-    # as the arithmetic of a box's patch (views, so every value is computed as before)
-    F = np.empty(3 * (3 * M1 + 5 * M2 + 2 * C) + M1 + M2 + 2 * C)
-    P, Q = _rows(F, 0, M1), _rows(F, 3 * M1, M2)
-    eP, sP, eQ, sQ = _rows(F, 3 * (M1 + M2), M1), _rows(F, 3 * (2 * M1 + M2), M1), \
-        _rows(F, 3 * (3 * M1 + M2), M2), _rows(F, 3 * (3 * M1 + 2 * M2), M2)
-    Qp, eQp = _rows(F, 3 * (3 * M1 + 3 * M2), M2), _rows(F, 3 * (3 * M1 + 4 * M2), M2)
-    o = 3 * (3 * M1 + 5 * M2)
-    U, pts = _rows(F, o, C), _rows(F, o + 3 * C, C)
-    o += 6 * C
-    lenP, lenQ, SEP, DEP = F[o:o + M1], F[o + M1:o + M1 + M2], F[o + M1 + M2:o + M1 + M2 + C], \
-        F[o + M1 + M2 + C:o + M1 + M2 + 2 * C]
+    # the scratch arrays below as row ranges of one block per shape and type: an allocation (or a
+    # reshape) costs about as much as the arithmetic of a box's patch, a row range nothing
+    G = np.empty((3 * M1 + 5 * M2 + 2 * C, 3))
+    P, Q, eP, sP = G[:M1], G[M1:M1 + M2], G[M1 + M2:2 * M1 + M2], G[2 * M1 + M2:3 * M1 + M2]
+    o = 3 * M1 + M2
+    eQ, sQ, Qp, eQp = G[o:o + M2], G[o + M2:o + 2 * M2], G[o + 2 * M2:o + 3 * M2], G[o + 3 * M2:o + 4 * M2]
+    o += 4 * M2
+    U, pts = G[o:o + C], G[o + C:o + 2 * C]
+    H = np.empty(M1 + M2 + 2 * C)
+    lenP, lenQ, SEP, DEP = H[:M1], H[M1:M1 + M2], H[M1 + M2:M1 + M2 + C], H[M1 + M2 + C:]
     flags = np.zeros(2 * C, np.bool_)
     VAL, keep = flags[:C], flags[C:]
     CODE = np.empty(C, np.int64)

@@ -242,14 +242,14 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
               out_i, out_f):
     """Convex polyhedra A and B: SAT with Gauss-map pruning, then the edge or face contacts."""
     nv, npl, ne = col_max(si, SI_NV, shape_of, a, b), col_max(si, SI_NP, shape_of, a, b), col_max(si, SI_NE, shape_of, a, b)
-    # scratch as views of one block per type (an allocation costs about what a box's face axes do)
-    F = np.empty(6 * nv + 12 * npl + 24)
-    VA, VB = F[:3 * nv].reshape((nv, 3)), F[3 * nv:6 * nv].reshape((nv, 3))
-    o = 6 * nv
-    NA, NB = F[o:o + 3 * npl].reshape((npl, 3)), F[o + 3 * npl:o + 6 * npl].reshape((npl, 3))
-    NBt = F[o + 6 * npl:o + 9 * npl].reshape((3, npl))
-    dA, dB, side = F[o + 9 * npl:o + 10 * npl], F[o + 10 * npl:o + 11 * npl], F[o + 11 * npl:o + 12 * npl]
-    probe_all = F[o + 12 * npl:o + 12 * npl + 24].reshape((8, 3))
+    # scratch as row ranges of a few blocks (an allocation, or a reshape, costs about what a box's
+    # face axes do; a row range is free)
+    G = np.empty((2 * nv + 2 * npl + 8, 3))
+    VA, VB, NA, NB = G[:nv], G[nv:2 * nv], G[2 * nv:2 * nv + npl], G[2 * nv + npl:2 * nv + 2 * npl]
+    probe_all = G[2 * nv + 2 * npl:]
+    H = np.empty(3 * npl)
+    dA, dB, side = H[:npl], H[npl:2 * npl], H[2 * npl:]
+    NBt = np.empty((3, npl))
     eb = np.empty(2 * ne, np.int64)
     eb2, eb3 = eb[:ne], eb[ne:]
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice

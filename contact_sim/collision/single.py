@@ -165,8 +165,7 @@ def _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin
     normalised, the rotations (``vec3.rotations``), the kernel ``which`` (``pair_kernels.call``) on
     geometry rows ``s0, s1`` (A = the second when ``swap``) into ``out_i (4, ≥3)``,
     ``out_f (4, ≥7)``, normals from B to A (negated when ``swap``); returns the rows written."""
-    F = np.empty(32)   # one block for the three (views: an allocation costs more than the checks)
-    pos, q, R = F[:6].reshape((2, 3)), F[6:14].reshape((2, 4)), F[14:].reshape((2, 3, 3))
+    pos, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
     pos[0, 0], pos[0, 1], pos[0, 2], pos[1, 0], pos[1, 1], pos[1, 2] = x0, y0, z0, x1, y1, z1
     q[0, 0], q[0, 1], q[0, 2], q[0, 3], q[1, 0], q[1, 1], q[1, 2], q[1, 3] = qx0, qy0, qz0, qw0, qx1, qy1, qz1, qw1
     for r in range(2):
