@@ -37,8 +37,8 @@ from ..errors import ContactSimError
 from ..memo import derived
 from ..settings import Settings
 from ..shapes import Shape
-from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag, Nested, Rows,
-                        show)
+from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, LENGTH_LIMIT, POINTS, POSITION, POSITIONS, Flag,
+                        Nested, Rows, show)
 from . import bounding, broadphase, pair_kernels, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
 from .vec3 import rotations
@@ -322,15 +322,24 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     within ``validate.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
     its world bounds (positions, shape sizes, margin), as a world would check them.
     """
-    t0 = time.perf_counter()
-    if (settings is None and stats is False and bounding_volume == "auto" and single.plain_margin(margin)
-            and isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
-            and shape_b.type in RANK):
-        bodies = _bodies_cached((shape_a, shape_b))
-        plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
-        c = single.collide_fast(plan, pose_a, pose_b, margin)
-        if c is not None:
-            return c
+    # the fast path (``single``) for plainly valid input; a margin that is plainly one is a float or
+    # an int (not a bool, not a numpy number) within the limit
+    if (settings is None and stats is False and bounding_volume == "auto" and type(margin) in single.NUMBER
+            and 0 <= margin <= LENGTH_LIMIT):
+        hit = _PAIR_CACHE.get((id(shape_a), id(shape_b)))
+        if hit is None or hit[0][0] is not shape_a or hit[0][1] is not shape_b:   # (cached shapes were checked)
+            hit = None
+            if (isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
+                    and shape_b.type in RANK):
+                _bodies_cached((shape_a, shape_b))
+                hit = _PAIR_CACHE[id(shape_a), id(shape_b)]
+        if hit is not None:
+            bodies = hit[1]
+            plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
+            c = single.collide_fast(plan, pose_a, pose_b, margin)
+            if c is not None:
+                return c
+    t0 = time.perf_counter()   # (the stats' total: the fast path keeps none)
     st, margin, bounding_volume = _check_query("collide", settings, margin, bounding_volume)
     _check_shape(shape_a, "collide: shape_a", st)
     _check_shape(shape_b, "collide: shape_b", st)

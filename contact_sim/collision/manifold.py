@@ -139,22 +139,27 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
     ni, di = NI[fi], dI[fi]
     l0, M2 = facesI[fi, 0], facesI[fi, 1]
     M1 = loopR.shape[0]
-    P = np.empty((M1, 3))
-    Q = np.empty((M2, 3))
+    C = 1 + M2 + M1 + M1 * M2
+    # the scratch arrays below as row ranges of one block per shape and type: an allocation (or a
+    # reshape) costs about as much as the arithmetic of a box's patch, a row range nothing
+    G = np.empty((3 * M1 + 5 * M2 + 2 * C, 3))
+    P, Q, eP, sP = G[:M1], G[M1:M1 + M2], G[M1 + M2:2 * M1 + M2], G[2 * M1 + M2:3 * M1 + M2]
+    o = 3 * M1 + M2
+    eQ, sQ, Qp, eQp = G[o:o + M2], G[o + M2:o + 2 * M2], G[o + 2 * M2:o + 3 * M2], G[o + 3 * M2:o + 4 * M2]
+    o += 4 * M2
+    U, pts = G[o:o + C], G[o + C:o + 2 * C]
+    H = np.empty(M1 + M2 + 2 * C)
+    lenP, lenQ, SEP, DEP = H[:M1], H[M1:M1 + M2], H[M1 + M2:M1 + M2 + C], H[M1 + M2 + C:]
+    flags = np.zeros(2 * C, np.bool_)
+    VAL, keep = flags[:C], flags[C:]
+    CODE = np.empty(C, np.int64)
     for m in range(M1):
         set_row(P, m, VR[loopR[m]])
     for q in range(M2):
         set_row(Q, q, VI[loopsI[l0 + q]])
     tol = 1e-9 * scale
-    eP, sP, lenP = np.empty((M1, 3)), np.empty((M1, 3)), np.empty(M1)
     _edges(P, nref, eP, sP, lenP)
-    eQ, sQ, lenQ = np.empty((M2, 3)), np.empty((M2, 3)), np.empty(M2)
     _edges(Q, ni, eQ, sQ, lenQ)
-    C = 1 + M2 + M1 + M1 * M2
-    U = np.empty((C, 3))
-    SEP = np.empty(C)
-    VAL = np.zeros(C, np.bool_)
-    CODE = np.empty(C, np.int64)
     set_row(U, 0, sup_u)
     SEP[0], CODE[0] = sup_sep, CODE_SUPPORT + sup_v
     c = 1
@@ -184,12 +189,10 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
         SEP[c], CODE[c] = t + dot(P[m], nref) - dref, CODE_REFERENCE + loopR[m]
         VAL[c] = inside
         c += 1
-    Qp = np.empty((M2, 3))
     for q in range(M2):
         h = dot(Q[q], nref) - dref
         for j in range(3):
             Qp[q, j] = Q[q, j] - h * nref[j]
-    eQp = np.empty((M2, 3))
     for q in range(M2):
         for j in range(3):
             eQp[q, j] = Qp[(q + 1) % M2, j] - Qp[q, j]
@@ -216,12 +219,10 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
         if VAL[i]:
             best = min(best, SEP[i])
     VAL[0] = best > sup_sep + tol
-    pts, DEP = np.empty((C, 3)), np.empty(C)
     for i in range(C):
         DEP[i] = -SEP[i]
         for j in range(3):
             pts[i, j] = U[i, j] - 0.5 * SEP[i] * nref[j]
-    keep = np.empty(C, np.bool_)
     n = reduce4(pts, DEP, VAL, nref, keep)
     feat = F_FACE if n >= 3 else (F_EDGE if n == 2 else F_VERTEX)
     normal = -nref if ref_is_a else nref

@@ -25,6 +25,8 @@ from .primitives import box_sphere, poly_plane, poly_sphere, sphere_plane, spher
 #: the table's kernels, in the order ``call`` branches on
 KERNELS = (sphere_plane, sphere_sphere, poly_plane, box_sphere, poly_poly, poly_sphere, cylinder_plane,
            cylinder_sphere, mesh_sphere, mesh_poly, mesh_mesh)
+#: the place of the one kernel that reads ``trees``
+MESH_MESH = KERNELS.index(mesh_mesh)
 
 
 def index(ra, rb):

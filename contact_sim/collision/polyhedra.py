@@ -242,12 +242,16 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
               out_i, out_f):
     """Convex polyhedra A and B: SAT with Gauss-map pruning, then the edge or face contacts."""
     nv, npl, ne = col_max(si, SI_NV, shape_of, a, b), col_max(si, SI_NP, shape_of, a, b), col_max(si, SI_NE, shape_of, a, b)
-    VA, VB = np.empty((nv, 3)), np.empty((nv, 3))
-    NA, NB = np.empty((npl, 3)), np.empty((npl, 3))
-    dA, dB = np.empty(npl), np.empty(npl)
-    side, NBt = np.empty(npl), np.empty((3, npl))
-    eb2, eb3 = np.empty(ne, np.int64), np.empty(ne, np.int64)
-    probe_all = np.empty((8, 3))
+    # scratch as row ranges of a few blocks (an allocation, or a reshape, costs about what a box's
+    # face axes do; a row range is free)
+    G = np.empty((2 * nv + 2 * npl + 8, 3))
+    VA, VB, NA, NB = G[:nv], G[nv:2 * nv], G[2 * nv:2 * nv + npl], G[2 * nv + npl:2 * nv + 2 * npl]
+    probe_all = G[2 * nv + 2 * npl:]
+    H = np.empty(3 * npl)
+    dA, dB, side = H[:npl], H[npl:2 * npl], H[2 * npl:]
+    NBt = np.empty((3, npl))
+    eb = np.empty(2 * ne, np.int64)
+    eb2, eb3 = eb[:ne], eb[ne:]
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         sa, sb = shape_of[a[i]], shape_of[b[i]]
