@@ -473,6 +473,10 @@ class World(BodyInput):
         non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
         is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
+        if self._gravity.flags.writeable:
+            # a deep copy (or an unpickled world) made gravity writable again: read-only as the setter
+            # leaves it, or every kernel that reads it would compile a second version (~25 s)
+            self._gravity.flags.writeable = False
         # the stepper edits the state arrays in place and replaces the other per-step attributes:
         # a copy of the one and a shallow copy of the other undo any step
         saved = self.s.copy(), dict(self.__dict__)

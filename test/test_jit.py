@@ -43,3 +43,25 @@ def test_njit_is_numba_with_cache_or_the_identity():
     assert add(2, 3) == 5 and mul(2, 3) == 6
     if jit.COMPILED:
         assert add.__class__.__name__ == "CPUDispatcher" and add._cache.__class__.__name__ != "NullCache"
+
+
+def test_a_deep_copied_world_steps_with_the_kernels_already_compiled():
+    """``copy.deepcopy`` makes the world's read-only gravity writable, and a writable array is
+    another type to numba: every kernel reading it would compile a second version (~25 s at the
+    first step of the copy). The step makes it read-only again, so the copy's step reuses the
+    compiled versions (and where numba compiles, the signature count shows it)."""
+    import copy
+
+    from contact_sim.response import compiled_step
+
+    w = cs.World(settings=cs.Settings(toi="next_step"))
+    w.add_body("ground", cs.Plane(), kind="static")
+    w.add_body("box", cs.Box((0.4, 0.4, 0.2)), mass=1.0, position=(0, 0, 0.1))
+    w.step(0.01)
+    twin = copy.deepcopy(w)
+    assert twin.gravity.flags.writeable      # what deepcopy does to a read-only array
+    versions = len(getattr(compiled_step._step, "signatures", ()))
+    twin.step(0.01)
+    assert not twin.gravity.flags.writeable
+    assert len(getattr(compiled_step._step, "signatures", ())) == versions
+    assert np.array_equal(twin.s.pos, (w.step(0.01), w.s.pos)[1])

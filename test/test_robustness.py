@@ -346,3 +346,16 @@ def test_a_spin_with_no_split_term_takes_one_exact_sub_step(shape, omega, monkey
     exact = np.concatenate([axis * np.sin(angle / 2), [np.cos(angle / 2)]])
     q = w.body("b").orientation
     assert min(np.abs(q - exact).max(), np.abs(q + exact).max()) < 1e-9 * max(1.0, angle)
+
+
+def test_an_empty_world_steps_and_detects_nothing():
+    """No bodies yet (a node's world before its scene, a script adding bodies later): a step only
+    advances time and detection finds nothing. Its geometry table has no rows, which once reached
+    the narrow phase's kernels and failed there with numba's typing error."""
+    w = cs.World()
+    w.step(0.01)
+    assert w.time == 0.01 and len(w.contacts) == 0
+    assert len(w.detect()) == 0 and w.last_detection.candidate_pairs == 0
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=(0, 0, 1.0))
+    w.step(0.01)   # one body: no pair either
+    assert w.s.pos[0, 2] == pytest.approx(1.0 - 0.5 * 9.81 * 0.01 ** 2, rel=1e-15)

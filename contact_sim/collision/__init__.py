@@ -179,6 +179,11 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
         R = np.empty((len(quat), 3, 3))
         rotations(np.ascontiguousarray(quat, float), R)
     t1 = time.perf_counter()
+    if len(ia) == 0:
+        # no candidate pair (fewer than two bodies, or none near another): no kernel to run, and an
+        # empty world's geometry table has no rows to type the kernels' arguments by
+        stats.seconds = dict(timings, bounding=0.0, narrow=0.0, total=time.perf_counter() - t0)
+        return Contacts.empty(), stats
     ia, ib = np.ascontiguousarray(ia, np.int64), np.ascontiguousarray(ib, np.int64)
     if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank) and filter
         swap, kk, a, b = bounding.kept_pairs(ia, ib, bodies.rank, bv != "obb", bv != "sphere", bodies.shape_of,
