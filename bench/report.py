@@ -56,7 +56,7 @@ def detection():
     out = ["### Detection (`bench/bench_detect.py`)", "",
            "500 mixed bodies (a third each spheres, boxes, 32-point hulls), one process, engines taking turns on the "
            "same poses; warm = the query repeated (median), cold = the first query after building the world "
-           "(contact_sim: after `load_scene`, shape preparation included). FCL = python-fcl's dynamic AABB tree on "
+           "(contact_sim: after `load_scene`, shape preparation included; median of 5 fresh builds). FCL = python-fcl's dynamic AABB tree on "
            "primitives, every colliding pair.", ""]
     out += table(["scene", "touching pairs", "contact_sim warm ms", "MuJoCo", "FCL", "FCL + contacts", "pybullet",
                   "trimesh (FCL meshes)", "contact_sim cold ms", "ours / FCL warm"],
