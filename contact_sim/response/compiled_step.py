@@ -222,8 +222,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     rested = not (counts.bounced > 0 and np.all(vn1 > impact_speed))
     kr, it_r, residual_r, rest_bound = 0, 0, 0.0, 0.0
     lam_r = np.zeros((k, 3))
-    v_end, w_end = vel_s + 0.0, omega_s + 0.0
-    v_start_end, w_start_end = v_end, w_end
+    half_dv, half_dw = np.zeros((0, 3)), np.zeros((0, 3))   # the force's half-kicks (none unless it rests)
     if rested:
         for c in range(k):
             resting[c] = not (bounced[c] and vn1[c] > impact_speed)
@@ -236,6 +235,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
         siang_a, siang_b, sK = (iang_a, iang_b, K) if whole else (iang_a[ri], iang_b[ri], K[ri])
         sima, simb, slocal = (ima, imb, local) if whole else (ima[ri], imb[ri], local[ri])
         smu_s, smu_d = (mu_s, mu_d) if whole else (mu_s[ri], mu_d[ri])
+        v_end = np.empty((n, 3))
         for i in range(n):
             for x in range(3):
                 v_end[i, x] = vel_s[i, x] + gravity_rows[i, x] * dt
@@ -262,6 +262,12 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
                 wv[j, x] = wv[j, x] / dt
             for x in range(3):
                 lam_r[ri[j], x] = lam[j, x]
+        # the force's velocity change over the step, as two half-kicks (stepper._advance_stage)
+        half_dv, half_dw = np.empty((n, 3)), np.empty((n, 3))
+        for i in range(n):
+            for x in range(3):
+                half_dv[i, x] = 0.5 * (v_end[i, x] - v_start_end[i, x]) * 1.0
+                half_dw[i, x] = 0.5 * (w_end[i, x] - w_start_end[i, x]) * 1.0
     # ---- store impulses (stepper._store_impulses, record): the impact impulse plus the resting
     # impulse over the whole step
     kept = 0
@@ -279,13 +285,6 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     # ---- advance (stepper._advance_stage): kick half, drift, kick half (free motion when nothing rests)
     vel[:] = vel_s
     omega[:] = omega_s
-    half_dv = np.zeros((n if rested else 0, 3))
-    half_dw = np.zeros((n if rested else 0, 3))
-    if rested:
-        for i in range(n):
-            for x in range(3):
-                half_dv[i, x] = 0.5 * (v_end[i, x] - v_start_end[i, x]) * 1.0
-                half_dw[i, x] = 0.5 * (w_end[i, x] - w_start_end[i, x]) * 1.0
     drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
                                 kinematic, half_dv, half_dw, rested, dt, dynamics.ISOTROPIC_TOLERANCE,
                                 dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
