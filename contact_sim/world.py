@@ -164,6 +164,14 @@ class World(BodyInput):
         self._gravity = g
         self._gravity_norm = math.sqrt(float(g @ g))
 
+    def __setstate__(self, state):
+        """A copy (``copy.deepcopy``) or an unpickled world: copying an array makes it writable,
+        and a writable array is another type to numba, so every kernel reading gravity would
+        compile a second version (~25 s at the copy's first step). Read-only again, as the setter
+        leaves it."""
+        self.__dict__.update(state)
+        self._gravity.flags.writeable = False
+
     def gravity_norm(self):
         """``|gravity|`` (m/s²; ``np.linalg.norm``'s value, kept from the last assignment)."""
         return self._gravity_norm
@@ -473,10 +481,6 @@ class World(BodyInput):
         non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
         is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
-        if self._gravity.flags.writeable:
-            # a deep copy (or an unpickled world) made gravity writable again: read-only as the setter
-            # leaves it, or every kernel that reads it would compile a second version (~25 s)
-            self._gravity.flags.writeable = False
         # the stepper edits the state arrays in place and replaces the other per-step attributes:
         # a copy of the one and a shallow copy of the other undo any step
         saved = self.s.copy(), dict(self.__dict__)
