@@ -152,8 +152,9 @@ def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
 
 @pytest.mark.parametrize("rule", cs.settings.COMBINE_RULES)
 def test_mixed_materials_combine_in_the_kernel_as_in_the_python_stages(rule, monkeypatch, answers):
-    """Three materials under each combine rule (a bouncing ball on a sliding box on the ground):
-    the kernel's coefficients (``prepare.coefficient_rows``) are ``prepare.coefficients``' bit for bit."""
+    """Three materials under each combine rule (a bouncing ball on a sliding box on the ground): the
+    contacts' coefficients (``prepare.coefficient_rows``, which both paths call) are
+    ``settings.combine``'s exactly, and the scene steps bit for bit both ways."""
     def scene():
         w = cs.World(settings=cs.Settings(toi="next_step", combine=rule),
                      materials={"rubber": cs.Material(restitution=0.8, friction=0.9, static_friction=1.1),
@@ -165,6 +166,19 @@ def test_mixed_materials_combine_in_the_kernel_as_in_the_python_stages(rule, mon
         w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0.1, 0, 0.5), velocity=(0.5, 0, -1.0),
                    material="rubber")
         return w
+
+    from contact_sim.response import models, prepare
+    from contact_sim.settings import combine
+
+    w = scene()
+    w.s.pos[2, 2] = 0.3   # the ball on the box: two pairs, each of two materials
+    c = w.detect()
+    assert len(set(zip(c.body_a.tolist(), c.body_b.tolist()))) == 2
+    e, mu_s, mu_d = prepare.coefficients(w, c, models.choose(w, 0.005))
+    a, b = c.body_a, c.body_b
+    assert np.array_equal(e, combine(w.restitution[a], w.restitution[b], rule))
+    assert np.array_equal(mu_d, combine(w.friction[a], w.friction[b], rule))
+    assert np.array_equal(mu_s, np.maximum(combine(w.static_friction[a], w.static_friction[b], rule), mu_d))
 
     _, solves = _both_ways(scene, 80, monkeypatch, answers, dt=0.005)
     assert answers.count(compiled_step.DONE) == len(answers) > 70

@@ -18,7 +18,7 @@ from .. import dynamics
 from ..jit import njit
 from ..kinds import DYNAMIC
 from ..memo import derived
-from ..settings import combine
+from ..settings import COMBINE_RULES
 from . import models as _models
 from . import solver
 from . import toi as toi_mod
@@ -221,32 +221,24 @@ def inv_inertia(world, m, R):
 
 
 def coefficients(world, c, m):
-    """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``."""
-    rule = world.settings.combine
-    a, b = c.body_a, c.body_b
-    k = len(a)
-    kinetic = m.friction and m.response != "kinematic"
-    uniform = _uniform_material(world)
-    if uniform is not None:   # one material everywhere: every rule gives its own values
-        e, mu_s, mu_d = uniform
-        out = np.empty((3, k))   # one block, three rows
-        out[0], out[1], out[2] = e, (mu_s if kinetic else 0.0), (mu_d if kinetic else 0.0)
-        return out[0], out[1], out[2]
-    e = combine(world.restitution[a], world.restitution[b], rule)
-    if not kinetic:
-        z = np.zeros(k)
-        return e, z, z
-    mu_d = combine(world.friction[a], world.friction[b], rule)
-    mu_s = np.maximum(combine(world.static_friction[a], world.static_friction[b], rule), mu_d)
-    return e, mu_s, mu_d
+    """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``
+    (friction zero unless the models' friction acts): ``coefficient_rows``, the compiled step's too."""
+    k = len(c)
+    out = np.empty((3, k))   # one block, three rows
+    cc = np.ascontiguousarray
+    coefficient_rows(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(world.restitution, dtype=float),
+                     cc(world.friction, dtype=float), cc(world.static_friction, dtype=float),
+                     COMBINE_RULES.index(world.settings.combine), m.friction and m.response != "kinematic",
+                     out[0], out[1], out[2])
+    return out[0], out[1], out[2]
 
 
 @njit
 def coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d):
     """``coefficients`` in a loop, for the compiled step: ``a, b (K,)`` the contacts' bodies, the
     bodies' materials ``(N,)``, ``rule`` the index of ``settings.combine`` in ``COMBINE_RULES``;
-    writes ``e, mu_s, mu_d (K,)`` (friction zero unless ``kinetic``). The same operations as
-    ``settings.combine`` and ``np.maximum``, so the same values."""
+    writes ``e, mu_s, mu_d (K,)`` (friction zero unless ``kinetic``), static friction at least the
+    dynamic. ``settings.combine``'s operations, so its values (tests hold the two equal)."""
     for c in range(a.shape[0]):
         ia, ib = a[c], b[c]
         e[c] = _combine(restitution[ia], restitution[ib], rule)
@@ -274,19 +266,6 @@ def _combine(x, y, rule):
     if rule == 3:
         return x * y
     return math.sqrt(x * y)
-
-
-def _uniform_material(world):
-    """``(restitution, static friction, dynamic friction)`` when every body has the same
-    coefficients, else ``None`` (cached; the arrays are replaced when a body is added)."""
-    r, f, sf = world.restitution, world.friction, world.static_friction
-
-    def build():
-        same = len(r) and (r == r[0]).all() and (f == f[0]).all() and (sf == sf[0]).all()
-        # combine() keeps equal coefficients exactly; static friction is at least the dynamic one
-        return (float(r[0]), max(float(sf[0]), float(f[0])), float(f[0])) if same else None
-
-    return derived(world, "uniform_material", (r, f, sf), build)
 
 
 def rows(world, c, inv_inertia_w, rel_vel, m):
