@@ -331,15 +331,11 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     # an int (not a bool, not a numpy number) within the limit
     if (settings is None and stats is False and bounding_volume == "auto" and type(margin) in single.NUMBER
             and 0 <= margin <= LENGTH_LIMIT):
-        hit = _PAIR_CACHE.get((id(shape_a), id(shape_b)))
-        if hit is None or hit[0][0] is not shape_a or hit[0][1] is not shape_b:   # (cached shapes were checked)
-            hit = None
-            if (isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
-                    and shape_b.type in RANK):
-                _bodies_cached((shape_a, shape_b))
-                hit = _PAIR_CACHE[id(shape_a), id(shape_b)]
-        if hit is not None:
-            bodies = hit[1]
+        bodies = _cached_pair(shape_a, shape_b)   # (cached shapes were checked)
+        if bodies is None and (isinstance(shape_a, Shape) and isinstance(shape_b, Shape) and shape_a.type in RANK
+                               and shape_b.type in RANK):
+            bodies = _bodies_cached((shape_a, shape_b))
+        if bodies is not None:
             plan = bodies.__dict__.get("plan") or bodies.__dict__.setdefault("plan", single.PairPlan(bodies))
             c = single.collide_fast(plan, pose_a, pose_b, margin)
             if c is not None:
@@ -361,15 +357,20 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
 _PAIR_CACHE = {}
 
 
+def _cached_pair(shape_a, shape_b):
+    """The ``_Bodies`` of these two very shape objects when ``_bodies_cached`` holds them, else None."""
+    hit = _PAIR_CACHE.get((id(shape_a), id(shape_b)))
+    return hit[1] if hit is not None and hit[0][0] is shape_a and hit[0][1] is shape_b else None
+
+
 def _bodies_cached(shapes):
-    key = (id(shapes[0]), id(shapes[1]))
-    hit = _PAIR_CACHE.get(key)
-    if hit is not None and hit[0][0] is shapes[0] and hit[0][1] is shapes[1]:
-        return hit[1]
+    b = _cached_pair(*shapes)
+    if b is not None:
+        return b
     if len(_PAIR_CACHE) > 256:
         _PAIR_CACHE.clear()
     b = _Bodies(list(shapes))
-    _PAIR_CACHE[key] = (shapes, b)
+    _PAIR_CACHE[id(shapes[0]), id(shapes[1])] = (shapes, b)
     return b
 
 
