@@ -1,7 +1,7 @@
 """Before and after in one process: the step of each scene for an earlier commit and the working
 tree, taking turns round by round.
 
-    python bench/bench_ab.py 2b2d200 [--rounds 20]
+    python bench/bench_ab.py 2b2d200 [--rounds 20] [--scenes resting_10,default_scene]
 
 The earlier commit's package is copied as ``contact_sim_old`` (its imports are relative) into a
 directory kept per commit under the system's temp dir, so its compiled kernels are cached there
@@ -69,6 +69,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=20)
     ap.add_argument("--steps", type=int, default=100, help="steps per turn")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "ab.csv"))
+    ap.add_argument("--scenes", help="comma-separated subset of the scenes (default: all)")
     args = ap.parse_args()
     sys.path[:0] = [old_package(args.old), ROOT, HERE]
     warnings.simplefilter("ignore")
@@ -81,7 +82,11 @@ def main():
     worlds = {"old": scenes(old), "new": scenes(new)}
     rows = []
     print(f"{'scene':<16} {args.old + ' ms':>12} {'tree ms':>10} {'old/new':>8}  bit-identical")
-    for name in worlds["new"]:
+    wanted = args.scenes.split(",") if args.scenes else list(worlds["new"])
+    unknown = set(wanted) - set(worlds["new"])
+    if unknown:
+        ap.error(f"unknown scenes {sorted(unknown)}; the scenes are {', '.join(worlds['new'])}")
+    for name in wanted:
         wo, wn = worlds["old"][name], worlds["new"][name]
         for _ in range(30):   # settle, and load or compile the kernels both take
             wo.step()

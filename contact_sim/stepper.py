@@ -89,6 +89,7 @@ def _impulse_step(world, dt, m):
         _detect_stage(ctx)               # contacts within the (speculative) margin
         if ctx.k and compiled_step.run(ctx):   # the stages below in one compiled call (next_step, no push)
             break
+        _velocity_stage(ctx)             # relative velocities; the speculative contacts that can close
         if ctx.k:
             prepare.prepare_contacts(ctx)  # rows, coefficients, approach speeds; which touch, close, bounce
             impact.impact_solve(ctx)     # compression with friction, then restitution (its own stage)
@@ -108,24 +109,35 @@ def _impulse_step(world, dt, m):
 
 
 def _detect_stage(ctx):
-    """``ctx.contacts`` and ``ctx.rel_vel (K,3)``: the contacts within the margin (with speculative
-    contacts, the look-ahead, keeping only the separated ones whose gap can close within the rest
-    of the step); the sub-step's other fields are reset."""
-    world, m = ctx.world, ctx.models
+    """``ctx.contacts``: the contacts within the margin (with speculative contacts, the
+    look-ahead: ``ctx.look_ahead = (t_left, margin)`` then says which of them ``_velocity_stage`` keeps);
+    the sub-step's other fields are reset."""
+    world = ctx.world
     margin = world.settings.contact_margin
     det_margin = prepare.speculative_margin(world, ctx.t_left) if ctx.speculative else margin
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
     c = toi_mod.mark_swept(_detect(world, det_margin, ctx.R), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
-    if ctx.speculative and det_margin > margin and len(c):
-        rel_vel, near = prepare.relative_velocity(world, c, m, closing=(ctx.t_left, margin))
+    ctx.look_ahead = (ctx.t_left, margin) if ctx.speculative and det_margin > margin else None
+    ctx.contacts, ctx.rel_vel = c, None
+    ctx.rest_impulse = ctx.rest_mask = ctx.dv_rest = ctx.dw_rest = None
+
+
+def _velocity_stage(ctx):
+    """``ctx.rel_vel (K,3)``: the contact points' relative velocities, keeping of the speculative
+    contacts (``ctx.look_ahead``) only the separated ones whose gap can close within the rest of the
+    step (the compiled step does this itself)."""
+    world, m, c = ctx.world, ctx.models, ctx.contacts
+    if ctx.rel_vel is not None:   # the compiled step has done it (and found no contact left)
+        return
+    if ctx.look_ahead is not None and len(c):
+        rel_vel, near = prepare.relative_velocity(world, c, m, closing=ctx.look_ahead)
         if near is not None:
             c, rel_vel = c.select(near), rel_vel[near]
     else:
         rel_vel = prepare.relative_velocity(world, c, m)
     ctx.contacts, ctx.rel_vel = c, rel_vel
-    ctx.rest_impulse = ctx.rest_mask = ctx.dv_rest = ctx.dw_rest = None
 
 
 def _time_of_impact(ctx):

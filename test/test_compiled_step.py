@@ -64,10 +64,10 @@ def answers(monkeypatch):
     kernel = compiled_step._step
 
     def watched(*args):
-        before = [x.copy() for x in args[6:10]]   # pos, vel, quat, omega
+        before = [x.copy() for x in args[10:14]]   # pos, vel, quat, omega
         result = kernel(*args)
         if result[0] != compiled_step.DONE:
-            assert all(np.array_equal(x, y) for x, y in zip(before, args[6:10])), "declined but moved the bodies"
+            assert all(np.array_equal(x, y) for x, y in zip(before, args[10:14])), "declined but moved the bodies"
         seen.append(result[0])
         return result
 
@@ -123,8 +123,10 @@ def test_sliding_friction_is_finished_by_gauss_seidel_in_the_compiled_path(monke
 def test_the_default_scene_steps_bit_for_bit_as_the_python_stages(monkeypatch, answers):
     w0 = cs.load_scene(default_scene_path())
     _, solves = _both_ways(lambda: cs.load_scene(default_scene_path()), 900, monkeypatch, answers, dt=w0.settings.dt)
-    assert answers == [compiled_step.DONE] * len(answers)   # falling, bouncing, resting: every step compiled
-    assert len(answers) > 800 and _bounces(solves) > 5
+    # falling, bouncing, resting: every step with a contact compiled (NONE_NEAR: the speculative
+    # contacts found cannot close within the step, so the step has none)
+    assert set(answers) <= {compiled_step.DONE, compiled_step.NONE_NEAR}
+    assert answers.count(compiled_step.DONE) > 800 and _bounces(solves) > 5
 
 
 @pytest.mark.exact

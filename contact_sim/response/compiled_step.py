@@ -21,6 +21,8 @@ correction's cap and its displacement after the step stay in Python (``correctio
 
 Shapes: ``N`` bodies, ``K`` contacts.
 """
+from operator import is_
+
 import numpy as np
 
 from .. import dynamics
@@ -39,8 +41,9 @@ from .energy import restitution_cap
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
 from .resting import _work_bound
 
-#: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it
-DONE, IMMOVABLE, LARGE, PUSHED = range(4)
+#: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it (``NONE_NEAR``:
+#: no speculative contact can close, the step has no contact left)
+DONE, IMMOVABLE, LARGE, PUSHED, NONE_NEAR = range(5)
 
 
 def applies(ctx):
@@ -70,23 +73,29 @@ def run(ctx):
     has_old = old is not None and len(old[0]) > 0
     if not has_old:
         old = _NO_OLD
-    (status, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out) = _step(
+    look = ctx.look_ahead
+    bodies = _body_arrays(world)
+    (status, near, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out) = _step(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
-        cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
-        s.pos, s.vel, s.quat, s.omega, cc(s.principal_q), cc(s.principal_moments), cc(world.inertia_body),
-        cc(world.inv_mass, dtype=float), prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity, ctx.gravity,
-        bm.dynamic, bm.rotating, bm.kinematic, cc(world.mass, dtype=float), cc(world.particle),
-        cc(world.restitution, dtype=float), cc(world.friction, dtype=float), cc(world.static_friction, dtype=float),
+        cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
+        *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
+        s.pos, s.vel, s.quat, s.omega, *bodies[:4], prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity,
+        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
         COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
-        has_old, toi_mod._extents(world),
+        has_old, bodies[9],
         float(ctx.dt), float(st.contact_margin), ctx.speculative, toi_mod.TOI_TOLERANCE,
         prepare.SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
         float(st.split_slop), float(st.split_beta),
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance))
+    if status == NONE_NEAR:   # no contact left: the sub-step is free motion, which the Python stages run
+        ctx.contacts, ctx.rel_vel = c.select(near), np.zeros((0, 3))
     if status != DONE:
         return False
+    if near.shape[0]:   # speculative contacts that cannot close are not the step's
+        c = ctx.contacts = c.select(near)
+        k = len(c)
     residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
@@ -111,7 +120,29 @@ def run(ctx):
     return True
 
 
+def _body_arrays(world):
+    """The per-body arrays ``_step`` reads that a step never replaces, in its argument order:
+    ``(principal_q, principal_moments, inertia_body, inv_mass, mass, particle, restitution, friction,
+    static_friction, extents)``, contiguous and of the kernel's types. Kept on the world while the
+    very same arrays are there (a body added or removed, or a material assigned, replaces them) and
+    only when they needed no conversion, so an edit in place is still seen."""
+    s = world.s
+    raw = (s.principal_q, s.principal_moments, world.inertia_body, world.inv_mass, world.mass, world.particle,
+           world.restitution, world.friction, world.static_friction, world.kind)
+    hit = world.__dict__.get("_step_bodies")
+    if hit is not None and all(map(is_, hit[0], raw)):
+        return hit[1]
+    cc = np.ascontiguousarray
+    arrays = (cc(raw[0], dtype=float), cc(raw[1], dtype=float), cc(raw[2], dtype=float), cc(raw[3], dtype=float),
+              cc(raw[4], dtype=float), cc(raw[5]), cc(raw[6], dtype=float), cc(raw[7], dtype=float),
+              cc(raw[8], dtype=float), toi_mod._extents(world))
+    if all(map(is_, arrays[:9], raw[:9])):   # world.kind: the shapes (the extents) changed with it
+        world.__dict__["_step_bodies"] = (raw, arrays)
+    return arrays
+
+
 _NO_OLD = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
+_NO_LOOK = (0.0, 0.0)
 
 
 @njit
@@ -121,24 +152,40 @@ def _min(x, y):
 
 
 @njit
-def _step(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
+def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
           inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, restitution, friction,
           static_friction, rule, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance,
           simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance):
     """``run``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
-    (K,)``, ``point, normal, rel_vel (K,3)``, ``depth (K,)``; bodies as ``free_motion.advance`` and
+    (K,)``, ``point, normal (K,3)``, ``depth (K,)``; with ``look`` only the speculative ones whose
+    gap can close within ``look_dt`` are kept (``stepper._velocity_stage``'s filter, with
+    ``look_base`` the contact margin and ``g`` gravity's magnitude); bodies ``kind (N,)``, as ``free_motion.advance`` and
     ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass
     (N,)``, ``particle (N,) bool``, their materials ``restitution, friction, static_friction (N,)``
     combined by ``rule`` (``prepare.coefficient_rows``); the contact cache ``a0, b0 (K0,)``, ``p0
-    (K0,3)``, ``values (K0,4)``. Returns ``(status, local (K,3), normal_impulse (K,),
+    (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), local (K,3), normal_impulse (K,),
     friction_impulse, impulse (K,3), vn0 (K,), used (K,), resting (K,), wv (K,4), vp, wp (N,3),
     out (10,))``: ``status`` ``DONE``, or with the world untouched why not (``IMMOVABLE``,
-    ``LARGE``, ``PUSHED``); the points in A's frame, the impulse columns, the approach speeds, the
+    ``LARGE``, ``PUSHED``, ``NONE_NEAR``); the contacts kept by the filter when it dropped some
+    (the other outputs are of those), the points in A's frame, the impulse columns, the approach speeds, the
     contacts that count, those the resting solve took and the cache's values of them (the first of
     ``wv``'s rows), the correction's pseudo-velocities, and ``out = [residual, deepest,
     rest_bound, drift, kick_error, sweeps, used, planned, resting solve ran, contacts resting]``.
     The outputs are allocated here: from Python each allocation and argument costs more."""
     k, n = a.shape[0], pos.shape[0]
+    # ---- relative velocity (stepper._velocity_stage): the points' velocities, the look-ahead's filter
+    rel_vel = np.empty((k, 3))
+    near = np.empty(k if look else 0, np.bool_)
+    kept = prepare._relative_velocity(a, b, point, pos, vel, omega, kind, False, rel_vel, normal, depth, g, look_dt,
+                                      look_base, near)
+    if look and kept < k:
+        if kept == 0:
+            z1, z3, b1, w4 = np.zeros(0), np.zeros((0, 3)), np.zeros(0, np.bool_), np.zeros((0, 4))
+            return NONE_NEAR, near, z3, z1, z3, z3, z1, b1, b1, w4, z3, z3, np.zeros(10)
+        a, b, point, normal, depth, rel_vel = a[near], b[near], point[near], normal[near], depth[near], rel_vel[near]
+        k = kept
+    else:
+        near = near[:0]
     local, wv = np.empty((k, 3)), np.empty((k, 4))
     normal_impulse, vn0 = np.empty(k), np.empty(k)
     friction_impulse, impulse = np.empty((k, 3)), np.empty((k, 3))
@@ -153,7 +200,7 @@ def _step(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_
                         speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop,
                         split_beta, direct_max, max_iterations, tolerance, local, normal_impulse, friction_impulse,
                         impulse, vn0, used, resting, wv, vp, wp, out)
-    return status, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out
+    return status, near, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out
 
 
 @njit

@@ -35,7 +35,8 @@ class StepContext:
     t_left: float = 0.0            # time left in the step
     R: np.ndarray = None           # (N,3,3) the bodies' rotation matrices at the sub-step's start (detect)
     contacts: object = None        # Contacts of the sub-step (detect)
-    rel_vel: np.ndarray = None     # (K,3) relative velocity of the contact points (detect)
+    look_ahead: tuple = None       # (t_left, margin): the speculative contacts to filter (detect)
+    rel_vel: np.ndarray = None     # (K,3) relative velocity of the contact points (velocity stage)
     rows: object = None            # solver.Rows (prepare)
     local: np.ndarray = None       # (K,3) points in A's frame: the contacts' identity across steps
     restitution: np.ndarray = None  # (K,) restitution, 0 where the rebound would rest
