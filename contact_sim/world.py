@@ -70,9 +70,21 @@ class _State:
         self.pose_pos = np.zeros((0, 3))      # centre of mass and orientation at that last pose: the
         self.pose_quat = np.zeros((0, 4))     # finite differences start there, not where the body drifted to
 
+    #: the arrays a step writes; the others change only when poses are given or bodies added
+    MOTION = ("pos", "vel", "quat", "omega")
+
     def copy(self):
         c = _State.__new__(_State)   # not __init__: its empty arrays would be replaced at once
         for n in self.NAMES:
+            setattr(c, n, getattr(self, n).copy())
+        return c
+
+    def motion_copy(self):
+        """A state that undoes a step: the ``MOTION`` arrays copied, the others shared (a step never
+        writes them; a test checks it)."""
+        c = _State.__new__(_State)
+        c.__dict__.update(self.__dict__)
+        for n in self.MOTION:
             setattr(c, n, getattr(self, n).copy())
         return c
 
@@ -483,7 +495,7 @@ class World(BodyInput):
         dt = self._check_dt(dt)
         # the stepper edits the state arrays in place and replaces the other per-step attributes:
         # a copy of the one and a shallow copy of the other undo any step
-        saved = self.s.copy(), dict(self.__dict__)
+        saved = self.s.motion_copy(), dict(self.__dict__)
         try:
             stepper.step(self, dt)
         except ContactSimError as exc:

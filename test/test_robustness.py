@@ -235,6 +235,29 @@ def test_a_step_that_would_leave_a_non_finite_state_is_undone_and_names_the_bodi
     assert _finite(w)
 
 
+@pytest.mark.parametrize("response, toi", [("impulse", "next_step"), ("impulse", "fractional"), ("penalty", "auto")])
+def test_a_step_writes_only_the_motion_arrays_its_undo_copies(response, toi):
+    """``World.step`` undoes a failed step from a copy of ``_State.MOTION`` only, sharing the
+    other state arrays: a step (impacts, resting, a kinematic body driven by poses, a tumbling
+    body) must never write those."""
+    w = _ground_world()
+    w.settings = cs.Settings(response=response, toi=toi)
+    w.add_body("paddle", cs.Box([0.05, 0.4, 0.3]), kind="kinematic", position=[-0.3, 0, 0.15])
+    w.add_body("crate", cs.Box([0.3, 0.2, 0.1]), mass=1.0, position=[0, 0, 0.3], angular_velocity=[1, 5, 0.3])
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[0.4, 0, 0.5], velocity=[-1, 0, 0])
+    moved = set()
+    for i in range(120):
+        w.set_pose("paddle", [-0.3 + 0.004 * i, 0, 0.15], [0, 0, 0, 1], stamp=w.time)
+        before = {n: getattr(w.s, n).copy() for n in w.s.NAMES}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PenaltyStiffnessWarning)   # the default spring at this dt
+            w.step()
+        for n in w.s.NAMES:
+            if not np.array_equal(getattr(w.s, n), before[n], equal_nan=True):
+                moved.add(n)
+    assert moved == set(w.s.MOTION)   # not vacuous: the step did move every motion array
+
+
 # ---------------------------------------------------------------- penalty defaults
 @pytest.mark.parametrize("shape, points", [(cs.Box([0.2] * 3), 4), (cs.Sphere(0.1), 1)])
 def test_penalty_defaults_rest_stably_at_mg_over_k(shape, points):

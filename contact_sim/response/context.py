@@ -18,8 +18,10 @@ IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce,
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, init=False)
 class StepContext:
+    """Made once per step by ``start``; a field's default is its class attribute until a stage
+    writes it (``__init__`` sets only what the step fixes: a step is short, its context cheap)."""
     world: object
     models: object                 # response.models.Models chosen for the step
     dt: float
@@ -70,15 +72,21 @@ class StepContext:
     rest_bound: float = 0.0        # bound of the resting force's first-order work error (J)
     kick_error: float = 0.0        # bound of the torque half-kicks' first-order energy error (J)
 
-    @classmethod
-    def start(cls, world, dt, models):
+    def __init__(self, world, models, dt):
         st = world.settings
         bm = world.body_masks()   # cached: read-only, never written by the stages
-        exact_toi = models.toi in ("fractional", "swept")
-        gdt = world.gravity_norm() * dt
-        return cls(world, models, dt, settings=st, exact_toi=exact_toi, speculative=st.speculative and not exact_toi,
-                   gdt=gdt, impact_speed=IMPACT_SPEED_FRACTION * gdt, gravity=bm.gravity, rotating=bm.rotating,
-                   t_left=dt)
+        self.world, self.models, self.dt, self.settings, self.t_left = world, models, dt, st, dt
+        self.exact_toi = exact_toi = models.toi in ("fractional", "swept")
+        self.speculative = st.speculative and not exact_toi
+        self.gdt = gdt = world.gravity_norm() * dt
+        self.impact_speed = IMPACT_SPEED_FRACTION * gdt
+        self.gravity, self.rotating = bm.gravity, bm.rotating
+        self.records = []
+
+    @classmethod
+    def start(cls, world, dt, models):
+        """The context of a step of ``dt`` with ``models`` (``response.models.Models``)."""
+        return cls(world, models, dt)
 
     @property
     def k(self):
