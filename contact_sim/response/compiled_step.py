@@ -75,7 +75,7 @@ def run(ctx):
         old = _NO_OLD
     look = ctx.look_ahead
     bodies = _body_arrays(world)
-    (status, near, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out) = _step(
+    status, near, f3, f1, flags, wv, pw, out = _step(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
@@ -96,6 +96,10 @@ def run(ctx):
     if near.shape[0]:   # speculative contacts that cannot close are not the step's
         c = ctx.contacts = c.select(near)
         k = len(c)
+    local, friction_impulse, impulse = f3   # views of the kernel's blocks (one returned array each)
+    normal_impulse, vn0 = f1
+    used, resting = flags
+    vp, wp = pw
     residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
@@ -163,15 +167,16 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass
     (N,)``, ``particle (N,) bool``, their materials ``restitution, friction, static_friction (N,)``
     combined by ``rule`` (``prepare.coefficient_rows``); the contact cache ``a0, b0 (K0,)``, ``p0
-    (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), local (K,3), normal_impulse (K,),
-    friction_impulse, impulse (K,3), vn0 (K,), used (K,), resting (K,), wv (K,4), vp, wp (N,3),
-    out (10,))``: ``status`` ``DONE``, or with the world untouched why not (``IMMOVABLE``,
-    ``LARGE``, ``PUSHED``, ``NONE_NEAR``); the contacts kept by the filter when it dropped some
-    (the other outputs are of those), the points in A's frame, the impulse columns, the approach speeds, the
-    contacts that count, those the resting solve took and the cache's values of them (the first of
-    ``wv``'s rows), the correction's pseudo-velocities, and ``out = [residual, deepest,
+    (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), f3 (3,K,3), f1 (2,K), flags
+    (2,K), wv (K,4), pw (2,N,3), out (10,))``: ``status`` ``DONE``, or with the world untouched why
+    not (``IMMOVABLE``, ``LARGE``, ``PUSHED``, ``NONE_NEAR``); the contacts kept by the filter when
+    it dropped some (the other outputs are of those); ``f3`` the points in A's frame, the friction
+    impulses and the impulses; ``f1`` the normal impulses and the approach speeds; ``flags`` the
+    contacts that count and those the resting solve took; ``wv`` the cache's values of those (its
+    first rows); ``pw`` the correction's pseudo-velocities ``vp, wp``; ``out = [residual, deepest,
     rest_bound, drift, kick_error, sweeps, used, planned, resting solve ran, contacts resting]``.
-    The outputs are allocated here: from Python each allocation and argument costs more."""
+    The outputs are allocated here, in blocks: from Python each allocation and argument, and here
+    each array handed back, costs more than the arithmetic."""
     k, n = a.shape[0], pos.shape[0]
     # ---- relative velocity (stepper._velocity_stage): the points' velocities, the look-ahead's filter
     rel_vel = np.empty((k, 3))
@@ -180,17 +185,17 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
                                       look_base, near)
     if look and kept < k:
         if kept == 0:
-            z1, z3, b1, w4 = np.zeros(0), np.zeros((0, 3)), np.zeros(0, np.bool_), np.zeros((0, 4))
-            return NONE_NEAR, near, z3, z1, z3, z3, z1, b1, b1, w4, z3, z3, np.zeros(10)
+            return (NONE_NEAR, near, np.zeros((3, 0, 3)), np.zeros((2, 0)), np.zeros((2, 0), np.bool_),
+                    np.zeros((0, 4)), np.zeros((2, n, 3)), np.zeros(10))
         a, b, point, normal, depth, rel_vel = a[near], b[near], point[near], normal[near], depth[near], rel_vel[near]
         k = kept
     else:
         near = near[:0]
-    local, wv = np.empty((k, 3)), np.empty((k, 4))
-    normal_impulse, vn0 = np.empty(k), np.empty(k)
-    friction_impulse, impulse = np.empty((k, 3)), np.empty((k, 3))
-    used, resting = np.empty(k, np.bool_), np.empty(k, np.bool_)
-    vp, wp = np.zeros((n, 3)), np.zeros((n, 3))
+    # the outputs in blocks: each array handed back to Python costs more than its arithmetic here
+    f3, f1, flags, wv, pw = np.empty((3, k, 3)), np.empty((2, k)), np.empty((2, k), np.bool_), np.empty((k, 4)), \
+        np.zeros((2, n, 3))
+    local, friction_impulse, impulse = f3[0], f3[1], f3[2]
+    normal_impulse, vn0, used, resting, vp, wp = f1[0], f1[1], flags[0], flags[1], pw[0], pw[1]
     out = np.zeros(10)
     e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
@@ -200,7 +205,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
                         speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop,
                         split_beta, direct_max, max_iterations, tolerance, local, normal_impulse, friction_impulse,
                         impulse, vn0, used, resting, wv, vp, wp, out)
-    return status, near, local, normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out
+    return status, near, f3, f1, flags, wv, pw, out
 
 
 @njit
