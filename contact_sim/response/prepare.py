@@ -10,6 +10,7 @@ the contacts; numpy sets them up.
 Shapes: ``N`` bodies, ``K`` contacts.
 """
 import math
+from operator import is_
 from typing import NamedTuple
 
 import numpy as np
@@ -182,11 +183,24 @@ def speculative_margin(world, dt):
     step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
     s = world.s
     base = world.settings.contact_margin
-    vmax = _fastest(s.vel, s.omega, toi_mod._extents(world), world.body_masks().moving)
+    ext, moving, cap = _margin_facts(world)
+    vmax = _fastest(s.vel, s.omega, ext, moving)
     if vmax < 0:   # nothing moves
         return base
     reach = 2.0 * vmax * dt + world.gravity_norm() * dt * dt
-    return max(base, min(reach, SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
+    return max(base, min(reach, cap))
+
+
+def _margin_facts(world):
+    """What ``speculative_margin`` reads of the bodies, kept while they are the same (the kind
+    array and the shape list are replaced when a body is added or removed): ``(extents (N,),
+    moving (N,) bool, the largest look-ahead (m))``."""
+    deps = (world.kind, world.shapes[-1] if len(world) else None, world.body_masks())
+    hit = world.__dict__.get("_margin_facts")
+    if hit is None or not all(map(is_, hit[0], deps)):
+        hit = world.__dict__["_margin_facts"] = (deps, (toi_mod._extents(world), deps[2].moving,
+                                                       SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
+    return hit[1]
 
 
 @njit
