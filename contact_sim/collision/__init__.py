@@ -94,6 +94,16 @@ class _Bodies:
         self.plane_n, self.plane_d = sf[:, SF_PLANE:SF_PLANE + 3], sf[:, SF_PLANE + 3]
         self.pair_cache = broadphase.PairCache()   # broad-phase pairs carried across steps
         self.shapes = shapes
+        self._narrow_args = None   # the narrow phase's fixed leading arguments (narrow_args)
+
+    def narrow_args(self):
+        """``pair_kernels.pair_contacts``' arguments that stay with the shapes: the type-pair
+        table, the geometry arrays, the meshes' trees, ``shape_of`` and ``rank`` (built on first use)."""
+        if self._narrow_args is None:
+            g = self.geom
+            self._narrow_args = (pair_kernels.which_table(), *g.arrays(), pair_kernels.trees(g), self.shape_of,
+                                 self.rank)
+        return self._narrow_args
 
     def volumes(self):
         """Slabs and hull planes per body (``bounding_volume`` slabs / hull only), built on first use."""
@@ -197,10 +207,8 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
     t2 = time.perf_counter()
     timings["bounding"] = t2 - t1
     counters = np.zeros(3, np.int64)
-    geom = bodies.geom
     rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_kernels.pair_contacts(
-        pair_kernels.which_table(), *geom.arrays(), pair_kernels.trees(geom), bodies.shape_of, bodies.rank, ia, ib,
-        swap, kk, a, b, pos, R, margin, counters)
+        *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, counters)
     t3 = time.perf_counter()
     timings["narrow"] = t3 - t2
     k = len(body_a)

@@ -109,9 +109,10 @@ def run(ctx):
         correction.cap(ctx, np.flatnonzero(c.depth > 0), vp, wp)
     ctx.drift += drift
     ctx.kick_error += kick_error
-    # what the contact cache keeps of the resting solve (copies: never views of the step's contacts)
+    # what the contact cache keeps of the resting solve (copies: never views of the step's contacts;
+    # ``local`` is the kernel's own, no contact's column)
     if rested and n_rest == k:
-        ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local.copy(), wv)
+        ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local, wv)
     elif rested:
         ri = np.flatnonzero(resting)
         ctx.warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), local[ri].copy(), wv[:int(n_rest)].copy())
