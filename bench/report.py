@@ -59,11 +59,13 @@ def detection():
            "(contact_sim: after `load_scene`, shape preparation included; median of 5 fresh builds). FCL = python-fcl's dynamic AABB tree on "
            "primitives, every colliding pair.", ""]
     out += table(["scene", "touching pairs", "contact_sim warm ms", "MuJoCo", "FCL", "FCL + contacts", "pybullet",
-                  "trimesh (FCL meshes)", "contact_sim cold ms", "ours / FCL warm, taking turns"],
+                  "trimesh (FCL meshes)", "contact_sim cold ms", "ours / FCL warm, taking turns",
+                  "ours / MuJoCo", "ours / pybullet"],
                  [[x["scene"], x["touching_pairs"], f(x["ours_warm_ms"], ".3f"), f(x.get("mujoco_warm_ms"), ".3f"),
                    f(x.get("fcl_warm_ms"), ".3f"), f(x.get("fcl+contacts_warm_ms"), ".3f"),
                    f(x.get("pybullet_warm_ms"), ".3f"), f(x.get("trimesh_warm_ms"), ".3f"), f(x["ours_cold_ms"], ".1f"),
-                   f(x.get("ours_over_fcl_warm"), ".2f")] for x in r])
+                   f(x.get("ours_over_fcl_warm"), ".2f"), f(x.get("ours_over_mujoco_warm"), ".2f"),
+                   f(x.get("ours_over_pybullet_warm"), ".2f")] for x in r])
     s = rows("detect_scale.csv")
     if s:
         out += ["", f"Scale (the 6 m scene's density), warm ms; fitted exponent t ∝ n^k: contact_sim "
