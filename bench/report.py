@@ -195,6 +195,10 @@ def node():
             out.append(f"| pose → contacts latency (ms), {x['test']} | {x['bodies']} | {x['rate_hz']} | "
                        f"{f(x['latency_p50_ms'], '.1f')} | {f(x['latency_p99_ms'], '.1f')} | | {x['sent']} | "
                        f"{x['received']} | {x['dropped']} |")
+    out += ["", "A tick at 100 Hz runs about twice as slow as the same tick repeated back to back, on this "
+                "shared machine, whether the 9 ms between ticks sleeps or busy-waits (`bench/node_tick_gap.py`: "
+                "the engine step and the publications both slow down): the tick's code and data are evicted between "
+                "ticks, not waiting on the executor or an idle CPU."]
     return out + [""]
 
 
