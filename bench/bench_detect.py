@@ -343,8 +343,8 @@ def scale(args, w):
         f = guarded("fcl", run_fcl, bodies, hulls, max(3, args.repeat // 2), False)
         rows.append(dict(bodies=n, side_m=side, ours_warm_ms=1e3 * ours["warm"], ours_cold_ms=1e3 * ours["cold"],
                          fcl_warm_ms=1e3 * f["warm"],
-                         ours_over_fcl=taking_turns(world.detect, fcl_query(bodies, hulls, False),
-                                                    max(3, args.repeat // 2)),
+                         ours_over_fcl=(taking_turns(world.detect, f["query"], max(3, args.repeat // 2))
+                                        if "query" in f else float("nan")),
                          touching_pairs=ours["pairs"]))
         r = rows[-1]
         print(f"{'':>28}{n:>7} {r['ours_warm_ms']:>9.3f} {r['fcl_warm_ms']:>9.3f} {r['ours_over_fcl']:>9.2f} "

@@ -127,10 +127,8 @@ def _detect_stage(ctx):
 def _velocity_stage(ctx):
     """``ctx.rel_vel (K,3)``: the contact points' relative velocities, keeping of the speculative
     contacts (``ctx.look_ahead``) only the separated ones whose gap can close within the rest of the
-    step (the compiled step does this itself)."""
+    step (the compiled step does this itself; when it found none that can, ``ctx.contacts`` is empty)."""
     world, m, c = ctx.world, ctx.models, ctx.contacts
-    if ctx.rel_vel is not None:   # the compiled step has done it (and found no contact left)
-        return
     if ctx.look_ahead is not None and len(c):
         rel_vel, near = prepare.relative_velocity(world, c, m, closing=ctx.look_ahead)
         if near is not None:

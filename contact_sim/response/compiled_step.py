@@ -90,7 +90,7 @@ def run(ctx):
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance))
     if status == NONE_NEAR:   # no contact left: the sub-step is free motion, which the Python stages run
-        ctx.contacts, ctx.rel_vel = c.select(near), np.zeros((0, 3))
+        ctx.contacts = c.select(near)
     if status != DONE:
         return False
     if near.shape[0]:   # speculative contacts that cannot close are not the step's
@@ -157,18 +157,19 @@ def _min(x, y):
 
 
 @njit
-def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments, inertia_body, inv_mass,
-          inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, restitution, friction,
-          static_friction, rule, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance,
-          simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance):
+def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
+          inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
+          restitution, friction, static_friction, rule, kinetic, a0, b0, p0, values, has_old, ext, dt, margin,
+          speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max,
+          max_iterations, tolerance):
     """``run``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
     (K,)``, ``point, normal (K,3)``, ``depth (K,)``; with ``look`` only the speculative ones whose
     gap can close within ``look_dt`` are kept (``stepper._velocity_stage``'s filter, with
-    ``look_base`` the contact margin and ``g`` gravity's magnitude); bodies ``kind (N,)``, as ``free_motion.advance`` and
-    ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass
-    (N,)``, ``particle (N,) bool``, their materials ``restitution, friction, static_friction (N,)``
-    combined by ``rule`` (``prepare.coefficient_rows``); the contact cache ``a0, b0 (K0,)``, ``p0
-    (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), f3 (3,K,3), f1 (2,K), flags
+    ``look_base`` the contact margin and ``g`` gravity's magnitude); bodies ``kind (N,)``, as
+    ``free_motion.advance`` and ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``,
+    ``gravity_rows (N,3)``, ``mass (N,)``, ``particle (N,) bool``, their materials ``restitution,
+    friction, static_friction (N,)`` combined by ``rule`` (``prepare.coefficient_rows``); the contact
+    cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), f3 (3,K,3), f1 (2,K), flags
     (2,K), wv (K,4), pw (2,N,3), out (10,))``: ``status`` ``DONE``, or with the world untouched why
     not (``IMMOVABLE``, ``LARGE``, ``PUSHED``, ``NONE_NEAR``); the contacts kept by the filter when
     it dropped some (the other outputs are of those); ``f3`` the points in A's frame, the friction

@@ -7,7 +7,6 @@ warnings users of other engines ask for (mass ratio, thin-and-fast, stiff penalt
 import math
 import warnings
 from dataclasses import dataclass, field
-from operator import is_
 
 import numpy as np
 
@@ -133,19 +132,14 @@ def choose(world, dt=None):
     ``Models`` as read-only."""
     st = world.settings
     dt = st.dt if dt is None else dt
-    deps = _body_deps(world) + (world.friction, world.restitution, world.particle)
-    key = (dt, st.toi, st.response, st.friction, st.resting, st.speculative, world.kind.tobytes())
-    hit = world.__dict__.get("_models")
-    # the usual step: the same bodies, settings and dt, and (auto) no body thin-and-fast now
-    if hit is not None and hit[1] == key and all(map(is_, hit[0], deps)) and (
-            st.toi != "auto" or not _any_too_fast(world.s.vel, world.kind, hit[3], world.gravity_norm(), float(dt))):
-        return hit[2]
-    fast = thin_and_fast(world, dt) if st.toi == "auto" else []
-    if fast:   # this step's speeds decide (swept): not kept
-        return _choose(world, dt, fast)
-    models = _choose(world, dt, fast)
-    world.__dict__["_models"] = (deps, key, models, _shape_info(world)[3] if len(world) else np.zeros(0))
-    return models
+    # kept: the models when no body is thin-and-fast, and the limits the velocity test reads
+    models, limit = derived(world, "models", _body_deps(world) + (world.friction, world.restitution, world.particle),
+                            lambda: (_choose(world, dt, []), _shape_info(world)[3] if len(world) else np.zeros(0)),
+                            key=(dt, st.toi, st.response, st.friction, st.resting, st.speculative,
+                                 world.kind.tobytes()))
+    if st.toi != "auto" or not _any_too_fast(world.s.vel, world.kind, limit, world.gravity_norm(), float(dt)):
+        return models
+    return _choose(world, dt, thin_and_fast(world, dt))   # this step's speeds decide (swept): not kept
 
 
 def _choose(world, dt, fast):

@@ -10,7 +10,6 @@ the contacts; numpy sets them up.
 Shapes: ``N`` bodies, ``K`` contacts.
 """
 import math
-from operator import is_
 from typing import NamedTuple
 
 import numpy as np
@@ -195,12 +194,10 @@ def _margin_facts(world):
     """What ``speculative_margin`` reads of the bodies, kept while they are the same (the kind
     array and the shape list are replaced when a body is added or removed): ``(extents (N,),
     moving (N,) bool, the largest look-ahead (m))``."""
-    deps = (world.kind, world.shapes[-1] if len(world) else None, world.body_masks())
-    hit = world.__dict__.get("_margin_facts")
-    if hit is None or not all(map(is_, hit[0], deps)):
-        hit = world.__dict__["_margin_facts"] = (deps, (toi_mod._extents(world), deps[2].moving,
-                                                       SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
-    return hit[1]
+    bm = world.body_masks()
+    return derived(world, "margin_facts", (world.kind, world.shapes[-1] if len(world) else None, bm),
+                   lambda: (toi_mod._extents(world), bm.moving,
+                            SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
 
 
 @njit
