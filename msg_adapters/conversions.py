@@ -18,6 +18,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from contact_sim import FEATURES, BoundsError, Contacts
 
+from .state_rows import contact_rows
+
 # ---------------------------------------------------------------------------- contacts
 #: One PointCloud2 point per contact. ``x, y, z`` (float32) is the contact point for display: RViz's
 #: PointCloud2 display takes only float32 ``x y z``. ``point_x/y/z`` (float64) is the same point at
@@ -130,20 +132,10 @@ def contacts_to_array(contacts):
     if k == 0:
         return a
     runs = a.view(_CONTACT_RUNS)
+    c = contacts
     with np.errstate(over="ignore"):        # beyond float32's range: inf for display, exact in point_*
-        runs["xyz"] = contacts.point
-    f8 = runs["f8"]                          # (k, 15): the columns in CONTACT_FIELDS' order
-    f8[:, 0:3] = contacts.point
-    f8[:, 3:6] = contacts.normal
-    f8[:, 6] = contacts.depth
-    f8[:, 7:10] = contacts.impulse
-    f8[:, 10] = contacts.normal_impulse
-    f8[:, 11:14] = contacts.friction_impulse
-    f8[:, 14] = contacts.relative_normal_velocity
-    u4 = runs["u4"]
-    u4[:, 0] = contacts.body_a
-    u4[:, 1] = contacts.body_b
-    u4[:, 2] = contacts.feature
+        contact_rows(c.point, c.normal, c.depth, c.impulse, c.normal_impulse, c.friction_impulse,
+                     c.relative_normal_velocity, c.body_a, c.body_b, c.feature, runs["xyz"], runs["f8"], runs["u4"])
     return a
 
 
@@ -296,17 +288,22 @@ def posearray_cdr(positions, orientations, frame_id, stamp_ns):
     q = np.asarray(orientations, np.float64).reshape(-1, 4)
     if len(p) != len(q):
         raise ValueError(f"{len(p)} positions but {len(q)} orientations")
-    n = len(p)
-    fid = frame_id.encode("utf-8") + b"\0"
-    head = struct.pack("<iII", int(stamp_ns // 1_000_000_000), int(stamp_ns % 1_000_000_000), len(fid)) + fid
+    flat = np.empty((len(p), 7), "<f8")
+    flat[:, :3] = p
+    flat[:, 3:] = q
+    return posearray_rows_cdr(flat, frame_id, stamp_ns)
+
+
+def posearray_rows_cdr(rows, frame_id, stamp_ns):
+    """``posearray_cdr`` of the poses already laid out as rows: little-endian float64, C-ordered,
+    ``(N, 7)`` (x y z qx qy qz qw) or flat ``(7 N,)``."""
+    n = rows.size // 7
+    head = _header_cdr(frame_id, stamp_ns)
     head += b"\0" * (_align(len(head), 4) - len(head))
     head += struct.pack("<I", n)
     if n:
         head += b"\0" * (_align(len(head), 8) - len(head))
-    flat = np.empty((n, 7), "<f8")
-    flat[:, :3] = p
-    flat[:, 3:] = q
-    return b"\x00\x01\x00\x00" + head + flat.tobytes()
+    return b"\x00\x01\x00\x00" + head + rows.tobytes()
 
 
 def names_cdr(names):
@@ -332,9 +329,15 @@ def _doubles_seq(out, left, right):
     a = left.shape[1]
     rows = np.empty((len(left), a + right.shape[1]), "<f8")   # np.hstack's copies without its overhead
     rows[:, :a], rows[:, a:] = left, right                     # (a ValueError if their lengths differ, as hstack)
+    _rows_seq(out, len(rows), rows)
+
+
+def _rows_seq(out, n, rows):
+    """Append a ``sequence`` of ``n`` structs of doubles laid out as ``rows`` (little-endian float64,
+    C-ordered) to the CDR body ``out``."""
     out += b"\0" * (_align(len(out), 4) - len(out))
-    out += struct.pack("<I", len(rows))
-    if len(rows):
+    out += struct.pack("<I", n)
+    if n:
         out += b"\0" * (_align(len(out), 8) - len(out))
         out += rows.tobytes()
 
@@ -344,13 +347,28 @@ def multidof_cdr(names_blob, positions, orientations, linear, angular, force, to
     from ``names_cdr`` (built once per body set), transforms from ``positions (N, 3)`` and
     ``orientations (N, 4)``, twists from ``linear``/``angular (N, 3)``, wrenches from
     ``force``/``torque (N, 3)``. Publishable as is with ``Publisher.publish(bytes)``."""
-    out = bytearray(_header_cdr(frame_id, stamp_ns))
-    out += b"\0" * (_align(len(out), 4) - len(out))
-    out += names_blob
+    out = _multidof_head(names_blob, frame_id, stamp_ns)
     _doubles_seq(out, positions, orientations)
     _doubles_seq(out, linear, angular)
     _doubles_seq(out, force, torque)
     return b"\x00\x01\x00\x00" + out
+
+
+def multidof_rows_cdr(names_blob, n, transforms, twists, wrenches, frame_id, stamp_ns):
+    """``multidof_cdr`` of rows already laid out (little-endian float64, C-ordered): ``transforms``
+    ``(N, 7)``, ``twists`` and ``wrenches`` ``(N, 6)``, or flat (``state_rows``' blocks)."""
+    out = _multidof_head(names_blob, frame_id, stamp_ns)
+    _rows_seq(out, n, transforms)
+    _rows_seq(out, n, twists)
+    _rows_seq(out, n, wrenches)
+    return b"\x00\x01\x00\x00" + out
+
+
+def _multidof_head(names_blob, frame_id, stamp_ns):
+    out = bytearray(_header_cdr(frame_id, stamp_ns))
+    out += b"\0" * (_align(len(out), 4) - len(out))
+    out += names_blob
+    return out
 
 
 def multidof_to_arrays(msg, what="set_body_states"):

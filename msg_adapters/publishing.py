@@ -19,12 +19,12 @@ from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
 import contact_sim
-from contact_sim.vec import cross
 
 from .cdr_out import marker_array_cdr, point_fields_cdr, pointcloud2_cdr
 from .robot_input import JOINT_STATE_REASONS
-from .conversions import (CONTACT_DTYPE, contact_marker_specs, contact_wrenches, contacts_to_array, diagnostic_array,
-                          make_header, multidof_cdr, names_cdr, ns_to_stamp, point_fields, posearray_cdr)
+from .conversions import (CONTACT_DTYPE, contact_marker_specs, contacts_to_array, diagnostic_array, make_header,
+                          multidof_rows_cdr, names_cdr, ns_to_stamp, point_fields, posearray_rows_cdr)
+from .state_rows import POSE, TWIST, state_rows
 
 POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "non_unit_quaternion", "stamp",
                        "frame_id", "out_of_bounds", "engine")
@@ -77,18 +77,16 @@ class Outputs:
 
     def _publish_states(self, stamp_ns, contacts=None, duration=None):
         """``body_states`` (PoseArray, for RViz) and ``body_multidof_states`` (names, poses, twists of
-        the body origins and the contact wrenches; zero wrenches when no step was taken)."""
-        world = self.world
-        p, q = world.poses()
+        the body origins and the contact wrenches; zero wrenches when no step was taken), from one
+        compiled pass over the bodies and contacts (``state_rows``)."""
+        n = len(self.world)
+        rows = state_rows(self.world, contacts, duration if contacts is not None else 1.0)
         frame = self.cfg["frame_id"]
-        self.pub_states.publish(posearray_cdr(p, q, frame, stamp_ns))
-        if contacts is not None and len(contacts):
-            force, torque = contact_wrenches(contacts, p, duration)
-        else:
-            force = torque = np.zeros_like(p)
-        v, w = world.velocities()
-        v = v + cross(w, p - world.s.pos)         # the velocity of the origin, not of the centre of mass
-        self.pub_multidof.publish(multidof_cdr(self._names_cdr(), p, q, v, w, force, torque, frame, stamp_ns))
+        tw, wr = POSE * n, (POSE + TWIST) * n
+        poses = rows[:tw]
+        self.pub_states.publish(posearray_rows_cdr(poses, frame, stamp_ns))
+        self.pub_multidof.publish(multidof_rows_cdr(self._names_cdr(), n, poses, rows[tw:wr], rows[wr:], frame,
+                                                    stamp_ns))
 
     def _names_cdr(self):
         names = tuple(self.world.body_names)
