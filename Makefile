@@ -22,6 +22,7 @@ $(STAMP): setup.py requirements/ros.txt requirements/dev.txt
 	$(PY) -m pip install --quiet -e '.[test,plot]' -r requirements/dev.txt $(QUIET)
 	$(PY) -c "import contact_sim, rclpy"
 	$(PY) -m contact_sim.warmup   # compile the kernels once (numba's cache), so no test or first run stalls on it
+	$(PY) -m msg_adapters.state_rows   # and the node's (no ROS import: it runs without the ROS wheels too)
 	touch $(STAMP)
 
 run: $(STAMP)

@@ -22,7 +22,7 @@ def tree(src, dest):
 
 class InstallAndCompile(install):
     """``install``, then compile the installed copy's kernels once (numba caches them beside the
-    installed source: ``contact_sim.warmup``), so the first run after a colcon build does not stall
+    installed source: ``contact_sim.warmup``, then the node's: ``msg_adapters.state_rows``), so the first run after a colcon build does not stall
     on compilation. Best effort; skipped for staged installs (``--root``: wheels, packaging) and
     with ``CONTACT_SIM_NO_WARMUP=1``."""
 
@@ -33,7 +33,8 @@ class InstallAndCompile(install):
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
             [self.install_lib] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
         try:
-            subprocess.call([sys.executable, "-m", "contact_sim.warmup"], cwd=self.install_lib, env=env, timeout=900)
+            for module in ("contact_sim.warmup", "msg_adapters.state_rows"):
+                subprocess.call([sys.executable, "-m", module], cwd=self.install_lib, env=env, timeout=900)
         except (OSError, subprocess.SubprocessError) as exc:   # never fail an install over a cache
             print(f"contact_sim: kernels not precompiled ({exc}); they compile on first use", file=sys.stderr)
 

@@ -114,3 +114,23 @@ def blocks(rows, n):
     """``state_rows``' buffer as its three blocks ``(poses (N,7), twists (N,6), wrenches (N,6))``."""
     tw, wr = POSE * n, (POSE + TWIST) * n
     return rows[:tw].reshape(n, POSE), rows[tw:wr].reshape(n, TWIST), rows[wr:].reshape(n, WRENCH)
+
+
+def warm_up():
+    """Compile (or load from numba's cache) this module's kernels: ``python -m msg_adapters.state_rows``
+    (``make venv`` and the colcon install run it beside ``contact_sim.warmup``)."""
+    import contact_sim as cs
+
+    world = cs.World()
+    world.add_body("ground", cs.Plane(), kind="static")
+    world.add_body("ball", cs.Sphere(0.1), position=(0.0, 0.0, 0.09))
+    world.step()
+    c = world.contacts
+    state_rows(world, c, world.settings.dt)
+    xyz, f8, u4 = np.zeros((len(c), 3), np.float32), np.zeros((len(c), 15)), np.zeros((len(c), 3), np.uint32)
+    contact_rows(c.point, c.normal, c.depth, c.impulse, c.normal_impulse, c.friction_impulse,
+                 c.relative_normal_velocity, c.body_a, c.body_b, c.feature, xyz, f8, u4)
+
+
+if __name__ == "__main__":
+    warm_up()
