@@ -70,10 +70,11 @@ def step(world, dt):
 
 
 # ---------------------------------------------------------------------------- helpers
-def _detect(world, margin, R=None):
+def _detect(world, margin, R=None, reach=None, floor=0.0):
     """Contacts of the current state within ``margin`` (``R (N,3,3)`` the rotation matrices, when
-    known); the detection statistics go to ``world.last_detection``."""
-    contacts, world.last_detection = detect_world(world, margin=margin, R=R)
+    known; ``reach, floor``: each pair's own margin, ``detect_world``); the detection statistics go
+    to ``world.last_detection``."""
+    contacts, world.last_detection = detect_world(world, margin=margin, R=R, reach=reach, floor=floor)
     return contacts
 
 
@@ -114,10 +115,13 @@ def _detect_stage(ctx):
     the sub-step's other fields are reset."""
     world = ctx.world
     margin = world.settings.contact_margin
-    det_margin = prepare.speculative_margin(world, ctx.t_left) if ctx.speculative else margin
+    det_margin, reach, floor = prepare.speculative_reach(world, ctx.t_left) if ctx.speculative else (margin, None, 0.0)
+    if det_margin <= margin:   # no speculative contact: every pair takes the contact margin
+        reach = None
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
-    c = toi_mod.mark_swept(_detect(world, det_margin, ctx.R), ctx.swept_pair)   # the sweep's hit: feature swept
+    # the speculative margin finds the pairs; each pair's narrow phase takes only what its bodies can close
+    c = toi_mod.mark_swept(_detect(world, det_margin, ctx.R, reach, floor), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
     ctx.look_ahead = (ctx.t_left, margin) if ctx.speculative and det_margin > margin else None
     ctx.contacts, ctx.rel_vel = c, None

@@ -138,3 +138,42 @@ def test_head_on_spheres_meet_without_overlap_and_keep_momentum():
 def test_describe_names_speculative_contacts():
     world = _ball_scene(0.0, 0.1, 1 / 240)
     assert any("speculative contacts on" in line for line in world.describe().splitlines())
+
+
+def _hull_beside_a_fast_ball():
+    """A hull resting on four bottom corners, with one more vertex 1 cm up sticking out past them,
+    and a ball rolling at 5 m/s far away: the ball alone sets the step's speculative margin."""
+    w = cs.World(settings=cs.Settings(dt=0.01))
+    w.add_body("ground", cs.Plane(), kind="static")
+    corners = [[0.1, 0.1, 0.0], [0.1, -0.1, 0.0], [-0.1, 0.1, 0.0], [-0.1, -0.1, 0.0]]
+    w.add_body("hull", cs.Convex(np.array(corners + [[0.25, 0.0, 0.01], [0.0, 0.0, 0.12]])), mass=1.0)
+    w.add_body("ball", cs.Sphere(R), mass=1.0, position=(3.0, 0.0, R), velocity=(5.0, 0.0, 0.0))
+    return w, np.array(corners)
+
+
+def test_each_pair_takes_only_the_margin_its_bodies_can_close():
+    """The speculative margin is the fastest pair's (2 v dt + g dt², capped); a pair's own margin is
+    contact_margin + g dt² + what its two bodies can travel in dt. The hull at rest takes only its
+    four touching corners into its manifold; with the ball's margin it took the vertex 1 cm up in
+    place of a corner (reduce4 keeps the widest four), which the look-ahead then dropped."""
+    from contact_sim.collision import detect_world
+    from contact_sim.response import prepare
+
+    w, corners = _hull_beside_a_fast_ball()
+    dt = 0.01
+    margin, reach, floor = prepare.speculative_reach(w, dt)
+    assert margin == prepare.speculative_margin(w, dt) > 0.01            # the ball's: the 1 cm vertex is in it
+    np.testing.assert_array_equal(reach, [0.0, 0.0, 5.0 * dt])
+    assert floor == w.settings.contact_margin + G * dt * dt
+
+    def hull_contacts(r):
+        c, _ = detect_world(w, margin=margin, reach=r, floor=floor)
+        m = (c.body_a == 1) | (c.body_b == 1)
+        return c.point[m], c.depth[m]
+
+    points, depth = hull_contacts(None)              # one margin for every pair: a corner lost
+    assert len(points) == 4 and depth.min() == pytest.approx(-0.01, abs=1e-12)
+    points, depth = hull_contacts(reach)
+    np.testing.assert_allclose(np.sort(points, axis=0), np.sort(corners, axis=0), atol=1e-12)
+    np.testing.assert_allclose(depth, 0.0, atol=1e-12)
+

@@ -183,8 +183,12 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
     return ok
 
 
-def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
-    """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``."""
+_NO_REACH = np.zeros(0)
+
+
+def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0):
+    """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``; with ``reach (N,)``
+    each pair's narrow phase takes ``min(margin, floor + reach[a] + reach[b])`` (``detect_world``)."""
     if R is None:
         R = np.empty((len(quat), 3, 3))
         rotations(np.ascontiguousarray(quat, float), R)
@@ -208,7 +212,8 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None):
     timings["bounding"] = t2 - t1
     counters = np.zeros(3, np.int64)
     rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_kernels.pair_contacts(
-        *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, counters)
+        *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, _NO_REACH if reach is None else reach,
+        float(floor), counters)
     t3 = time.perf_counter()
     timings["narrow"] = t3 - t2
     k = len(body_a)
@@ -238,13 +243,15 @@ def disabled_keys(world):
                    key=(len(world), len(world.disabled_pairs)))
 
 
-def detect_world(world, margin=None, R=None):
+def detect_world(world, margin=None, R=None, reach=None, floor=0.0):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
     ``margin`` (m) overrides ``world.settings.contact_margin``: pairs closer than it are reported
     with ``depth = -separation`` (negative). ``body_a < body_b`` in every row; ``normal (K, 3)``
     points from ``body_b`` to ``body_a``. ``R (N, 3, 3)``: the bodies' rotation matrices, when the
     caller has them already (``vec3.rotations`` of ``world.s.quat``; the step shares them).
+    ``reach (N,)`` (m, the step's speculative contacts: ``prepare.pair_reach``) narrows each pair's
+    margin to ``min(margin, floor + reach[a] + reach[b])``; ``margin`` still finds the pairs.
     """
     t0 = time.perf_counter()
     margin = float(world.settings.contact_margin if margin is None else margin)
@@ -264,7 +271,7 @@ def detect_world(world, margin=None, R=None):
         ia, ib = _world_pairs(world, bodies, pos, R, margin)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
-    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R)
+    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor)
 
 
 def _world_pairs(world, bodies, pos, R, margin):

@@ -19,7 +19,7 @@ from .vec3 import mv
 
 @collider((CYLINDER, PLANE))
 @njit
-def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                    out_i, out_f):
     """Cylinder A against plane B. On each cap circle the deepest rim point is ``c ± (h/2) a + r w``
     with ``w`` the unit direction of ``-(n - (n·a) a)`` (the plane normal's part across the axis);
@@ -30,6 +30,7 @@ def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a
     pts, dep, val, keep = np.empty((8, 3)), np.empty(8), np.empty(8, np.bool_), np.empty(8, np.bool_)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         r, hh = sf[sa, SF_RADIUS], sf[sa, SF_HALF + 2]
@@ -56,13 +57,14 @@ def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a
 
 @collider((CYLINDER, SPHERE))
 @njit
-def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                     out_i, out_f):
     """Cylinder A against sphere B: the closest point of the solid cylinder to the centre (radial
     part clamped to ``r``, axial part to ``±h/2``); a centre inside exits through the nearer of the
     side and the nearer cap (the side through the body's x axis for a centre on the axis)."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
         r, hh = sf[sa, SF_RADIUS], sf[sa, SF_HALF + 2]

@@ -7,7 +7,7 @@ registers a kernel under the (A rank, B rank) pairs it handles (A of the higher 
 
     kernel(sf, si, verts, planes, faces, loops, edges, tris,   # geometry.GeomTable.arrays()
            shape_of (N,), a (K,), b (K,),                       # body -> table row; the pairs' bodies
-           pos (N, 3), R (N, 3, 3), margin, counters (3,),      # poses; [vertex, edge_face, edge_hits]
+           pos (N, 3), R (N, 3, 3), margins (K,), counters (3,), # poses; each pair's margin; [vertex, edge_face, edge_hits]
            out_i (4K, 3), out_f (4K, 7)) -> rows               # (pair, feature, feature id), (point, normal, depth)
 
 ``pair_kernels.pair_contacts`` groups a batch's pairs by type pair (``group_by_type``) and calls each
@@ -18,7 +18,7 @@ import numpy as np
 from ..jit import njit
 
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
-               "margin", "counters", "out_i", "out_f")
+               "margins", "counters", "out_i", "out_f")
 TABLE = {}   # (rank A, rank B) -> kernel
 
 

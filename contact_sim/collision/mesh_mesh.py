@@ -404,7 +404,7 @@ def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, roo
 
 @collider((MESH, MESH))
 @njit
-def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
               out_i, out_f, nodes, boxes, perm, root, border):
     """Triangle mesh A against triangle mesh B (either concave): vertices inside (ray parity) or
     within the margin, then, when no vertex is inside, edges crossing faces (module docstring)."""
@@ -416,6 +416,7 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     Rr, tr = np.empty((3, 3)), np.empty(3)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, Rb, pa, pb = R[a[i]], R[b[i]], pos[a[i]], pos[b[i]]
         # B's frame to A's: x_A = Rr x_B + tr, Rr = Raᵀ Rb, tr = Raᵀ (pb − pa)

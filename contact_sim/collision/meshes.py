@@ -52,13 +52,14 @@ def points_in_meshes(p, T, valid_t, eps=1e-9):
 
 @collider((MESH, SPHERE))
 @njit
-def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                 out_i, out_f):
     """Triangle mesh A against sphere B: the nearest triangle; a centre inside is penetrating by
     the distance to the surface."""
     V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         cb, rb = pos[b[i]], sf[sb, SF_RADIUS]
         world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pos[a[i]], R[a[i]], V)
@@ -181,7 +182,7 @@ def _crossing_sat(VP, nvp, NP, npp, EP, VM, NM, dM, npm, fM, loops, lo, hi):
 
 @collider((MESH, BOX), (MESH, CONVEX))
 @njit
-def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
               out_i, out_f):
     """Triangle mesh A against convex polyhedron B, in the lecture's order: mesh vertices inside B
     (inside every face plane; depth from the nearest face plane), B's vertices inside the mesh or
@@ -199,6 +200,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     F, I = np.empty(cap, np.int64), np.empty(cap, np.int64)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sm, sp = shape_of[a[i]], shape_of[b[i]]
         world_poly(verts, planes, si, sm, pos[a[i]], R[a[i]], VM, NM, dM)
         world_poly(verts, planes, si, sp, pos[b[i]], R[b[i]], VP, NP, dP)

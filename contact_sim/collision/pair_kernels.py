@@ -42,42 +42,42 @@ def trees(geom):
 
 
 @njit
-def call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters, out_i,
+def call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters, out_i,
          out_f, bvh):
     """``KERNELS[which]`` with the kernel signature (``dispatch``), ``bvh = trees(geom)`` for
     mesh–mesh; returns the rows written (0 for ``which`` −1)."""
     if which == 0:
-        return sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                             counters, out_i, out_f)
     if which == 1:
-        return sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                              counters, out_i, out_f)
     if which == 2:
-        return poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                           counters, out_i, out_f)
     if which == 3:
-        return box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                           counters, out_i, out_f)
     if which == 4:
-        return poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                          counters, out_i, out_f)
     if which == 5:
-        return poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                            counters, out_i, out_f)
     if which == 6:
-        return cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                               counters, out_i, out_f)
     if which == 7:
-        return cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                                counters, out_i, out_f)
     if which == 8:
-        return mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                            counters, out_i, out_f)
     if which == 9:
-        return mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                          counters, out_i, out_f)
     if which == 10:
-        return mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+        return mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                          counters, out_i, out_f, bvh[0], bvh[1], bvh[2], bvh[3], bvh[4])
     return 0
 
@@ -91,14 +91,17 @@ def which_table():
 
 @njit
 def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, swap, kk,
-                  a, b, pos, R, margin, counters):
+                  a, b, pos, R, margin, reach, floor, counters):
     """The narrow phase of a batch in one compiled call: the pairs grouped by type pair
     (``dispatch.group_by_type``), each group through its kernel (``call``), then the contact
     columns (``dispatch.contact_columns``).
 
     ``which = which_table()``; the geometry arrays as ``GeomTable.arrays()``, ``bvh = trees(geom)``;
     ``ia, ib, swap (K,)`` the batch and ``kk (M,)`` its kept pairs, ``a, b (M,)`` their bodies in the
-    kernels' order (``bounding.kept_pairs``). Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
+    kernels' order (``bounding.kept_pairs``). Each pair's margin is ``margin``, or with ``reach (N,)``
+    (empty: none) ``min(margin, floor + reach[a] + reach[b])``: how far its two bodies can close
+    (``prepare.pair_reach``), so that a pair at rest beside a fast body does not take candidates it
+    cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
     body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
     (``rows_i[:, 0]`` indexing ``kk``), the columns of ``contact_columns``, and the number of pairs
     no kernel takes (plane–plane pairs are no contacts)."""
@@ -107,6 +110,9 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
     n, unsupported = 0, 0
     if M > 0:
         order, A, B, starts, keys = group_by_type(a, b, rank, NRANK)
+        margins = np.empty(M)
+        for i in range(M):
+            margins[i] = margin if reach.shape[0] == 0 else min(margin, floor + reach[A[i]] + reach[B[i]])
         for g in range(keys.shape[0]):
             s, e = starts[g], starts[g + 1]
             w = which[keys[g]]
@@ -114,7 +120,7 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
                 if keys[g] != 0:   # plane–plane pairs are no contacts
                     unsupported += e - s
                 continue
-            m = call(w, sf, si, verts, planes, faces, loops, edges, tris, shape_of, A[s:e], B[s:e], pos, R, margin,
+            m = call(w, sf, si, verts, planes, faces, loops, edges, tris, shape_of, A[s:e], B[s:e], pos, R, margins[s:e],
                      counters, out_i[n:], out_f[n:], bvh)
             for r in range(n, n + m):
                 out_i[r, 0] = order[out_i[r, 0] + s]

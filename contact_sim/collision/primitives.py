@@ -36,11 +36,12 @@ def sphere_row(out_i, out_f, k, pair, sep, normal, cb, rb, margin):
 
 @collider((SPHERE, PLANE))
 @njit
-def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                  out_i, out_f):
     """Sphere A against plane B: the true signed distance, one contact."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         ra = sf[sa, SF_RADIUS]
@@ -54,11 +55,12 @@ def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, 
 
 @collider((SPHERE, SPHERE))
 @njit
-def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                   out_i, out_f):
     """Sphere A against sphere B (concentric: the normal is +z, any direction being right)."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
         d = pos[a[i]] - pos[b[i]]
         dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
@@ -69,11 +71,12 @@ def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a,
 
 @collider((BOX, SPHERE))
 @njit
-def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                out_i, out_f):
     """Box A against sphere B: clamp the centre into the box; a centre inside exits by the nearest face."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         h = sf[sa, SF_HALF:SF_HALF + 3]
         Ra, cb, rb = R[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
@@ -119,7 +122,7 @@ def nearest_triangle(V, tris, t0, nt, c):
 
 @collider((BOX, PLANE), (CONVEX, PLANE), (MESH, PLANE))
 @njit
-def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                out_i, out_f):
     """Polyhedron or mesh A against plane B: every vertex within the margin is a candidate; a
     resting face keeps at most 4 of them, spanning the patch."""
@@ -127,6 +130,7 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
     pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         v0, nv = si[sa, SI_V0], si[sa, SI_NV]
@@ -160,13 +164,14 @@ def plane_contacts(pts, dep, val, keep, nb, db, margin, out_i, out_f, k, i):
 
 @collider((CONVEX, SPHERE))
 @njit
-def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin, counters,
+def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                 out_i, out_f):
     """Convex polyhedron A against sphere B: the exact distance from the centre to the nearest
     triangle; a centre inside exits through the nearest face plane."""
     V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
         world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pa, Ra, V)

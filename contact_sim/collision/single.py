@@ -182,7 +182,9 @@ def _pair(x0, y0, z0, qx0, qy0, qz0, qw0, x1, y1, z1, qx1, qy1, qz1, qw1, margin
     shape_of, a, b, counters = ints[:2], ints[2:3], ints[3:4], ints[4:]
     shape_of[0], shape_of[1] = s0, s1
     a[0], b[0] = (1, 0) if swap else (0, 1)   # bodies in the kernel's order: A of the higher rank
-    k = pair_kernels.call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margin,
+    margins = np.empty(1)
+    margins[0] = margin
+    k = pair_kernels.call(which, sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins,
                           counters, out_i, out_f, bvh)
     if swap:
         for r in range(k):

@@ -81,13 +81,13 @@ def _plane_poly(code, facts, verts, vrange, o, pl, p, q):
 @njit
 def pair_rows(i, j, shape_of, rank):
     """What the narrow-phase kernel of bodies ``i, j`` reads besides poses, set up once per pair:
-    ``(shape rows (2,), a (1,), b (1,), counters (3,))``, A the body of higher rank (pose row 0 is
-    ``i``, row 1 is ``j``)."""
+    ``(shape rows (2,), a (1,), b (1,), counters (3,), margins (1,))``, A the body of higher rank
+    (pose row 0 is ``i``, row 1 is ``j``), the margin ``WIDE``."""
     two = np.empty(2, np.int64)
     two[0], two[1] = shape_of[i], shape_of[j]
     a, b = np.empty(1, np.int64), np.empty(1, np.int64)
     a[0], b[0] = (1, 0) if rank[i] < rank[j] else (0, 1)
-    return two, a, b, np.zeros(3, np.int64)
+    return two, a, b, np.zeros(3, np.int64), np.full(1, WIDE)
 
 
 @njit
@@ -125,8 +125,8 @@ def distance(which, geo, bvh, rows, code, facts, verts, vrange, i, j, p, q, R, s
     # collide()'s one-pair path: unit quaternions (q is overwritten), rotations, the kernel of A
     # (higher rank) and B (``rows``: ``pair_rows``)
     unit_rotations(q, R)
-    two, a, b, counters = rows
-    k = call(which, *geo, two, a, b, p, R, WIDE, counters, scratch_i, scratch_f, bvh)
+    two, a, b, counters, wide = rows
+    k = call(which, *geo, two, a, b, p, R, wide, counters, scratch_i, scratch_f, bvh)
     if k == 0:
         return WIDE
     deepest = -np.inf

@@ -190,6 +190,41 @@ def speculative_margin(world, dt):
     return max(base, min(reach, cap))
 
 
+def speculative_reach(world, dt):
+    """``speculative_margin`` and each body's share of it: ``(margin, reach (N,), floor)`` with
+    ``reach`` the farthest a body's points move in ``dt`` (``(|v| + |ω|·extent) dt``, 0 for a body
+    that does not move) and ``floor = contact_margin + |g| dt²``. A pair can close by at most
+    ``floor + reach[a] + reach[b]`` (the look-ahead keeps nothing farther), so the narrow phase takes
+    that as the pair's margin (``detect_world``'s ``reach``): a hull at rest beside a fast ball then
+    builds its manifold from the points that touch, not from vertices a centimetre up that the
+    look-ahead would drop, leaving its support short of a corner."""
+    s = world.s
+    base = world.settings.contact_margin
+    ext, moving, cap = _margin_facts(world)
+    reach = np.empty(len(s.vel))
+    vmax = _reach(s.vel, s.omega, ext, moving, dt, reach)
+    g = world.gravity_norm() * dt * dt
+    if vmax < 0:   # nothing moves
+        return base, reach, base + g
+    return max(base, min(2.0 * vmax * dt + g, cap)), reach, base + g
+
+
+@njit
+def _reach(vel, omega, ext, moving, dt, out):
+    """``out (N,)``: ``(|v| + |ω|·extent) dt`` of the ``moving`` bodies, 0 for the others; returns
+    ``_fastest``'s speed (−1 when none moves)."""
+    best = -1.0
+    for i in range(vel.shape[0]):
+        out[i] = 0.0
+        if moving[i]:
+            e = ext[i] if math.isfinite(ext[i]) else 0.0
+            speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) + math.sqrt(
+                omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2) * e
+            best = max(best, speed)
+            out[i] = speed * dt
+    return best
+
+
 def _margin_facts(world):
     """What ``speculative_margin`` reads of the bodies, kept while they are the same (the kind
     array and the shape list are replaced when a body is added or removed): ``(extents (N,),
