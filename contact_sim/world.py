@@ -549,6 +549,8 @@ class World(BodyInput):
         """``dt`` by the rule of ``settings.dt`` (> 0, at most ``settings.max_step``)."""
         if dt is None:
             return self.settings.dt
+        if type(dt) is float and 0.0 < dt <= self.settings.max_step:   # the rule's answer, without its ~8 us
+            return dt
         return float(Settings.rule("dt").check(dt, "step.dt", self.settings))
 
     def _advance_free(self, dt, half_dv=None, half_dw=None):

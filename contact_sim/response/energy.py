@@ -23,7 +23,7 @@ def kinematic_work(world, c):
     """Work (J) done on the dynamic bodies by kinematic ones through the contacts ``c`` of a
     step: impulse on the dynamic side · velocity of the kinematic body's material point. A
     kinematic body is driven from outside, so this is energy the world may gain."""
-    if len(c) == 0 or not world.body_masks().any_kinematic:
+    if len(c) == 0 or not world.body_masks().any_kinematic or not _touches(world.kind, c.body_a, c.body_b, KINEMATIC):
         return 0.0
     s = world.s
     total = 0.0
@@ -34,6 +34,15 @@ def kinematic_work(world, c):
             u = s.vel[i] + cross(s.omega[i], c.point[k] - s.pos[i])
             total += float(np.sum(sign * c.impulse[k] * u))
     return total
+
+
+@njit
+def _touches(kind, a, b, which):
+    """Whether a contact ``a, b (K,)`` has a body of kind ``which``."""
+    for c in range(a.shape[0]):
+        if kind[a[c]] == which or kind[b[c]] == which:
+            return True
+    return False
 
 
 def kinetic_energy(world, idx):
