@@ -61,6 +61,7 @@ def main(args=None):
             return 2
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        node.freeze_heap()
         try:
             while not stop.requested and rclpy.ok():
                 executor.spin_once(timeout_sec=0.1)   # a signal is seen within 0.1 s

@@ -8,6 +8,7 @@ Run: ``contact_sim_node --ros-args --params-file config/contact_sim.params.yaml`
 ``python -m msg_adapters --ros-args -p scene:=kinematic_paddle``.
 """
 import collections
+import gc
 import math
 import sys
 import time
@@ -116,6 +117,21 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.get_logger().info(
             f"scene {self.scene_path}: {self.world.describe().splitlines()[0]}; tracking "
             f"{', '.join(self.tracked) or 'no bodies'}; {self.cfg['rate_hz']:g} Hz x {self.cfg['substeps']} substeps")
+
+    def freeze_heap(self):
+        """Move every object alive now (the modules, the kernels, the world) out of the cyclic
+        garbage collector's reach (``gc.freeze``), after one last collection: a full collection of
+        the node's ~150,000 objects takes 30-40 ms, thirty ticks at 1 kHz, and with them frozen it
+        scans only what the ticks make (0.003 ms). The process's owner calls it once the node is
+        built (``launch.main``); a scene reload refreezes, so the old world's cycles are freed."""
+        gc.collect()
+        gc.freeze()
+        self._heap_frozen = True
+
+    def _refreeze_heap(self):
+        if getattr(self, "_heap_frozen", False):
+            gc.unfreeze()
+            self.freeze_heap()
 
     def _raw_params(self):
         out = {}
@@ -316,6 +332,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._install_world(*new_world)
             self._reinstall_robot()
             self._publish_names()
+            self._refreeze_heap()
             self.get_logger().info(f"loaded scene {self.scene_path}; tracking {', '.join(self.tracked) or 'nothing'}")
         apply_model(self.world, self.scene_settings, cfg)
         if markers_off:     # RViz keeps the last markers until told otherwise

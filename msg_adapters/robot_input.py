@@ -134,6 +134,7 @@ class RobotInput:
         self._robot_urdf = urdf
         self._js_t0_ns = self._js_last_ns = None     # a new robot: its first joint state places it
         self._robot_held = True
+        self._refreeze_heap()     # the new links' meshes out of the collector's reach, the old ones freed
 
     def _reinstall_robot(self):
         """After a new scene: the robot of the last description into the new world."""

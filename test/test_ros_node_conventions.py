@@ -433,3 +433,24 @@ def test_engine_step_error_is_an_error_in_diagnostics_and_the_world_is_kept(manu
     monkeypatch.undo()
     tick(node, spin, client, "diag")             # and the node goes on
     assert world.time > t and client.diag().level != DiagnosticStatus.ERROR
+
+
+def test_the_node_process_freezes_its_heap_and_a_new_scene_frees_the_old_world(ros):
+    """``launch.main`` freezes the heap once the node is built (a full collection of the node's
+    objects takes tens of milliseconds, tens of ticks at 1 kHz); a scene reload refreezes after a
+    collection, so the old world's reference cycles are freed, not kept frozen forever."""
+    import gc
+    import weakref
+
+    node = make_node(ros)
+    try:
+        node.world.held_by_a_cycle = [node.world]      # refcounts alone would never free it
+        node.freeze_heap()
+        assert gc.get_freeze_count() > 1000
+        old = weakref.ref(node.world)
+        assert node.set_parameters([Parameter("scene", value="box_stack")])[0].successful
+        assert node.world is not old() and old() is None    # collected, though it was frozen
+        assert gc.get_freeze_count() > 1000
+    finally:
+        gc.unfreeze()            # the test process goes on as it was
+        node.destroy_node()
