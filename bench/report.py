@@ -184,14 +184,15 @@ def node():
            "Tick time is the node's own measure (timer callback to the last publication), p50/p99 over "
            "its last `stats_window` ticks (the measured window, after a 1 s warm-up), as reported in "
            "`/diagnostics`; overruns count the window's ticks longer than the period (in brackets: those of the "
-           "first second before it, start-up included).", "",
-           "| measurement | bodies | rate Hz | p50 | p99 | ticks measured, overruns | sent | received | dropped |",
+           "first second before it, start-up included), skipped the periods in the window whose tick the "
+           "timer never started (the executor late).", "",
+           "| measurement | bodies | rate Hz | p50 | p99 | ticks measured, overruns, skipped | sent | received | dropped |",
            "|---|---|---|---|---|---|---|---|---|"]
     for x in r:
         if x["test"] in ("tick_time", "tick_default"):
             what = "tick time (ms)" if x["test"] == "tick_time" else "tick time (ms), default scene, node defaults"
             out.append(f"| {what} | {x['bodies']} | {x['rate_hz']} | {f(x['p50_ms'], '.2f')} | "
-                       f"{f(x['p99_ms'], '.2f')} | {x['samples']}, {x['overruns']} ({x.get('overruns_startup', '')}) | | | |")
+                       f"{f(x['p99_ms'], '.2f')} | {x['samples']}, {x['overruns']} ({x.get('overruns_startup', '')}), {x['skipped_ticks']} | | | |")
         else:
             out.append(f"| pose → contacts latency (ms), {x['test']} | {x['bodies']} | {x['rate_hz']} | "
                        f"{f(x['latency_p50_ms'], '.1f')} | {f(x['latency_p99_ms'], '.1f')} | | {x['sent']} | "
