@@ -110,6 +110,7 @@ class BodyControl:
             return self._refuse("deletes", str(exc))
         self.counts["deleted_bodies"] += len(names)
         self._bodies_changed()
+        self._refreeze_heap()   # the deleted bodies' reference cycles (their meshes' caches) freed
         self.get_logger().info(f"deleted {len(names)} bodies: {', '.join(names)}")
 
     def _bodies_changed(self):

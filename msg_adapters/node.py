@@ -20,7 +20,7 @@ from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockChange, ClockType, JumpThreshold
 from rclpy.duration import Duration
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
@@ -88,13 +88,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         # best effort matches reliable and best-effort publishers (drivers, mocap bridges); raw bytes
         # parsed with numpy keep up at 1 kHz; the message info carries the sequence numbers
         try:
-            self.sub_poses = self.create_subscription(
-                PoseArray, "body_poses", self._on_poses,
-                QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST),
-                raw=True, qos_overriding_options=qos_overrides(),
-                # the publishers' count, for drop counting, from the middleware's matched events: asking
-                # for it every tick (count_publishers) cost ~15 us of a 1 kHz tick
-                event_callbacks=SubscriptionEventCallbacks(matched=self._on_pose_publishers_matched))
+            self.sub_poses = self._create_pose_subscription()
             self._create_body_control(qos_overrides)
             self._create_robot_input(qos_overrides)
         except (InvalidQosOverridesError, rclpy.exceptions.ParameterException, ValueError, KeyError,
@@ -123,7 +117,8 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         garbage collector's reach (``gc.freeze``), after one last collection: a full collection of
         the node's ~150,000 objects takes 30-40 ms, thirty ticks at 1 kHz, and with them frozen it
         scans only what the ticks make (0.003 ms). The process's owner calls it once the node is
-        built (``launch.main``); a scene reload refreezes, so the old world's cycles are freed."""
+        built (``launch.main``); a scene reload, a new robot and a body deletion refreeze (one
+        full collection, 30-40 ms, each), so what they replaced is freed, reference cycles too."""
         gc.collect()
         gc.freeze()
         self._heap_frozen = True
@@ -222,6 +217,21 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
                 self._handle_pose(*taken)
         except Exception as exc:  # internal rclpy API changed or handle gone: one message per callback
             self._warn("drain", f"cannot drain body_poses ({type(exc).__name__}: {exc}); taking one per callback")
+
+    def _create_pose_subscription(self):
+        """The ``body_poses`` subscription. The publishers' count, for drop counting, comes from the
+        middleware's matched events (asking for it every tick, ``count_publishers``, cost ~15 us of a
+        1 kHz tick); a middleware without them gets the count asked for every tick instead."""
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
+        self._poll_publishers = False
+        try:
+            return self.create_subscription(
+                PoseArray, "body_poses", self._on_poses, qos, raw=True, qos_overriding_options=qos_overrides(),
+                event_callbacks=SubscriptionEventCallbacks(matched=self._on_pose_publishers_matched))
+        except UnsupportedEventTypeError:
+            self._poll_publishers = True
+            return self.create_subscription(PoseArray, "body_poses", self._on_poses, qos, raw=True,
+                                            qos_overriding_options=qos_overrides())
 
     def _on_pose_publishers_matched(self, info):
         """A publisher of body_poses came or went (``QoSSubscriptionMatchedInfo``)."""
@@ -378,6 +388,8 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             if behind > 0:  # ticks the timer could not honour: counted, never caught up
                 self.counts["skipped_ticks"] += behind
         self._last_tick_start = start
+        if self._poll_publishers:
+            self._pose_publishers = self.count_publishers(self.sub_poses.topic_name)
         if self.paused:
             now_ns = self._now_ns()
             self._publish_clock(now_ns)

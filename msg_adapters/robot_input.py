@@ -100,10 +100,11 @@ class RobotInput:
                                f"({', '.join(self._robot.bodies)}); {len(self.world.disabled_pairs)} body pairs "
                                f"never tested")
 
-    def _install_robot(self, urdf, srdf=None, strict=False):
+    def _install_robot(self, urdf, srdf=None, strict=False, refreeze=True):
         """Replace the robot (if any) by the one ``urdf`` describes (with the SRDF's allowed
         collisions: ``srdf``, else the last accepted one); all or nothing. ``strict``: an SRDF that
-        does not fit refuses the whole request."""
+        does not fit refuses the whole request. ``refreeze``: refreeze the heap after (a scene
+        reload does it once for the scene and the robot)."""
         world = self.world
         srdf = self._robot_srdf if srdf is None else srdf
         prefix = self.cfg["robot_prefix"]
@@ -134,7 +135,8 @@ class RobotInput:
         self._robot_urdf = urdf
         self._js_t0_ns = self._js_last_ns = None     # a new robot: its first joint state places it
         self._robot_held = True
-        self._refreeze_heap()     # the new links' meshes out of the collector's reach, the old ones freed
+        if refreeze:
+            self._refreeze_heap()     # the new links' meshes out of the collector's reach, the old ones freed
 
     def _reinstall_robot(self):
         """After a new scene: the robot of the last description into the new world."""
@@ -142,7 +144,7 @@ class RobotInput:
         if self._robot_urdf is None:
             return
         try:
-            self._install_robot(self._robot_urdf)
+            self._install_robot(self._robot_urdf, refreeze=False)
         except Exception as exc:
             self.counts["rejected_robot_descriptions"] += 1
             self._warn("robot_description", f"robot_description does not fit the new scene: {exc}")

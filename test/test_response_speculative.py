@@ -177,3 +177,21 @@ def test_each_pair_takes_only_the_margin_its_bodies_can_close():
     np.testing.assert_allclose(np.sort(points, axis=0), np.sort(corners, axis=0), atol=1e-12)
     np.testing.assert_allclose(depth, 0.0, atol=1e-12)
 
+
+
+def test_a_turning_kinematic_plane_takes_the_whole_margin():
+    """A plane has no extent to bound how fast its far points move: turning at 1 rad/s, its point
+    under a ball 2 m from its origin rises at 2 m/s. Its reach is infinite, so its pairs take the
+    step's whole margin and the ball 1 cm above it is a speculative contact that closes."""
+    from contact_sim.collision import detect_world
+    from contact_sim.response import prepare
+
+    w = cs.World(settings=cs.Settings(dt=0.01))
+    w.add_body("deck", cs.Plane(), kind="kinematic", angular_velocity=(0.0, 1.0, 0.0))
+    w.add_body("ball", cs.Sphere(R), mass=1.0, position=(-2.0, 0.0, R + 0.01))
+    w.add_body("runner", cs.Sphere(R), mass=1.0, position=(3.0, 0.0, 0.5), velocity=(3.0, 0.0, 0.0))
+    margin, reach, floor = prepare.speculative_reach(w, 0.01)
+    assert reach[0] == np.inf and margin == prepare.speculative_margin(w, 0.01) > 0.01
+    c, _ = detect_world(w, margin=margin, reach=reach, floor=floor)
+    (row,) = np.flatnonzero((c.body_a == 0) | (c.body_b == 0))
+    assert c.depth[row] == pytest.approx(-0.01, abs=1e-12)

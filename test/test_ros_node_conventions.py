@@ -454,3 +454,31 @@ def test_the_node_process_freezes_its_heap_and_a_new_scene_frees_the_old_world(r
     finally:
         gc.unfreeze()            # the test process goes on as it was
         node.destroy_node()
+
+
+def test_without_matched_events_the_node_counts_pose_publishers_every_tick(ros, monkeypatch):
+    """A middleware without the subscription matched event: the node still starts, and asks for the
+    publishers' count each tick instead."""
+    from rclpy.event_handler import UnsupportedEventTypeError
+
+    real = ContactSimNode.create_subscription
+
+    def no_matched_events(self, *args, event_callbacks=None, **kwargs):
+        if event_callbacks is not None and event_callbacks.matched is not None:
+            raise UnsupportedEventTypeError("matched events are not supported")
+        return real(self, *args, event_callbacks=event_callbacks, **kwargs)
+
+    monkeypatch.setattr(ContactSimNode, "create_subscription", no_matched_events)
+    node = make_node(ros)
+    try:
+        node.timer.cancel()
+        assert node._poll_publishers
+        client = Client(ros)
+        spin = Spinner(ros, node, client.node)
+        spin.until(lambda: node.count_publishers("/body_poses") == 1, 5, "the client's publisher")
+        node._on_timer()
+        assert node._pose_publishers == 1
+        spin.shutdown()
+        client.node.destroy_node()
+    finally:
+        node.destroy_node()

@@ -250,7 +250,7 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0):
     with ``depth = -separation`` (negative). ``body_a < body_b`` in every row; ``normal (K, 3)``
     points from ``body_b`` to ``body_a``. ``R (N, 3, 3)``: the bodies' rotation matrices, when the
     caller has them already (``vec3.rotations`` of ``world.s.quat``; the step shares them).
-    ``reach (N,)`` (m, the step's speculative contacts: ``prepare.pair_reach``) narrows each pair's
+    ``reach (N,)`` (m, the step's speculative contacts: ``prepare.speculative_reach``) narrows each pair's
     margin to ``min(margin, floor + reach[a] + reach[b])``; ``margin`` still finds the pairs.
     """
     t0 = time.perf_counter()

@@ -30,7 +30,7 @@ def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a
     pts, dep, val, keep = np.empty((8, 3)), np.empty(8), np.empty(8, np.bool_), np.empty(8, np.bool_)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         r, hh = sf[sa, SF_RADIUS], sf[sa, SF_HALF + 2]
@@ -64,7 +64,7 @@ def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, 
     side and the nearer cap (the side through the body's x axis for a centre on the axis)."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
         r, hh = sf[sa, SF_RADIUS], sf[sa, SF_HALF + 2]

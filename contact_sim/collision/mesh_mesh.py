@@ -416,7 +416,7 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     Rr, tr = np.empty((3, 3)), np.empty(3)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, Rb, pa, pb = R[a[i]], R[b[i]], pos[a[i]], pos[b[i]]
         # B's frame to A's: x_A = Rr x_B + tr, Rr = Raᵀ Rb, tr = Raᵀ (pb − pa)

@@ -59,7 +59,7 @@ def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
     V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         cb, rb = pos[b[i]], sf[sb, SF_RADIUS]
         world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pos[a[i]], R[a[i]], V)
@@ -200,7 +200,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     F, I = np.empty(cap, np.int64), np.empty(cap, np.int64)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sm, sp = shape_of[a[i]], shape_of[b[i]]
         world_poly(verts, planes, si, sm, pos[a[i]], R[a[i]], VM, NM, dM)
         world_poly(verts, planes, si, sp, pos[b[i]], R[b[i]], VP, NP, dP)

@@ -100,7 +100,7 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
     ``ia, ib, swap (K,)`` the batch and ``kk (M,)`` its kept pairs, ``a, b (M,)`` their bodies in the
     kernels' order (``bounding.kept_pairs``). Each pair's margin is ``margin``, or with ``reach (N,)``
     (empty: none) ``min(margin, floor + reach[a] + reach[b])``: how far its two bodies can close
-    (``prepare.pair_reach``), so that a pair at rest beside a fast body does not take candidates it
+    (``prepare.speculative_reach``), so that a pair at rest beside a fast body does not take candidates it
     cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
     body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
     (``rows_i[:, 0]`` indexing ``kk``), the columns of ``contact_columns``, and the number of pairs

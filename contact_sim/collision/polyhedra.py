@@ -254,7 +254,7 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     eb2, eb3 = eb[:ne], eb[ne:]
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, Rb, pa, pb = R[a[i]], R[b[i]], pos[a[i]], pos[b[i]]
         world_poly(verts, planes, si, sa, pa, Ra, VA, NA, dA)

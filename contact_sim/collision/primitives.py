@@ -41,7 +41,7 @@ def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, 
     """Sphere A against plane B: the true signed distance, one contact."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         ra = sf[sa, SF_RADIUS]
@@ -60,7 +60,7 @@ def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a,
     """Sphere A against sphere B (concentric: the normal is +z, any direction being right)."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
         d = pos[a[i]] - pos[b[i]]
         dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
@@ -76,7 +76,7 @@ def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
     """Box A against sphere B: clamp the centre into the box; a centre inside exits by the nearest face."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         h = sf[sa, SF_HALF:SF_HALF + 3]
         Ra, cb, rb = R[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
@@ -130,7 +130,7 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
     pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa = shape_of[a[i]]
         nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
         v0, nv = si[sa, SI_V0], si[sa, SI_NV]
@@ -171,7 +171,7 @@ def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
     V = np.empty((col_max(si, SI_NV, shape_of, a, b), 3))
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
-        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.pair_reach)
+        margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa, sb = shape_of[a[i]], shape_of[b[i]]
         Ra, pa, cb, rb = R[a[i]], pos[a[i]], pos[b[i]], sf[sb, SF_RADIUS]
         world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pa, Ra, V)

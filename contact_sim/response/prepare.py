@@ -211,15 +211,13 @@ def speculative_reach(world, dt):
 
 @njit
 def _reach(vel, omega, ext, moving, dt, out):
-    """``out (N,)``: ``(|v| + |ω|·extent) dt`` of the ``moving`` bodies, 0 for the others; returns
+    """``out (N,)``: ``_speed · dt`` of the ``moving`` bodies, 0 for the others; returns
     ``_fastest``'s speed (−1 when none moves)."""
     best = -1.0
     for i in range(vel.shape[0]):
         out[i] = 0.0
         if moving[i]:
-            e = ext[i] if math.isfinite(ext[i]) else 0.0
-            speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) + math.sqrt(
-                omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2) * e
+            speed = _speed(vel, omega, ext, i)
             best = max(best, speed)
             out[i] = speed * dt
     return best
@@ -237,16 +235,24 @@ def _margin_facts(world):
 
 @njit
 def _fastest(vel, omega, ext, moving):
-    """Largest ``|v| + |ω|·extent`` (m/s) over the ``moving`` bodies (an infinite extent counts as
-    0); −1 when none moves."""
+    """Largest ``_speed`` (m/s) over the ``moving`` bodies; −1 when none moves."""
     best = -1.0
     for i in range(vel.shape[0]):
         if moving[i]:
-            e = ext[i] if math.isfinite(ext[i]) else 0.0
-            speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) + math.sqrt(
-                omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2) * e
-            best = max(best, speed)
+            best = max(best, _speed(vel, omega, ext, i))
     return best
+
+
+@njit
+def _speed(vel, omega, ext, i):
+    """``|v| + |ω|·extent`` of body ``i``: the fastest any of its points moves. A spinning body of
+    infinite extent (a turning kinematic plane) has no such bound: infinite, so its pairs take the
+    step's whole (capped) margin."""
+    v = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+    w = math.sqrt(omega[i, 0] ** 2 + omega[i, 1] ** 2 + omega[i, 2] ** 2)
+    if math.isfinite(ext[i]):
+        return v + w * ext[i]
+    return v + (math.inf if w > 0.0 else 0.0)
 
 
 def inv_inertia(world, m, R):
