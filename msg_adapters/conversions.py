@@ -354,9 +354,10 @@ def multidof_cdr(names_blob, positions, orientations, linear, angular, force, to
     return b"\x00\x01\x00\x00" + out
 
 
-def multidof_rows_cdr(names_blob, n, transforms, twists, wrenches, frame_id, stamp_ns):
+def multidof_rows_cdr(names_blob, transforms, twists, wrenches, frame_id, stamp_ns):
     """``multidof_cdr`` of rows already laid out (little-endian float64, C-ordered): ``transforms``
-    ``(N, 7)``, ``twists`` and ``wrenches`` ``(N, 6)``, or flat (``state_rows``' blocks)."""
+    ``(N, 7)``, ``twists`` and ``wrenches`` ``(N, 6)`` (``state_rows.blocks``)."""
+    n = len(transforms)
     out = _multidof_head(names_blob, frame_id, stamp_ns)
     _rows_seq(out, n, transforms)
     _rows_seq(out, n, twists)

@@ -72,6 +72,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.period = 1.0 / self.cfg["rate_hz"]
 
         self.paused = False
+        self._heap_frozen = False      # gc.freeze'd by the process's owner (freeze_heap)
         self.counts = collections.Counter()
         # tick times (s) of the last stats_window ticks: a ring buffer (no per-publish list conversion)
         self._tick_buf = np.zeros(self.cfg["stats_window"])
@@ -124,7 +125,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self._heap_frozen = True
 
     def _refreeze_heap(self):
-        if getattr(self, "_heap_frozen", False):
+        if self._heap_frozen:
             gc.unfreeze()
             self.freeze_heap()
 

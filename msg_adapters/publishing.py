@@ -24,7 +24,7 @@ from .cdr_out import marker_array_cdr, point_fields_cdr, pointcloud2_cdr
 from .robot_input import JOINT_STATE_REASONS
 from .conversions import (CONTACT_DTYPE, contact_marker_specs, contacts_to_array, diagnostic_array, make_header,
                           multidof_rows_cdr, names_cdr, ns_to_stamp, point_fields, posearray_rows_cdr)
-from .state_rows import POSE, TWIST, state_rows
+from .state_rows import blocks, state_rows
 
 POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "non_unit_quaternion", "stamp",
                        "frame_id", "out_of_bounds", "engine")
@@ -79,14 +79,11 @@ class Outputs:
         """``body_states`` (PoseArray, for RViz) and ``body_multidof_states`` (names, poses, twists of
         the body origins and the contact wrenches; zero wrenches when no step was taken), from one
         compiled pass over the bodies and contacts (``state_rows``)."""
-        n = len(self.world)
         rows = state_rows(self.world, contacts, duration if contacts is not None else 1.0)
+        poses, twists, wrenches = blocks(rows, len(self.world))
         frame = self.cfg["frame_id"]
-        tw, wr = POSE * n, (POSE + TWIST) * n
-        poses = rows[:tw]
         self.pub_states.publish(posearray_rows_cdr(poses, frame, stamp_ns))
-        self.pub_multidof.publish(multidof_rows_cdr(self._names_cdr(), n, poses, rows[tw:wr], rows[wr:], frame,
-                                                    stamp_ns))
+        self.pub_multidof.publish(multidof_rows_cdr(self._names_cdr(), poses, twists, wrenches, frame, stamp_ns))
 
     def _names_cdr(self):
         names = tuple(self.world.body_names)

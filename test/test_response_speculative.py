@@ -162,7 +162,9 @@ def test_each_pair_takes_only_the_margin_its_bodies_can_close():
     w, corners = _hull_beside_a_fast_ball()
     dt = 0.01
     margin, reach, floor = prepare.speculative_reach(w, dt)
-    assert margin == prepare.speculative_margin(w, dt) > 0.01            # the ball's: the 1 cm vertex is in it
+    cap = prepare._margin_facts(w)[2]                   # a fraction of the thinnest body
+    assert margin == max(w.settings.contact_margin, min(2.0 * 5.0 * dt + G * dt * dt, cap))   # the ball's
+    assert margin > 0.01                                # the 1 cm vertex is in it
     np.testing.assert_array_equal(reach, [0.0, 0.0, 5.0 * dt])
     assert floor == w.settings.contact_margin + G * dt * dt
 
@@ -191,7 +193,7 @@ def test_a_turning_kinematic_plane_takes_the_whole_margin():
     w.add_body("ball", cs.Sphere(R), mass=1.0, position=(-2.0, 0.0, R + 0.01))
     w.add_body("runner", cs.Sphere(R), mass=1.0, position=(3.0, 0.0, 0.5), velocity=(3.0, 0.0, 0.0))
     margin, reach, floor = prepare.speculative_reach(w, 0.01)
-    assert reach[0] == np.inf and margin == prepare.speculative_margin(w, 0.01) > 0.01
+    assert reach[0] == np.inf and margin == prepare._margin_facts(w)[2] > 0.01   # the whole, capped margin
     c, _ = detect_world(w, margin=margin, reach=reach, floor=floor)
     (row,) = np.flatnonzero((c.body_a == 0) | (c.body_b == 0))
     assert c.depth[row] == pytest.approx(-0.01, abs=1e-12)

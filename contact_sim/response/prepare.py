@@ -174,30 +174,20 @@ def _relative_velocity(a, b, point, pos, vel, omega, kind, particles, out, norma
     return kept
 
 
-def speculative_margin(world, dt):
-    """Detection margin (m) of a ``next_step`` step with speculative contacts: the largest closing
-    distance of any pair in ``dt`` (twice the fastest body's speed, including spin × size, times
-    ``dt``, plus ``|g| dt²``), at least ``settings.contact_margin`` and at most
-    ``SPECULATIVE_MAX_FRACTION`` × the thinnest finite body (a body moving farther than that in a
-    step is the tunnelling case that ``swept`` handles and the preflight warns about)."""
-    s = world.s
-    base = world.settings.contact_margin
-    ext, moving, cap = _margin_facts(world)
-    vmax = _fastest(s.vel, s.omega, ext, moving)
-    if vmax < 0:   # nothing moves
-        return base
-    reach = 2.0 * vmax * dt + world.gravity_norm() * dt * dt
-    return max(base, min(reach, cap))
-
-
 def speculative_reach(world, dt):
-    """``speculative_margin`` and each body's share of it: ``(margin, reach (N,), floor)`` with
-    ``reach`` the farthest a body's points move in ``dt`` (``(|v| + |ω|·extent) dt``, 0 for a body
-    that does not move) and ``floor = contact_margin + |g| dt²``. A pair can close by at most
-    ``floor + reach[a] + reach[b]`` (the look-ahead keeps nothing farther), so the narrow phase takes
-    that as the pair's margin (``detect_world``'s ``reach``): a hull at rest beside a fast ball then
-    builds its manifold from the points that touch, not from vertices a centimetre up that the
-    look-ahead would drop, leaving its support short of a corner."""
+    """Detection margin (m) of a ``next_step`` step with speculative contacts, and each body's share
+    of it: ``(margin, reach (N,), floor)``.
+
+    ``margin`` is the largest closing distance of any pair in ``dt`` (twice the fastest body's
+    speed, including spin × size, times ``dt``, plus ``|g| dt²``), at least
+    ``settings.contact_margin`` and at most ``SPECULATIVE_MAX_FRACTION`` × the thinnest finite body
+    (a body moving farther than that in a step is the tunnelling case that ``swept`` handles and the
+    preflight warns about); it finds the pairs. ``reach`` is the farthest a body's points move in
+    ``dt`` (``_speed · dt``, 0 for a body that does not move) and ``floor = contact_margin + |g| dt²``.
+    A pair can close by at most ``floor + reach[a] + reach[b]`` (the look-ahead keeps nothing
+    farther), so the narrow phase takes that as the pair's margin (``detect_world``'s ``reach``): a
+    hull at rest beside a fast ball then builds its manifold from the points that touch, not from
+    vertices a centimetre up that the look-ahead would drop, leaving its support short of a corner."""
     s = world.s
     base = world.settings.contact_margin
     ext, moving, cap = _margin_facts(world)
@@ -211,8 +201,8 @@ def speculative_reach(world, dt):
 
 @njit
 def _reach(vel, omega, ext, moving, dt, out):
-    """``out (N,)``: ``_speed · dt`` of the ``moving`` bodies, 0 for the others; returns
-    ``_fastest``'s speed (−1 when none moves)."""
+    """``out (N,)``: ``_speed · dt`` of the ``moving`` bodies, 0 for the others; returns the largest
+    ``_speed`` (m/s), −1 when none moves."""
     best = -1.0
     for i in range(vel.shape[0]):
         out[i] = 0.0
@@ -224,23 +214,13 @@ def _reach(vel, omega, ext, moving, dt, out):
 
 
 def _margin_facts(world):
-    """What ``speculative_margin`` reads of the bodies, kept while they are the same (the kind
+    """What ``speculative_reach`` reads of the bodies, kept while they are the same (the kind
     array and the shape list are replaced when a body is added or removed): ``(extents (N,),
     moving (N,) bool, the largest look-ahead (m))``."""
     bm = world.body_masks()
     return derived(world, "margin_facts", (world.kind, world.shapes[-1] if len(world) else None, bm),
                    lambda: (toi_mod._extents(world), bm.moving,
                             SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
-
-
-@njit
-def _fastest(vel, omega, ext, moving):
-    """Largest ``_speed`` (m/s) over the ``moving`` bodies; −1 when none moves."""
-    best = -1.0
-    for i in range(vel.shape[0]):
-        if moving[i]:
-            best = max(best, _speed(vel, omega, ext, i))
-    return best
 
 
 @njit
