@@ -1,7 +1,9 @@
 """Benchmark of the contact_sim ROS 2 node, with the node in its own process.
 
 Measures
-  * tick time p50/p99/max (ms) over the window's ticks, overruns (ticks longer than the period) and
+  * tick time p50/p99/max (ms) over the window's ticks, and the tick thread's CPU time p99/max in
+    them; overruns (ticks longer than the period; off-CPU: those whose CPU time fitted the period,
+    the thread descheduled or blocked for the rest) and
     skipped ticks (periods the timer did not honour, the executor late) from the window's start to
     the diagnostics that close it, and overruns before it (start-up and warm-up), at 100 Hz for scenes of 10, 100 and 500 bodies (a ground plane, the
     kinematic paddle and dynamic spheres resting on the ground, so every sphere has a contact each
@@ -130,6 +132,7 @@ def run_scene(n_bodies, seconds, tmp, rows, pose_rates=(), rate_hz=100, scene=No
                 # counts below span from here to the diagnostics that close the window (``ticks``, up to
                 # a diagnostics period more than the ``window`` ticks of p50/p99/max)
                 start_overruns, start_skipped = int(cl.diag["tick_overruns"]), int(cl.diag["skipped_ticks"])
+                start_off_cpu = int(cl.diag["tick_overruns_off_cpu"])
                 # a node that cannot keep the rate (1 kHz on a loaded machine) takes longer than the
                 # window's nominal seconds to tick through it: wait for it, the overruns say so
                 spin.until(lambda: int(cl.diag["ticks"]) >= start_ticks + window, seconds * (1 + rate_hz / 200) + 10,
@@ -138,7 +141,9 @@ def run_scene(n_bodies, seconds, tmp, rows, pose_rates=(), rate_hz=100, scene=No
                 rows.append(dict(test=test, bodies=n_bodies, rate_hz=rate_hz, samples=window,
                                  p50_ms=float(d["tick_time_ms_p50"]), p99_ms=float(d["tick_time_ms_p99"]),
                                  max_ms=float(d["tick_time_ms_max"]), ticks=int(d["ticks"]) - start_ticks,
+                                 cpu_p99_ms=float(d["tick_cpu_ms_p99"]), cpu_max_ms=float(d["tick_cpu_ms_max"]),
                                  overruns=int(d["tick_overruns"]) - start_overruns, overruns_startup=start_overruns,
+                                 overruns_off_cpu=int(d["tick_overruns_off_cpu"]) - start_off_cpu,
                                  skipped_ticks=int(d["skipped_ticks"]) - start_skipped, contacts=int(d["contacts"])))
                 for rate in pose_rates:
                     rows.append(pose_input(cl, spin, rate, seconds, n_bodies))
@@ -227,7 +232,8 @@ def engine_timing(n_bodies, seconds, tmp):
                 p99_ms=np.percentile(ms, 99), max_ms=ms.max(), contacts=len(world.contacts))
 
 
-COLUMNS = ["test", "bodies", "rate_hz", "samples", "p50_ms", "p99_ms", "max_ms", "ticks", "overruns", "overruns_startup",
+COLUMNS = ["test", "bodies", "rate_hz", "samples", "p50_ms", "p99_ms", "max_ms", "cpu_p99_ms", "cpu_max_ms", "ticks",
+           "overruns", "overruns_off_cpu", "overruns_startup",
            "skipped_ticks", "contacts", "sent", "received", "dropped", "latency_p50_ms", "latency_p99_ms"]
 
 
@@ -269,13 +275,15 @@ def main():
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in r.items()})
-    print(f"{'test':<14}{'bodies':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}{'overrun':>8}{'start':>6}{'contacts':>9}"
+    print(f"{'test':<14}{'bodies':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}{'cpu max':>9}{'overrun':>8}{'offcpu':>7}"
+          f"{'start':>6}{'contacts':>9}"
           f"{'sent':>7}{'dropped':>8}{'lat p50':>9}{'lat p99':>9}")
     for r in rows:
         def f(k):
             v = r.get(k, "")
             return f"{v:.3g}" if isinstance(v, float) else str(v)
-        print(f"{r['test']:<14}{r['bodies']:>7}{f('p50_ms'):>9}{f('p99_ms'):>9}{f('max_ms'):>9}{f('overruns'):>8}"
+        print(f"{r['test']:<14}{r['bodies']:>7}{f('p50_ms'):>9}{f('p99_ms'):>9}{f('max_ms'):>9}{f('cpu_max_ms'):>9}"
+              f"{f('overruns'):>8}{f('overruns_off_cpu'):>7}"
               f"{f('overruns_startup'):>6}{f('contacts'):>9}{f('sent'):>7}{f('dropped'):>8}{f('latency_p50_ms'):>9}{f('latency_p99_ms'):>9}")
     print(f"wrote {RESULTS}")
 

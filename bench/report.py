@@ -185,18 +185,22 @@ def node():
            "its last `stats_window` ticks (the measured window, after a 1 s warm-up), as reported in "
            "`/diagnostics`; overruns count the ticks longer than the period from the window's start to the "
            "diagnostics that close it (in brackets: those before it, start-up and warm-up), skipped the "
-           "periods whose tick the timer never started (the executor late).", "",
-           "| measurement | bodies | rate Hz | p50 | p99 | max | ticks: measured, counted; overruns (before); skipped | sent | received | dropped |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
+           "periods whose tick the timer never started (the executor late). CPU is the tick thread's own CPU "
+           "time in the same ticks (`time.thread_time`); an overrun is off-CPU when that time fitted the "
+           "period: the thread was descheduled or blocked for the rest.", "",
+           "| measurement | bodies | rate Hz | p50 | p99 | max | CPU p99, max | ticks: measured, counted; overruns, off-CPU (before); skipped | sent | received | dropped |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
     for x in r:
         if x["test"] in ("tick_time", "tick_default"):
             what = "tick time (ms)" if x["test"] == "tick_time" else "tick time (ms), default scene, node defaults"
             out.append(f"| {what} | {x['bodies']} | {x['rate_hz']} | {f(x['p50_ms'], '.2f')} | "
-                       f"{f(x['p99_ms'], '.2f')} | {f(x['max_ms'], '.2f')} | {x['samples']}, {x.get('ticks', '')}; "
-                       f"{x['overruns']} ({x.get('overruns_startup', '')}); {x['skipped_ticks']} | | | |")
+                       f"{f(x['p99_ms'], '.2f')} | {f(x['max_ms'], '.2f')} | "
+                       f"{f(x.get('cpu_p99_ms', ''), '.2f')}, {f(x.get('cpu_max_ms', ''), '.2f')} | "
+                       f"{x['samples']}, {x.get('ticks', '')}; {x['overruns']}, {x.get('overruns_off_cpu', '')} "
+                       f"({x.get('overruns_startup', '')}); {x['skipped_ticks']} | | | |")
         else:
             out.append(f"| pose → contacts latency (ms), {x['test']} | {x['bodies']} | {x['rate_hz']} | "
-                       f"{f(x['latency_p50_ms'], '.1f')} | {f(x['latency_p99_ms'], '.1f')} | | | {x['sent']} | "
+                       f"{f(x['latency_p50_ms'], '.1f')} | {f(x['latency_p99_ms'], '.1f')} | | | | {x['sent']} | "
                        f"{x['received']} | {x['dropped']} |")
     out += ["", "A tick at 100 Hz runs about twice as slow as the same tick repeated back to back, on this "
                 "shared machine, whether the 9 ms between ticks sleeps or busy-waits (`bench/node_tick_gap.py`: "

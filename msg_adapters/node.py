@@ -76,6 +76,9 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.counts = collections.Counter()
         # tick times (s) of the last stats_window ticks: a ring buffer (no per-publish list conversion)
         self._tick_buf = np.zeros(self.cfg["stats_window"])
+        # and the tick thread's CPU time (s) in each: wall time beyond it is time the thread did not
+        # run (descheduled by the OS, or blocked), which tells a slow tick from a preempted one
+        self._tick_cpu_buf = np.zeros(self.cfg["stats_window"])
         self._ticks_timed = 0
         self._last_tick_time = 0.0
         self.step_time = 0.0
@@ -375,7 +378,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             response.success = False
             response.message = "not paused: the world steps on its timer; call ~/pause with data=true first"
             return response
-        ok = self._tick_work(time.perf_counter())
+        ok = self._tick_work(time.perf_counter(), time.thread_time())
         response.success = ok
         response.message = (f"stepped to t = {self.world.time:.6f} s" if ok
                             else f"step failed, state kept: {self._last_step_error}")
@@ -383,7 +386,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
 
     # ------------------------------------------------------------------ the tick
     def _on_timer(self):
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.thread_time()
         if self._last_tick_start is not None:
             behind = int((start - self._last_tick_start) / self.period + 0.5) - 1
             if behind > 0:  # ticks the timer could not honour: counted, never caught up
@@ -397,7 +400,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._publish_states(now_ns)
             self._maybe_diagnostics(now_ns)
             return
-        self._tick_work(start)
+        self._tick_work(start, cpu_start)
 
     def _hold_timed_out(self, now_s):
         """Tracked bodies without a pose for pose_timeout: back to the last pose, velocity decays."""
@@ -416,7 +419,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.world.set_states([self.tracked[j] for j in stale], positions=self._held_pos[stale],
                               orientations=self._held_quat[stale], velocities=v, angular_velocities=w)
 
-    def _tick_work(self, start):
+    def _tick_work(self, start, cpu_start):
         """One fixed step (substeps engine steps) and the publications. False if the engine failed."""
         world = self.world
         now_ns = self._now_ns()
@@ -449,12 +452,15 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.counts["ticks"] += 1
         stamp_ns = self._now_ns()   # one stamp for the whole tick: the world's time after the step
         self._publish_tick(contacts, stamp_ns, self.period)
-        elapsed = time.perf_counter() - start
-        self._tick_buf[self._ticks_timed % len(self._tick_buf)] = elapsed
+        elapsed, cpu = time.perf_counter() - start, time.thread_time() - cpu_start
+        slot = self._ticks_timed % len(self._tick_buf)
+        self._tick_buf[slot], self._tick_cpu_buf[slot] = elapsed, cpu
         self._ticks_timed += 1
         self._last_tick_time = elapsed
         if elapsed > self.period:
             self.counts["overruns"] += 1
+            if cpu <= self.period:   # the work fitted: the overrun is time the thread did not run
+                self.counts["overruns_off_cpu"] += 1
         self._maybe_diagnostics(stamp_ns)
         return True
 

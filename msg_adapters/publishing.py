@@ -116,6 +116,7 @@ class Outputs:
         c = self.counts
         n = min(self._ticks_timed, len(self._tick_buf))
         times = self._tick_buf[:n] * 1e3 if n else np.zeros(1)
+        cpu = self._tick_cpu_buf[:n] * 1e3 if n else np.zeros(1)
         p50, p99 = np.percentile(times, [50, 99])
         last = self._last_tick_time * 1e3 if n else 0.0
         contacts = getattr(self, "contacts", None)
@@ -137,7 +138,10 @@ class Outputs:
             "tick_time_ms_p50": float(p50),
             "tick_time_ms_p99": float(p99),
             "tick_time_ms_max": float(times.max()),
+            "tick_cpu_ms_p99": float(np.percentile(cpu, 99)),
+            "tick_cpu_ms_max": float(cpu.max()),
             "tick_overruns": c["overruns"],
+            "tick_overruns_off_cpu": c["overruns_off_cpu"],
             "skipped_ticks": c["skipped_ticks"],
             "contacts": len(contacts),
             "max_penetration_m": float(contacts.depth.max()) if len(contacts) else 0.0,

@@ -1,6 +1,7 @@
 """The contact_sim node in process: own rclpy.Context and ROS domain, services, bad input counted."""
 import math
 import os
+import time
 
 import numpy as np
 import pytest
@@ -274,7 +275,43 @@ def test_tick_time_statistics_cover_the_last_stats_window_ticks(ros):
         assert d["tick_time_ms_max"] == pytest.approx(window.max(), rel=1e-12)
         assert d["tick_time_ms_p50"] == pytest.approx(np.median(window), rel=1e-12)
         assert d["tick_time_ms_last"] == pytest.approx(node._tick_buf[(12 - 1) % 5] * 1e3, rel=1e-12)
+        # the thread's CPU time in each of those ticks: positive, and never more than the wall time
+        cpu = node._tick_cpu_buf * 1e3
+        assert np.all(cpu > 0) and np.all(cpu <= window * (1 + 1e-9) + 1e-3)
+        assert d["tick_cpu_ms_max"] == pytest.approx(cpu.max(), rel=1e-12)
+        assert d["tick_cpu_ms_p99"] == pytest.approx(np.percentile(cpu, 99), rel=1e-12)
     finally:
         node.destroy_node()
     with pytest.raises(ConfigError, match="stats_window"):
         make_node(ros, stats_window=0)
+
+
+def test_an_overrun_is_told_off_cpu_when_the_tick_thread_did_not_run_for_it(ros):
+    """A tick longer than the period is an overrun; it also counts as off-CPU when the thread's own
+    CPU time stayed within the period (here: asleep; in the benchmark: descheduled by the OS)."""
+    node = make_node(ros)
+    try:
+        node.timer.cancel()
+        period, publish = node.period, node._publish_tick
+
+        def asleep(*args):
+            time.sleep(2 * period)
+            publish(*args)
+
+        def busy(*args):
+            c0 = time.thread_time()
+            while time.thread_time() - c0 < 2 * period:   # CPU time past the period, whatever the load
+                pass
+            publish(*args)
+
+        node._publish_tick = asleep
+        node._on_timer()
+        assert (node.counts["overruns"], node.counts["overruns_off_cpu"]) == (1, 1)
+        node._publish_tick = busy
+        node._on_timer()
+        assert (node.counts["overruns"], node.counts["overruns_off_cpu"]) == (2, 1)
+        d = node.diagnostics_values()
+        assert (d["tick_overruns"], d["tick_overruns_off_cpu"]) == (2, 1)
+        assert d["tick_cpu_ms_max"] >= 2e3 * period
+    finally:
+        node.destroy_node()
