@@ -193,6 +193,8 @@ def node():
     for x in r:
         if x["test"] in ("tick_time", "tick_default"):
             what = "tick time (ms)" if x["test"] == "tick_time" else "tick time (ms), default scene, node defaults"
+            if int(x.get("thread_priority") or 0):
+                what += f", `thread_priority: {x['thread_priority']}` (SCHED_FIFO)"
             out.append(f"| {what} | {x['bodies']} | {x['rate_hz']} | {f(x['p50_ms'], '.2f')} | "
                        f"{f(x['p99_ms'], '.2f')} | {f(x['max_ms'], '.2f')} | "
                        f"{f(x.get('cpu_p99_ms', ''), '.2f')}, {f(x.get('cpu_max_ms', ''), '.2f')} | "

@@ -69,6 +69,10 @@ PARAMETERS = {
                                    dynamic_typing=True, fp=(0.0, 3600.0))),
     "stats_window": (1000, _d("Number of most recent ticks over which the diagnostics' tick_time_ms_p50/p99/max "
                               "are computed.", read_only=True, ir=(1, 1000000))),
+    "thread_priority": (0, _d("SCHED_FIFO priority (1-99) of the thread that runs the ticks, set by the node's process "
+                              "before it spins (as ros2_control's controller manager runs its loop at 50); 0 keeps the "
+                              "normal scheduler. Needs CAP_SYS_NICE or an rtprio limit: refused, the node warns and "
+                              "runs at normal priority.", read_only=True, ir=(0, 99))),
     "model.toi": ("", _d("Override the scene's time-of-impact policy ('' keeps the scene's).",
                          constraints="'' | auto | next_step | fractional | swept")),
     "model.response": ("", _d("Override the scene's contact response ('' keeps the scene's).",
@@ -108,7 +112,7 @@ def validate_config(values):
         if fp and not fp[0].from_value <= v <= fp[0].to_value:
             raise ConfigError(f"parameter {name}: must be in [{fp[0].from_value:g}, {fp[0].to_value:g}], got {v:g}")
         cfg[name] = v
-    for name in ("substeps", "max_marker_arrows", "model.solver_iterations", "stats_window"):
+    for name in ("substeps", "max_marker_arrows", "model.solver_iterations", "stats_window", "thread_priority"):
         v = cfg[name]
         ir = PARAMETERS[name][1].integer_range[0]
         if isinstance(v, bool) or not isinstance(v, int) or not ir.from_value <= v <= ir.to_value:

@@ -62,6 +62,7 @@ def main(args=None):
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         node.freeze_heap()
+        node.set_thread_priority()   # this thread spins: the ticks run in it
         try:
             while not stop.requested and rclpy.ok():
                 executor.spin_once(timeout_sec=0.1)   # a signal is seen within 0.1 s

@@ -10,6 +10,7 @@ Run: ``contact_sim_node --ros-args --params-file config/contact_sim.params.yaml`
 import collections
 import gc
 import math
+import os
 import sys
 import time
 
@@ -73,6 +74,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
 
         self.paused = False
         self._heap_frozen = False      # gc.freeze'd by the process's owner (freeze_heap)
+        self._thread_priority = 0      # SCHED_FIFO priority of the spinning thread (set_thread_priority)
         self.counts = collections.Counter()
         # tick times (s) of the last stats_window ticks: a ring buffer (no per-publish list conversion)
         self._tick_buf = np.zeros(self.cfg["stats_window"])
@@ -126,6 +128,24 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         gc.collect()
         gc.freeze()
         self._heap_frozen = True
+
+    def set_thread_priority(self):
+        """Run the calling thread (the one that will spin the node and so run its ticks) under
+        SCHED_FIFO at the ``thread_priority`` parameter, as ros2_control's controller manager runs
+        its 1 kHz loop: ticks then preempt the machine's ordinary processes instead of waiting for
+        their time slice. The process's owner calls it (``launch.main``); threads already running
+        (the middleware's) keep their scheduling. Refused (no CAP_SYS_NICE or rtprio limit, or no
+        such call on this system): a warning, and the thread keeps the normal scheduler.
+        Returns the priority in effect (0: normal scheduler), also in the diagnostics."""
+        prio = self.cfg["thread_priority"]
+        if prio:
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))
+                self._thread_priority = prio
+            except (OSError, AttributeError) as exc:
+                self.get_logger().warning(f"parameter thread_priority: SCHED_FIFO priority {prio} refused "
+                                          f"({exc}); ticks run under the normal scheduler")
+        return self._thread_priority
 
     def _refreeze_heap(self):
         if self._heap_frozen:

@@ -143,6 +143,7 @@ class Outputs:
             "tick_overruns": c["overruns"],
             "tick_overruns_off_cpu": c["overruns_off_cpu"],
             "skipped_ticks": c["skipped_ticks"],
+            "thread_priority": self._thread_priority,
             "contacts": len(contacts),
             "max_penetration_m": float(contacts.depth.max()) if len(contacts) else 0.0,
             "energy_J": float(self.world.energy()),

@@ -1,6 +1,7 @@
 """The contact_sim node in process: own rclpy.Context and ROS domain, services, bad input counted."""
 import math
 import os
+import threading
 import time
 
 import numpy as np
@@ -315,3 +316,67 @@ def test_an_overrun_is_told_off_cpu_when_the_tick_thread_did_not_run_for_it(ros)
         assert d["tick_cpu_ms_max"] >= 2e3 * period
     finally:
         node.destroy_node()
+
+
+def _in_thread(fn):
+    """fn() in a new thread (SCHED_FIFO set there stays there); its result, or its exception raised."""
+    out = {}
+
+    def run():
+        try:
+            out["value"] = fn()
+        except BaseException as exc:   # re-raised in the test's thread
+            out["error"] = exc
+    t = threading.Thread(target=run)
+    t.start()
+    t.join()
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+def _fifo_allowed():
+    def probe():
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+            return True
+        except (OSError, AttributeError):
+            return False
+    return _in_thread(probe)
+
+
+def test_thread_priority_runs_the_spinning_thread_under_sched_fifo(ros):
+    node = make_node(ros, thread_priority=50)
+    try:
+        assert node.diagnostics_values()["thread_priority"] == 0       # not yet: the process's owner sets it
+        allowed = _fifo_allowed()   # as root or with CAP_SYS_NICE (this project's CI); else the refusal
+        got = _in_thread(lambda: (node.set_thread_priority(), os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
+        want = 50 if allowed else 0
+        assert got == (want, os.SCHED_FIFO if allowed else os.SCHED_OTHER, want)
+        assert node.diagnostics_values()["thread_priority"] == want
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER              # only the calling thread changed
+    finally:
+        node.destroy_node()
+
+
+def test_thread_priority_refused_warns_and_keeps_the_normal_scheduler(ros, monkeypatch):
+    node = make_node(ros, thread_priority=50)
+    warnings = []
+    try:
+        def refuse(*args):
+            raise PermissionError(1, "Operation not permitted")
+        monkeypatch.setattr(os, "sched_setscheduler", refuse)
+        monkeypatch.setattr(node, "get_logger", lambda: type("L", (), {"warning": staticmethod(warnings.append)})())
+        assert _in_thread(node.set_thread_priority) == 0
+        assert node.diagnostics_values()["thread_priority"] == 0
+        assert len(warnings) == 1 and "thread_priority" in warnings[0] and "Operation not permitted" in warnings[0]
+    finally:
+        node.destroy_node()
+    # the default, 0, asks for nothing; out of range is a clear error
+    default = make_node(ros)
+    try:
+        assert _in_thread(default.set_thread_priority) == 0
+    finally:
+        default.destroy_node()
+    with pytest.raises(ConfigError, match=r"thread_priority"):
+        make_node(ros, thread_priority=100)
