@@ -187,12 +187,17 @@ def node():
            "diagnostics that close it (in brackets: those before it, start-up and warm-up), skipped the "
            "periods whose tick the timer never started (the executor late). CPU is the tick thread's own CPU "
            "time in the same ticks (`time.thread_time`); an overrun is off-CPU when that time fitted the "
-           "period: the thread was descheduled or blocked for the rest.", "",
+           "period: the thread was descheduled or blocked for the rest. The platform probe "
+           "(`bench/platform_probe.py`, its own process, like the node) repeats a constant piece of pure-Python "
+           "work as long as the 1 kHz tick's p50, at the same rate and scheduler, timed the same way: its "
+           "overruns are the machine's (interrupts, whose time this kernel charges to the running thread as CPU "
+           "time, and the hypervisor), not the code's.", "",
            "| measurement | bodies | rate Hz | p50 | p99 | max | CPU p99, max | ticks: measured, counted; overruns, off-CPU (before); skipped | sent | received | dropped |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for x in r:
-        if x["test"] in ("tick_time", "tick_default"):
-            what = "tick time (ms)" if x["test"] == "tick_time" else "tick time (ms), default scene, node defaults"
+        if x["test"] in ("tick_time", "tick_default", "platform_probe"):
+            what = {"tick_time": "tick time (ms)", "tick_default": "tick time (ms), default scene, node defaults",
+                    "platform_probe": "platform probe: constant work of the tick above's p50 (ms)"}[x["test"]]
             if int(x.get("thread_priority") or 0):
                 what += f", `thread_priority: {x['thread_priority']}` (SCHED_FIFO)"
             out.append(f"| {what} | {x['bodies']} | {x['rate_hz']} | {f(x['p50_ms'], '.2f')} | "
