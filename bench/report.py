@@ -194,7 +194,10 @@ def node():
            "time, and the hypervisor), not the code's.", "",
            "| measurement | bodies | rate Hz | p50 | p99 | max | CPU p99, max | ticks: measured, counted; overruns, off-CPU (before); skipped | sent | received | dropped |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
+    rounds = [x for x in r if (x.get("round") or "1") != "1"]
     for x in r:
+        if x in rounds:
+            continue
         if x["test"] in ("tick_time", "tick_default", "platform_probe"):
             what = {"tick_time": "tick time (ms)", "tick_default": "tick time (ms), default scene, node defaults",
                     "platform_probe": "platform probe: constant work of the tick above's p50 (ms)"}[x["test"]]
@@ -209,11 +212,32 @@ def node():
             out.append(f"| pose → contacts latency (ms), {x['test']} | {x['bodies']} | {x['rate_hz']} | "
                        f"{f(x['latency_p50_ms'], '.1f')} | {f(x['latency_p99_ms'], '.1f')} | | | | {x['sent']} | "
                        f"{x['received']} | {x['dropped']} |")
+    out += rounds_summary([x for x in r if x.get("round")])
     out += ["", "A tick at 100 Hz runs about twice as slow as the same tick repeated back to back, on this "
                 "shared machine, whether the 9 ms between ticks sleeps or busy-waits (`bench/node_tick_gap.py`: "
                 "the engine step and the publications both slow down): the tick's code and data are evicted between "
                 "ticks, not waiting on the executor or an idle CPU."]
     return out + [""]
+
+
+def rounds_summary(r):
+    """One line per scheduler: the 1 kHz node's and the platform probe's overruns summed over the
+    rounds of ``bench_node.py --rounds``."""
+    if not r:
+        return []
+    n_rounds = len({x["round"] for x in r})
+    out = ["", f"Over {n_rounds} rounds of the 1 kHz cases (node and probe taking turns, 5 s each):", ""]
+    for prio in sorted({int(x["thread_priority"] or 0) for x in r}):
+        sched = f"SCHED_FIFO {prio}" if prio else "normal scheduler"
+
+        def total(test):
+            sel = [x for x in r if x["test"] == test and int(x["thread_priority"] or 0) == prio]
+            return (sum(int(x["overruns"]) for x in sel), sum(int(x["ticks"]) for x in sel),
+                    max(float(x["max_ms"]) for x in sel))
+        node, probe = total("tick_time"), total("platform_probe")
+        out.append(f"- {sched}: node {node[0]} overruns in {node[1]} ticks (max {node[2]:.2f} ms); platform probe "
+                   f"{probe[0]} in {probe[1]} (max {probe[2]:.2f} ms)")
+    return out
 
 
 def hard_cases():

@@ -479,8 +479,13 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self._last_tick_time = elapsed
         if elapsed > self.period:
             self.counts["overruns"] += 1
-            if cpu <= self.period:   # the work fitted: the overrun is time the thread did not run
-                self.counts["overruns_off_cpu"] += 1
+            off_cpu = cpu <= self.period   # the work fitted: the overrun is time the thread did not run
+            self.counts["overruns_off_cpu"] += off_cpu
+            # where the time went, for whoever watches the log (as ros2_control warns of its overruns)
+            self._warn("overrun", f"tick overran its {self.period * 1e3:.3g} ms period: {elapsed * 1e3:.3g} ms, "
+                                  f"{cpu * 1e3:.3g} ms of it on the tick thread's CPU (engine step "
+                                  f"{self.step_time * 1e3:.3g} ms)"
+                                  + ("; the rest descheduled or blocked" if off_cpu else ""))
         self._maybe_diagnostics(stamp_ns)
         return True
 

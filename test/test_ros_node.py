@@ -305,12 +305,17 @@ def test_an_overrun_is_told_off_cpu_when_the_tick_thread_did_not_run_for_it(ros)
                 pass
             publish(*args)
 
+        warned = []
+        node._warn = lambda key, text, period=1.0: warned.append((key, text))
         node._publish_tick = asleep
         node._on_timer()
         assert (node.counts["overruns"], node.counts["overruns_off_cpu"]) == (1, 1)
+        assert [k for k, _ in warned] == ["overrun"] and "descheduled or blocked" in warned[0][1]
         node._publish_tick = busy
         node._on_timer()
         assert (node.counts["overruns"], node.counts["overruns_off_cpu"]) == (2, 1)
+        assert [k for k, _ in warned] == ["overrun"] * 2 and "descheduled" not in warned[1][1]
+        assert f"overran its {period * 1e3:.3g} ms period" in warned[1][1] and "engine step" in warned[1][1]
         d = node.diagnostics_values()
         assert (d["tick_overruns"], d["tick_overruns_off_cpu"]) == (2, 1)
         assert d["tick_cpu_ms_max"] >= 2e3 * period
