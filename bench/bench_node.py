@@ -119,10 +119,11 @@ def run_scene(n_bodies, seconds, tmp, rows, pose_rates=(), rate_hz=100, scene=No
     with domain_id() as dom:
         os.environ.update(ros_env(dom))
         window = int(round(seconds * rate_hz))
-        log, k = os.path.join(tmp, f"node_{test}_{n_bodies}_{rate_hz}_p{thread_priority}.log"), 1
+        name, k = os.path.join(tmp, f"node_{test}_{n_bodies}_{rate_hz}_p{thread_priority}"), 1
+        log = name + ".log"
         while os.path.exists(log):   # a later round of the same case
             k += 1
-            log = os.path.join(tmp, f"node_{test}_{n_bodies}_{rate_hz}_p{thread_priority}_{k}.log")
+            log = f"{name}_{k}.log"
         node = Node(dom, scene, log, rate_hz=rate_hz,
                     window=window, defaults=defaults, thread_priority=thread_priority)
         try:

@@ -194,9 +194,8 @@ def node():
            "time, and the hypervisor), not the code's.", "",
            "| measurement | bodies | rate Hz | p50 | p99 | max | CPU p99, max | ticks: measured, counted; overruns, off-CPU (before); skipped | sent | received | dropped |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
-    rounds = [x for x in r if (x.get("round") or "1") != "1"]
     for x in r:
-        if x in rounds:
+        if (x.get("round") or "1") != "1":   # later rounds of the 1 kHz cases: summed below the table
             continue
         if x["test"] in ("tick_time", "tick_default", "platform_probe"):
             what = {"tick_time": "tick time (ms)", "tick_default": "tick time (ms), default scene, node defaults",
@@ -226,7 +225,8 @@ def rounds_summary(r):
     if not r:
         return []
     n_rounds = len({x["round"] for x in r})
-    out = ["", f"Over {n_rounds} rounds of the 1 kHz cases (node and probe taking turns, 5 s each):", ""]
+    seconds = int(r[0]["samples"]) / float(r[0]["rate_hz"])   # the window bench_node was run with
+    out = ["", f"Over {n_rounds} rounds of the 1 kHz cases (node and probe taking turns, {seconds:g} s each):", ""]
     for prio in sorted({int(x["thread_priority"] or 0) for x in r}):
         sched = f"SCHED_FIFO {prio}" if prio else "normal scheduler"
 
