@@ -198,7 +198,7 @@ def _finish(ctx, correction_energy):
     world, m = ctx.world, ctx.models
     world.contact_cache.warm = ctx.warm_out
     world.contacts = merge_records(world, ctx.records)
-    world.last_solve = StepStats(iterations=ctx.iterations, residual=ctx.residual,
+    world.last_solve = StepStats(iterations=ctx.iterations, residual=ctx.residual, unconverged=ctx.unconverged,
                                  max_penetration=ctx.max_penetration, contacts=len(world.contacts),
                                  impacts=ctx.events, toi=m.toi, response=m.response,
                                  correction_energy=correction_energy,
@@ -228,16 +228,25 @@ def _penalty_step(world, dt, m):
     Bodies in contact move by ``x += dt·v⁺`` (symplectic Euler), free bodies ballistically."""
     st = world.settings
     s = world.s
-    c = _detect(world, 0.0)
+    # speculative contacts: a point apart now that can reach the other body within the step (a
+    # spinning box's corner swinging into the ground) is in the solve, so its spring acts on the
+    # depth it reaches by the end of the step; seen only once inside, its first step in compressed
+    # the spring with nothing resisting, energy from no work
+    margin, reach, floor = prepare.speculative_reach(world, dt) if st.speculative else (0.0, None, 0.0)
+    c = _detect(world, margin, reach=reach, floor=floor)
     k = len(c)
-    max_pen = float(c.depth.max()) if k else 0.0
+    max_pen = max(float(c.depth.max()), 0.0) if k else 0.0
     if k:
         rel_vel = prepare.relative_velocity(world, c, m)
         rows = prepare.rows(world, c, prepare.inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel, m)
         vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
-        stiff, damp = st.penalty.stiffness, st.penalty.damping
-        gamma = np.full(k, 1.0 / (dt * (dt * stiff + damp)))
-        target = stiff * np.maximum(c.depth, 0.0) / (dt * stiff + damp)
+        stiff = st.penalty.stiffness
+        # the damper acts on a point inside; one apart meets the spring alone, λ = dt·k·max(depth at
+        # the end, 0), which is zero unless the point gets inside within the step
+        inside = c.depth >= 0.0
+        damp = np.where(inside, st.penalty.damping, 0.0)
+        gamma = 1.0 / (dt * (dt * stiff + damp))
+        target = stiff * c.depth / (dt * stiff + damp)
         g = prepare.gravity(world)
         v_end = s.vel + g * dt          # the velocity the step would end with without contact
         w_end = s.omega.copy()
@@ -247,12 +256,14 @@ def _penalty_step(world, dt, m):
         if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
             penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
                                                  prepare.coefficients(world, c, m)[2], st.penalty.friction_velocity)
-        world.contacts = record(c, rows, res.impulse, vn0)
+        used = inside | (res.impulse[:, 0] > 0.0)   # a speculative contact that did nothing is none
+        rec = record(c, rows, res.impulse, vn0)
+        world.contacts = rec if used.all() else rec.select(used)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step
         touched = np.zeros(len(world), bool)
-        touched[c.body_a] = True
-        touched[c.body_b] = True
+        touched[c.body_a[used]] = True
+        touched[c.body_b[used]] = True
         shift = np.where((touched & (world.kind == DYNAMIC))[:, None], 0.5 * world.gravity * dt, 0.0)
         s.vel += (v_end - g * dt - s.vel) + shift
         s.omega[...] = w_end
@@ -263,6 +274,7 @@ def _penalty_step(world, dt, m):
         world.contacts = Contacts.empty()
         drift = world._advance_free(dt)
         iters, residual = 0, 0.0
-    world.last_solve = StepStats(iterations=iters, residual=residual, max_penetration=max_pen, contacts=k,
-                                 toi=m.toi, response=m.response,
+    unconverged = iters >= st.solver_iterations and residual > st.solver_tolerance
+    world.last_solve = StepStats(iterations=iters, residual=residual, unconverged=unconverged, max_penetration=max_pen,
+                                 contacts=len(world.contacts), toi=m.toi, response=m.response,
                                  kinematic_work=kinematic_work(world, world.contacts), rotation_drift=drift)

@@ -458,6 +458,8 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             for _ in range(substeps):
                 world.step(dt)
                 parts.append(world.contacts)
+                if world.last_solve.unconverged:   # a solve stopped at its iteration limit (diagnostics)
+                    self.counts["unconverged_steps"] += 1
         except Exception as exc:  # an engine failure (ContactSimError from its guard, or a bug) must not take the node down
             world.s, world.time = saved, t_saved
             world.contacts = self.contacts

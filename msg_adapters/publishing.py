@@ -31,7 +31,7 @@ POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "n
 #: counters whose growth since the last /diagnostics message makes it a WARN
 WARN_COUNTERS = ("rejected_poses", "rejected_parameters", "overruns", "poses_dropped", "rejected_body_states",
                  "rejected_spawns", "rejected_deletes", "clock_jumps_back", "rejected_robot_descriptions",
-                 "rejected_joint_states", "joint_states_unknown_joints")
+                 "rejected_joint_states", "joint_states_unknown_joints", "unconverged_steps")
 
 
 _CONTACT_FIELDS_CDR = point_fields_cdr(point_fields(CONTACT_DTYPE))   # the contacts' layout, once
@@ -149,6 +149,7 @@ class Outputs:
             "energy_J": float(self.world.energy()),
             "solver_residual": residual,
             "solver_iterations": iterations if isinstance(iterations, int) else -1,
+            "unconverged_steps": c["unconverged_steps"],
             "poses_received": c["poses_received"],
             "poses_accepted": c["poses_accepted"],
             "poses_superseded": c["poses_superseded"],
@@ -161,7 +162,7 @@ class Outputs:
         for key in ("rejected_parameters", "step_errors", "resets", "clock_jumps_back", "body_states_set",
                     "rejected_body_states", "spawned_bodies", "rejected_spawns", "deleted_bodies", "rejected_deletes",
                     "robot_descriptions", "robot_semantic_descriptions", "rejected_robot_descriptions", "joint_states_received", "joint_states_accepted",
-                    "rejected_joint_states", "joint_states_unknown_joints"):
+                    "rejected_joint_states", "joint_states_unknown_joints", "unconverged_steps"):
             values[key] = c[key]
         for r in JOINT_STATE_REASONS:
             values["rejected_joint_state_" + r] = c["rejected_joint_state_" + r]

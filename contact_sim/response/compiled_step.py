@@ -33,11 +33,12 @@ from . import correction, prepare
 from . import toi as toi_mod
 from .active_set import SOLVED, TOO_LARGE, islands, solve_islands
 from .cache import MATCH_FRACTION, _local_points, _warm_record, _warm_start
-from .context import REST_REBOUND_FRACTION
+from .context import IMPACT_ROUNDS, REST_REBOUND_FRACTION
 from .direct import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
                      DIRECT_REGULARISATION)
 from .energy import kinetic as kinetic_energy
 from .energy import restitution_cap
+from .impact import next_round
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
 from .resting import _work_bound
 
@@ -100,9 +101,10 @@ def run(ctx):
     normal_impulse, vn0 = f1
     used, resting = flags
     vp, wp = pw
-    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest = out.tolist()
+    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, planned, rested, n_rest, unconverged = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
+    ctx.unconverged = ctx.unconverged or bool(unconverged)
     ctx.max_penetration = max(ctx.max_penetration, deepest)
     ctx.rest_bound += rest_bound
     if planned:   # the correction moves the bodies after the step (correction.apply)
@@ -176,7 +178,8 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     impulses and the impulses; ``f1`` the normal impulses and the approach speeds; ``flags`` the
     contacts that count and those the resting solve took; ``wv`` the cache's values of those (its
     first rows); ``pw`` the correction's pseudo-velocities ``vp, wp``; ``out = [residual, deepest,
-    rest_bound, drift, kick_error, sweeps, used, planned, resting solve ran, contacts resting]``.
+    rest_bound, drift, kick_error, sweeps, used, planned, resting solve ran, contacts resting,
+    a solve stopped unconverged]``.
     The outputs are allocated here, in blocks: from Python each allocation and argument, and here
     each array handed back, costs more than the arithmetic."""
     k, n = a.shape[0], pos.shape[0]
@@ -188,7 +191,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     if look and kept < k:
         if kept == 0:
             return (NONE_NEAR, near, np.zeros((3, 0, 3)), np.zeros((2, 0)), np.zeros((2, 0), np.bool_),
-                    np.zeros((0, 4)), np.zeros((2, n, 3)), np.zeros(10))
+                    np.zeros((0, 4)), np.zeros((2, n, 3)), np.zeros(11))
         a, b, point, normal, depth, rel_vel = a[near], b[near], point[near], normal[near], depth[near], rel_vel[near]
         k = kept
     else:
@@ -198,7 +201,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
         np.zeros((2, n, 3))
     local, friction_impulse, impulse = f3[0], f3[1], f3[2]
     normal_impulse, vn0, used, resting, vp, wp = f1[0], f1[1], flags[0], flags[1], pw[0], pw[1]
-    out = np.zeros(10)
+    out = np.zeros(11)
     e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
     status = _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments,
@@ -230,6 +233,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     flags = np.empty((4, k), np.bool_)
     touching, imp, closing, bounced = flags[0], flags[1], flags[2], flags[3]
     spec_target = np.empty(k)
+    e_material = e.copy()   # classify zeroes e where a rebound rests; a later impact round rules again
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, np.zeros(0), False, toi_tolerance,
                               simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, e, vn0,
                               touching, imp, closing, spec_target, bounced)
@@ -245,13 +249,13 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     # ---- impact (impact.impact_solve): compression with friction, then restitution, capped
     lam_i = np.zeros((k, 3))
     vn1 = vn0
-    it_i, residual_i = 0, 0.0
+    it_i, residual_i, unconverged = 0, 0.0, False
     if counts.impact or counts.closing:
         vn1 = np.empty(k)
-        status, it_i, residual_i = _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing,
-                                           bounced, spec_target, speculative, e, vn0, mu_s, mu_d, kinetic, dynamic,
-                                           mass, particle, quat, inertia_body, direct_max, max_iterations, tolerance,
-                                           vel_s, omega_s, lam_i, vn1)
+        status, it_i, residual_i, unconverged = _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing,
+                                           bounced, spec_target, e, e_material, vn0, rebound_speed, impact_speed,
+                                           mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body,
+                                           direct_max, max_iterations, tolerance, vel_s, omega_s, lam_i, vn1)
         if status != DONE:
             return status
     # ---- position correction's plan (correction.plan): split-impulse pseudo-velocities ``vp, wp``
@@ -309,7 +313,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
                                           tolerance, v_end, w_end, lam)
         if solved != DONE:
             return solved
-        rest_bound = _work_bound(sa, sb, sdirs, sang_a, sang_b, vel_s, omega_s, lam)
+        rest_bound = _work_bound(sa, sb, sdirs, sang_a, sang_b, vel_s, omega_s, v_end, w_end, target, lam)
         _warm_record(lam, sdirs, wv[:kr])
         for j in range(kr):
             for x in range(4):
@@ -345,25 +349,58 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     out[0], out[1], out[2], out[3] = max(residual_i, residual_r), counts.deepest, rest_bound, drift
     out[4] = kick_error if rested else 0.0
     out[5], out[6], out[7], out[8], out[9] = max(it_i, it_r), kept, planned, rested, kr
+    out[10] = unconverged or (it_r >= max_iterations and residual_r > tolerance)
     return DONE
 
 
 @njit
-def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, speculative,
-            e, vn0, mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body, direct_max, max_iterations,
-            tolerance, vel, omega, lam, vn1):
-    """``impact.impact_solve`` (the impulse response) on the rows of ``_step``: the touching pairs
-    that approach and the closing speculative ones are stopped (compression, with friction), those
-    that bounce get their rebound (restitution, normal only) scaled by the energetic cap
-    (``energy.restitution_cap``). Updates ``vel, omega (N,3)``, writes the impulses ``lam (K,3)``
-    and the normal velocities after ``vn1 (K,)``. Returns ``(DONE, sweeps, residual)``, or
-    ``(LARGE, 0, 0.0)`` for a solve ``solver.solve_auto`` gives to another method."""
-    ti = np.flatnonzero((touching & (vn0 <= 0.0)) | closing)
+def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, e,
+            e_material, vn0, rebound_speed, impact_speed, mu_s, mu_d, kinetic, dynamic, mass, particle, quat,
+            inertia_body, direct_max, max_iterations, tolerance, vel, omega, lam, vn1):
+    """``impact.impact_solve`` (the impulse response) on the rows of ``_step``, round by round
+    (``impact.next_round``; ``bounced (K,)`` gains every contact that bounced in a later round).
+    Updates ``vel, omega (N,3)``, writes the impulses ``lam (K,3)`` and the normal velocities after
+    ``vn1 (K,)``. Returns ``(DONE, sweeps, residual, unconverged)`` (a solve stopped at
+    ``max_iterations`` with its impulses still changing by more than ``tolerance``), or ``(LARGE, 0,
+    0.0, False)`` for a solve ``solver.solve_auto`` gives to another method."""
+    k = a.shape[0]
+    take = (touching & (vn0 <= tolerance)) | closing
+    er, hit, vn = e, bounced, vn0
+    e_next, hit_next = np.empty(k), np.empty(k, np.bool_)
+    it, residual, unconverged = 0, 0.0, False
+    for _ in range(IMPACT_ROUNDS):
+        status, it_r, residual_r, stopped = _impact_round(np.flatnonzero(take), a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima,
+                                                 imb, K, touching, hit, spec_target, er, vn, mu_s, mu_d, kinetic,
+                                                 dynamic, mass, particle, quat, inertia_body, direct_max,
+                                                 max_iterations, tolerance, vel, omega, lam)
+        if status != DONE:
+            return status, 0, 0.0, False
+        it, residual, unconverged = max(it, it_r), max(residual, residual_r), unconverged or stopped
+        normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, vn1)
+        if not next_round(touching, spec_target, vn1, e_material, True, rebound_speed, impact_speed, tolerance, take,
+                          e_next, hit_next):
+            break
+        for c in range(k):
+            bounced[c] = bounced[c] or hit_next[c]
+        er, hit, vn = e_next.copy(), hit_next.copy(), vn1.copy()
+    return DONE, it, residual, unconverged
+
+
+@njit
+def _impact_round(ti, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, bounced, spec_target, e, vn,
+                  mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body, direct_max, max_iterations,
+                  tolerance, vel, omega, lam):
+    """``impact._round``: compression on the contacts ``ti`` (touching ones stopped, the others
+    slowed to ``spec_target``), then restitution up to ``−e·vn`` where ``bounced`` (the other pressed
+    touching contacts held), scaled by the energetic cap (``energy.restitution_cap``); the round's
+    impulses added to ``lam (K,3)``.
+    Returns ``(DONE, sweeps, residual, unconverged)`` or ``(LARGE, 0, 0.0, False)``."""
+    k = a.shape[0]
     nt = ti.shape[0]
     bounces = False
     for c in ti:
         bounces = bounces or e[c] * bounced[c] > 0.0
-    # the kinetic energy the impact starts from, for the restitution stage's cap
+    # the kinetic energy the round starts from, for the restitution stage's cap
     mark = np.zeros(vel.shape[0], np.bool_)
     for c in ti:
         mark[a[c]] = True
@@ -372,36 +409,46 @@ def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, clo
     kinetic0 = kinetic_energy(bodies0, mass, particle, quat, inertia_body, vel, omega) if bounces else 0.0
     target = np.empty(nt)
     for j in range(nt):
-        target[j] = 0.0 if touching[ti[j]] or not speculative else spec_target[ti[j]]
+        target[j] = 0.0 if touching[ti[j]] else spec_target[ti[j]]
     lam_t = np.zeros((nt, 3))
     status, it, residual = _exact(a[ti], b[ti], dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti], ima[ti],
                                   imb[ti], K[ti], target, mu_s[ti], mu_d[ti], kinetic, np.zeros((nt, 3)), False,
                                   dynamic, direct_max, max_iterations, tolerance, vel, omega, lam_t)
     if status != DONE:
-        return status, 0, 0.0
+        return status, 0, 0.0, False
+    unconverged = it >= max_iterations and residual > tolerance
+    lam_r = np.zeros((k, 3))
     for j in range(nt):
         for x in range(3):
-            lam[ti[j], x] += lam_t[j, x] * 1.0
+            lam_r[ti[j], x] = lam_t[j, x] * 1.0
     vel_c, omega_c = vel[bodies0], omega[bodies0]   # copies: the velocities after compression
-    hi = np.flatnonzero(bounced & (lam[:, 0] > 0.0) & (e > 0.0))   # e = 0: the compression was the whole impact
-    nh = hi.shape[0]
+    pressed = lam_r[:, 0] > 0.0
+    hit = bounced & pressed & (e > 0.0)   # e = 0: the compression was the whole impact
+    nh = 0
+    hi = np.zeros(0, np.int64)
+    if np.any(hit):   # with the pressed touching contacts that do not bounce, held at v_n ≥ 0
+        hi = np.flatnonzero(hit | (pressed & touching & ~bounced))
+        nh = hi.shape[0]
     if nh:
         target_h = np.empty(nh)
         for j in range(nh):
-            target_h[j] = -e[hi[j]] * vn0[hi[j]]
+            target_h[j] = -e[hi[j]] * vn[hi[j]] if hit[hi[j]] else 0.0
         zeros = np.zeros(nh)
         lam_h = np.zeros((nh, 3))
-        status, it_h, _ = _exact(a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi], iang_b[hi], ima[hi],
-                                 imb[hi], K[hi], target_h, zeros, zeros, False, np.zeros((nh, 3)), False, dynamic,
-                                 direct_max, max_iterations, tolerance, vel, omega, lam_h)
+        status, it_h, residual_h = _exact(a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi], iang_b[hi],
+                                          ima[hi], imb[hi], K[hi], target_h, zeros, zeros, False, np.zeros((nh, 3)),
+                                          False, dynamic, direct_max, max_iterations, tolerance, vel, omega, lam_h)
         if status != DONE:
-            return status, 0, 0.0
+            return status, 0, 0.0, False
+        unconverged = unconverged or (it_h >= max_iterations and residual_h > tolerance)
         f = restitution_cap(bodies0, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega)
         for j in range(nh):
-            lam[hi[j], 0] += lam_h[j, 0] * f
+            lam_r[hi[j], 0] += lam_h[j, 0] * f
         it = max(it, it_h)
-    normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, vn1)
-    return DONE, it, residual
+    for c in range(k):
+        for x in range(3):
+            lam[c, x] += lam_r[c, x]
+    return DONE, it, residual, unconverged
 
 
 @njit

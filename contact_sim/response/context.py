@@ -16,6 +16,8 @@ from . import solver
 
 IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
 REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
+IMPACT_ROUNDS = 8  # impact rounds per sub-step: contacts an impact's impulses turn into an approach get their own
+                   # (compression, restitution), up to this many rounds; what still approaches then rests
 
 
 @dataclass(eq=False, init=False)
@@ -41,6 +43,7 @@ class StepContext:
     rel_vel: np.ndarray = None     # (K,3) relative velocity of the contact points (velocity stage)
     rows: object = None            # solver.Rows (prepare)
     local: np.ndarray = None       # (K,3) points in A's frame: the contacts' identity across steps
+    e_material: np.ndarray = None  # (K,) restitution of the two materials combined
     restitution: np.ndarray = None  # (K,) restitution, 0 where the rebound would rest
     mu_s: np.ndarray = None        # (K,) static friction (zero without friction)
     mu_d: np.ndarray = None        # (K,) dynamic friction (zero without friction)
@@ -65,6 +68,7 @@ class StepContext:
     records: list = field(default_factory=list)   # [(Contacts, local (k,3))] of the sub-steps
     iterations: int = 0
     residual: float = 0.0
+    unconverged: bool = False      # a solve stopped at the iteration limit, still changing (note)
     max_penetration: float = 0.0
     pseudo: tuple = None           # (vp, wp) (N,3) split-impulse pseudo-velocities
     warm_out: tuple = None         # what the contact cache keeps of the last resting solve
@@ -100,7 +104,12 @@ class StepContext:
                                  method=st.solver_method, direct_max=st.direct_max_contacts, **kw)
 
     def note(self, res, residual=True):
-        """A solve's sweeps (and residual) into the step's statistics."""
+        """A solve's sweeps (and residual) into the step's statistics; one that stopped at
+        ``settings.solver_iterations`` with an impulse still changing by more than
+        ``settings.solver_tolerance`` marks the step unconverged."""
+        st = self.settings
         self.iterations = max(self.iterations, res.iterations)
         if residual:
             self.residual = max(self.residual, res.residual)
+        if res.iterations >= st.solver_iterations and res.residual > st.solver_tolerance:
+            self.unconverged = True

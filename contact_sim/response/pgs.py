@@ -306,13 +306,16 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
             new1 = 0.0
             new2 = 0.0
             if cap > 0.0:
-                g = v_reg / cap
-                p = K[c, 1, 1] + g
-                q = K[c, 1, 2]
-                r = K[c, 2, 1]
-                u = K[c, 2, 2] + g
-                r0 = -(vt0 + g * old1)
-                r1 = -(vt1 + g * old2)
+                # (K_tt + γ_t I) Δλt = −(v_t + γ_t λt) times s = 1/γ_t = μλn/v_reg, the damper's
+                # conductance: (s K_tt + I) Δλt = −(s v_t + λt), finite however small μλn is (γ_t
+                # overflowed to inf for a denormal μ, and inf/inf made the impulses NaN)
+                cond = cap / v_reg
+                p = cond * K[c, 1, 1] + 1.0
+                q = cond * K[c, 1, 2]
+                r = cond * K[c, 2, 1]
+                u = cond * K[c, 2, 2] + 1.0
+                r0 = -(cond * vt0 + old1)
+                r1 = -(cond * vt1 + old2)
                 det = p * u - q * r
                 new1 = old1 + (u * r0 - q * r1) / det
                 new2 = old2 + (p * r1 - r * r0) / det

@@ -49,7 +49,8 @@ def prepare_contacts(ctx):
     ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.bounced = (
         np.empty(k), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool))
     ctx.spec_target = np.empty(k)
-    ctx.restitution = cc(e, dtype=float).copy()
+    ctx.e_material = cc(e, dtype=float)
+    ctx.restitution = ctx.e_material.copy()
     ctx.counts = classify(
         a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
         cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
@@ -85,22 +86,20 @@ def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_toleranc
         if resting and e[c] * max(-v, 0.0) < rebound_speed:
             e[c] = 0.0
         impact[c] = touch and v < (-impact_speed if resting else 0.0)
-        close = False
-        spec_target[c] = 0.0
-        if speculative:
-            # speculative contacts (apart, within the look-ahead): the impulse leaves the normal
-            # velocity at what closes exactly the gap over the step under gravity, v_n ≥ (−gap −
-            # g_n T²/2)/T, so the pair arrives touching instead of overlapping; one that bounces
-            # (e > 0) does so in this step from the approach speed it has now (Box2D's restitution
-            # rule: the rebound starts up to one gap early, and e = 1 loses nothing). Never
-            # positive: a pair nearer than gravity's sag over the step is only stopped here (pushing
-            # it apart to arrive touching would be work done by the contact); the resting stage's
-            # constant force then lands it exactly
-            g_n = (normal[c, 0] * (gravity[ia, 0] - gravity[ib, 0]) + normal[c, 1] * (gravity[ia, 1] - gravity[ib, 1])
-                   + normal[c, 2] * (gravity[ia, 2] - gravity[ib, 2]))
-            st = min((depth[c] - 0.5 * g_n * t * t) / t, 0.0)
-            spec_target[c] = st
-            close = not touch and v < st
+        # speculative contacts (apart, within the look-ahead): the impulse leaves the normal velocity
+        # at what closes exactly the gap over the step under gravity, v_n ≥ (−gap − g_n T²/2)/T, so
+        # the pair arrives touching instead of overlapping; one that bounces (e > 0) does so in this
+        # step from the approach speed it has now (Box2D's restitution rule: the rebound starts up
+        # to one gap early, and e = 1 loses nothing). Never positive: a pair nearer than gravity's
+        # sag over the step is only stopped here (pushing it apart to arrive touching would be work
+        # done by the contact); the resting stage's constant force then lands it exactly. The
+        # target is kept under exact times of impact too: a contact that a later impact round
+        # (``impact.next_round``) finds closing takes it
+        g_n = (normal[c, 0] * (gravity[ia, 0] - gravity[ib, 0]) + normal[c, 1] * (gravity[ia, 1] - gravity[ib, 1])
+               + normal[c, 2] * (gravity[ia, 2] - gravity[ib, 2]))
+        st = min((depth[c] - 0.5 * g_n * t * t) / t, 0.0)
+        spec_target[c] = st
+        close = speculative and not touch and v < st
         closing[c] = close
         bounced[c] = impact[c] or (close and e[c] > 0)
         n_touch += touch

@@ -61,11 +61,12 @@ def resting_solve(ctx):
     lam2 = np.zeros((len(c), 3))
     lam2[ri] = res.impulse
     # the constant-force model is first order in what the force does while the contact point moves
-    # during the interval: its work is right to within ½|λ|·|v_point|
+    # during the interval: its work is right to within ½|λ|·|v_point| (and what a solve stopped
+    # before convergence leaves: _work_bound)
     c_ = np.ascontiguousarray
     ctx.rest_bound += _work_bound(c_(r2.a, dtype=np.int64), c_(r2.b, dtype=np.int64), c_(r2.dirs), c_(r2.ang_a),
-                                  c_(r2.ang_b), c_(s.vel, dtype=float), c_(s.omega, dtype=float),
-                                  c_(res.impulse, dtype=float))
+                                  c_(r2.ang_b), c_(s.vel, dtype=float), c_(s.omega, dtype=float), v_end, w_end,
+                                  c_(target, dtype=float), c_(res.impulse, dtype=float))
     ctx.rest_impulse = lam2
     ctx.rest_mask = rmask
     ctx.dv_rest = v_end - v_start_end
@@ -76,13 +77,25 @@ def resting_solve(ctx):
 
 
 @njit
-def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, lam):
-    """``½ Σ |λ_c|·|v_c|`` (J): the resting force's first-order work error bound, ``v_c`` the
-    contact points' relative velocity ``(K,3)`` at the start, ``lam (K,3)`` the impulses."""
+def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, vel_end, omega_end, target, lam):
+    """A bound (J) on the work of the resting force, ``λ·(u_start + u_end)/2`` summed over the
+    contacts (``u`` the contact points' relative velocity in the (n, t1, t2) basis, at the start
+    from ``vel, omega (N,3)`` and at the end of the interval from ``vel_end, omega_end``; ``lam
+    (K,3)`` the impulses, ``target (K,)`` the normal rows' targets, ≤ 0).
+
+    ``½λ·u_start ≤ ½|λ|·|u_start|``: the constant-force model's first-order error while the point
+    moves. ``½λ·u_end`` is ``½λn·target ≤ 0`` plus ``½λn·(u_end,n − target)`` plus ``½λt·u_end,t``;
+    a converged solve makes the last two zero or negative (complementarity; friction sticking or
+    opposing the slide), a solve stopped at the iteration limit may not (a body wedged between a
+    plane and a static mesh that overlaps it: opposite normals at one point, and Gauss–Seidel
+    creeps along the squeeze its friction grows with). Their positive parts are counted, so the
+    bound holds for whatever impulses the solve returned."""
     total = 0.0
     rv = np.empty(3)
     for c in range(a.shape[0]):
         _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
         total += math.sqrt(lam[c, 0] ** 2 + lam[c, 1] ** 2 + lam[c, 2] ** 2) * math.sqrt(
             rv[0] ** 2 + rv[1] ** 2 + rv[2] ** 2)
+        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel_end, omega_end, rv)
+        total += lam[c, 0] * max(rv[0] - target[c], 0.0) + max(lam[c, 1] * rv[1] + lam[c, 2] * rv[2], 0.0)
     return 0.5 * total
