@@ -12,7 +12,7 @@ SHELL  := /bin/bash
 # this machine's pip config names local indexes that may not exist: drop that noise, keep errors
 QUIET  := 2>&1 | { grep -v "is ignored: it is neither" || true; }
 
-.PHONY: run test fuzz stability bench clean venv
+.PHONY: run test fuzz fuzz-random stability bench clean venv
 
 venv: $(STAMP)
 
@@ -42,6 +42,12 @@ stability: $(STAMP)
 # the long property-based profile (test/test_properties.py, marker fuzz): CI runs it after make test
 fuzz: $(STAMP)
 	$(PY) -m pytest -q -m fuzz -p no:cacheprovider $(ARGS)
+
+# the long profile with fresh random draws: N examples per property (make fuzz-random N=2000 [SEED=s]
+# [JOBS=j]); prints the seed and saves every failing example as a case in fuzz-found/
+N ?= 1000
+fuzz-random: $(STAMP)
+	$(PY) test/fuzz_random.py --examples $(N) $(if $(SEED),--seed $(SEED)) $(if $(JOBS),--jobs $(JOBS)) $(ARGS)
 
 # every benchmark in bench/ (tables on stdout, CSV/PNG in bench/results/; pybullet and MuJoCo are
 # the references), the hard cases' measured figures, then the README's "Measured results" block

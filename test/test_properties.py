@@ -26,15 +26,20 @@ calls (step, set_pose, set_state, reset, detect, collide). Invariants:
 * e = 1 keeps the energy under every time-of-impact option (next_step, fractional, swept, auto);
 * the same inputs give bit-identical results.
 
-The quick profile runs in ``make test``; ``-m fuzz`` runs the long profile (CI runs it too).
-Failures found here and shrunk are kept as regression tests in ``test_robustness.py``.
+The quick profile runs in ``make test``; ``-m fuzz`` runs the long profile (CI runs it too, with
+the same examples every time). ``make fuzz-random N=…`` runs it with fresh draws and saves every
+failing example as a case (``test/fuzz_random.py``); the cases in ``test/cases/`` are checked again
+in every run (``test_saved_case``), each with what it found in its ``found`` line.
 """
 import contextlib
+import glob
+import hashlib
 import os
 import warnings
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
@@ -45,14 +50,17 @@ from contact_sim.response import ContactModelWarning, MassRatioWarning, choose
 from scenegen import calls, scenes
 
 # derandomized: CI sees the same examples every run (a red CI is a regression, not a new draw);
-# CONTACT_SIM_FUZZ_RANDOM=1 draws new ones, to look for more
+# CONTACT_SIM_FUZZ_RANDOM=1 draws new ones, to look for more (``make fuzz-random``:
+# test/fuzz_random.py sets the seed, the examples per property and the folder failures are saved to)
 RANDOM = os.environ.get("CONTACT_SIM_FUZZ_RANDOM") == "1"
+EXAMPLES = int(os.environ.get("CONTACT_SIM_FUZZ_EXAMPLES", "100"))
+SAVE = os.environ.get("CONTACT_SIM_FUZZ_SAVE") or None
 # no shrinking: a failure carries its whole scene and call list in its notes, and shrinking a
 # stepped world took minutes of CI for a smaller copy of the same report
 PHASES = [Phase.explicit, Phase.generate]
 QUICK = settings(max_examples=12, deadline=None, derandomize=not RANDOM, database=None,
                  suppress_health_check=list(HealthCheck), phases=PHASES)
-LONG = settings(max_examples=100, deadline=None, derandomize=not RANDOM, database=None,
+LONG = settings(max_examples=EXAMPLES, deadline=None, derandomize=not RANDOM, database=None,
                 suppress_health_check=list(HealthCheck), phases=PHASES)
 
 
@@ -179,41 +187,51 @@ def run_calls(world, info, sequence):
 
 
 @contextlib.contextmanager
-def scene_of(info, sequence=None):
+def scene_of(case):
     """Preflight warnings (mass ratio, tunnelling, stiffness) are advice, not failures here; a
-    failure carries the scene (and call sequence) it happened in, ready to paste into a test."""
+    failure carries its case (scene, call sequence, parameters), ready to paste into a test."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactModelWarning)
         try:
             yield
         except BaseException as exc:
-            exc.add_note("scene = " + repr(info["scene"]))
-            if sequence is not None:
-                exc.add_note("calls = " + repr(sequence))
+            for key in ("scene", "params", "calls"):
+                if case.get(key) is not None:
+                    exc.add_note(f"{key} = {case[key]!r}")
             raise
 
 
 # ---------------------------------------------------------------------------- properties
-def prop_call_sequences(data):
+# Each property is a draw (hypothesis: a world and its case, the mapping that rebuilds it: scene,
+# call sequence, what the invariants need to know) and a check of that world. A failing case is
+# saved as it is (``save_case``) and checked again from its file (``test_saved_case``).
+def draw_call_sequences(data):
     world, info = data.draw(scenes())
     seq = data.draw(calls([n for n in world.body_names], info["kinematic"]))
-    with scene_of(info, seq):
-        run_calls(world, info, seq)
+    return world, _case("call_sequences", info, seq)
+
+
+def check_call_sequences(world, case):
+    run_calls(world, case["info"], case["calls"])
 
 
 REST_STEPS = 10   # a body rests when it has been slow this many steps: position correction (half a
                   # penetration per step) has had its time on what a tumble or a landing left
 
 
-def prop_resting_on_planes(data):
+def draw_resting_on_planes(data):
     world, info = data.draw(scenes(max_bodies=4, responses=("auto", "impulse"), kinematic=False))
+    return world, _case("resting_on_planes", info)
+
+
+def check_resting_on_planes(world, case):
+    scale = case["info"]["scale"]
     n = int(round(1.5 / world.settings.dt))
     slow = np.ones(len(world), bool)
-    with scene_of(info):
-        for i in range(n):
-            step_checked(world)
-            if i >= n - REST_STEPS:   # slow in every one of the last steps, not just stopped
-                slow &= np.linalg.norm(world.s.vel, axis=1) < 1e-3 * max(info["scale"], 1.0)
+    for i in range(n):
+        step_checked(world)
+        if i >= n - REST_STEPS:   # slow in every one of the last steps, not just stopped
+            slow &= np.linalg.norm(world.s.vel, axis=1) < 1e-3 * max(scale, 1.0)
     margin = world.settings.contact_margin
     c, _ = detect_world(world, margin=margin)
     planes = np.array([sh.type == "plane" for sh in world.shapes])
@@ -226,11 +244,10 @@ def prop_resting_on_planes(data):
     wedged[np.where(meshes[c.body_a], c.body_b, c.body_a)[meshes[c.body_a] | meshes[c.body_b]]] = True
     resting = on_plane & slow[body] & (world.kind[body] == 2) & ~wedged[body]
     if resting.any():
-        with scene_of(info):
-            assert c.depth[resting].max() <= margin + 1e-9 * info["scale"], c.depth[resting].max()
+        assert c.depth[resting].max() <= margin + 1e-9 * scale, c.depth[resting].max()
 
 
-def prop_friction_holds_on_slopes(data):
+def draw_friction_holds_on_slopes(data):
     theta = data.draw(st.floats(3.0, 40.0))
     t = np.radians(theta)
     mu = data.draw(st.floats(1.05 * np.tan(t) + 0.01, 1.5))
@@ -240,71 +257,170 @@ def prop_friction_holds_on_slopes(data):
     dims[2] = min(dims[2], 0.8 * dims[:2].min() / np.tan(t))
     yaw = data.draw(st.floats(0.0, np.pi))
     dt = data.draw(st.sampled_from([1 / 60, 1 / 120, 1 / 240]))
+    case = {"property": "friction_holds_on_slopes",
+            "params": {"theta": theta, "mu": mu, "dims": dims.tolist(), "yaw": yaw, "dt": dt}}
+    return slope_world(case["params"]), case
+
+
+def slope_world(params):
+    """A block of ``dims`` (m) yawed by ``yaw`` (rad) about its up axis on a plane tilted by
+    ``theta`` (degrees), friction ``mu``, step ``dt``."""
+    t = np.radians(params["theta"])
     n = np.array([np.sin(t), 0.0, np.cos(t)])
     tilt = np.array([0.0, np.sin(t / 2), 0.0, np.cos(t / 2)])
-    spin = np.array([0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
-    from contact_sim import quat
-
+    spin = np.array([0.0, 0.0, np.sin(params["yaw"] / 2), np.cos(params["yaw"] / 2)])
     q = quat.mul(tilt, spin)                                 # yawed about its own up axis, then tilted
-    world = cs.World(settings=cs.Settings(dt=dt), materials={"m": cs.Material(restitution=0.0, friction=mu)})
+    dims = np.array(params["dims"])
+    world = cs.World(settings=cs.Settings(dt=params["dt"]),
+                     materials={"m": cs.Material(restitution=0.0, friction=params["mu"])})
     world.add_body("slope", cs.Plane(n, 0.0), kind="static", material="m")
     world.add_body("block", cs.Box(dims.tolist()), mass=1.0, position=(n * dims[2] / 2).tolist(),
                    orientation=q.tolist(), material="m")
+    return world
+
+
+def check_friction_holds_on_slopes(world, case):
+    dims = np.array(case["params"]["dims"])
     p0 = world.s.pos[1].copy()
-    with scene_of({"scene": dict(theta=theta, mu=mu, dims=dims.tolist(), yaw=yaw, dt=dt)}):
-        for _ in range(int(round(1.0 / dt))):
-            step_checked(world)
-        assert np.linalg.norm(world.s.pos[1] - p0) <= 1e-3 * dims.min(), (theta, mu, dims)
+    for _ in range(int(round(1.0 / world.settings.dt))):
+        step_checked(world)
+    assert np.linalg.norm(world.s.pos[1] - p0) <= 1e-3 * dims.min(), case["params"]
 
 
-def prop_elastic_keeps_energy(data):
-    """e = 1, no friction, no gravity (so no resting contact turns a slow bounce inelastic): every
-    step keeps the energy, neither gaining nor losing more than 1e-9 of its scale."""
+def draw_elastic_keeps_energy(data):
+    """e = 1, no friction, no gravity (so no resting contact turns a slow bounce inelastic)."""
     toi = data.draw(st.sampled_from(["next_step", "fractional", "swept", "auto"]))
     # dynamic concave meshes are left out: their time-of-impact separation is per vertex, not a lower
     # bound of the distance, so a fast one can pass edge-first into a hull (README, Known limits)
     world, info = data.draw(scenes(max_bodies=8, responses=("impulse",), tois=(toi,), kinematic=False, elastic=1.0,
                                    gravity=False, separated=True, kinds=("sphere", "box", "convex")))
-    with scene_of(info):
-        for _ in range(int(round(1.0 / world.settings.dt))):
-            e0 = world.energy()
-            step_checked(world)
-            ls = world.last_solve
-            lost = e0 - (world.energy() - ls["rotation_drift"])
-            assert lost <= 1e-9 * energy_scale(world), (toi, lost, ls)
+    return world, _case("elastic_keeps_energy", info)
 
 
-def prop_deterministic(data):
+def check_elastic_keeps_energy(world, case):
+    """Every step keeps the energy, neither gaining nor losing more than 1e-9 of its scale: an
+    impact's rebound that swings another contact into an approach within the step is an impact of
+    its own (``impact.next_round``), not a landing the resting stage absorbs."""
+    for _ in range(int(round(1.0 / world.settings.dt))):
+        e0 = world.energy()
+        step_checked(world)
+        ls = world.last_solve
+        lost = e0 - (world.energy() - ls["rotation_drift"])
+        assert lost <= 1e-9 * energy_scale(world), (world.settings.toi, lost, ls)
+
+
+def draw_deterministic(data):
     world, info = data.draw(scenes(max_bodies=5))
     seq = data.draw(calls(world.body_names, info["kinematic"], n=6))
-    with scene_of(info, seq):
-        runs = []
-        for _ in range(2):
-            world.reset()
-            world.__dict__.pop("_cs_memo", None)      # rebuilt from scratch: caches must not matter
-            run_calls(world, info, seq)
-            runs.append(world.s.copy())
-        for name in runs[0].NAMES:
-            np.testing.assert_array_equal(getattr(runs[0], name), getattr(runs[1], name))
+    return world, _case("deterministic", info, seq)
 
 
-PROPERTIES = [prop_call_sequences, prop_resting_on_planes, prop_friction_holds_on_slopes, prop_elastic_keeps_energy,
-              prop_deterministic]
+def check_deterministic(world, case):
+    runs = []
+    for _ in range(2):
+        world.reset()
+        world.__dict__.pop("_cs_memo", None)      # rebuilt from scratch: caches must not matter
+        run_calls(world, case["info"], case["calls"])
+        runs.append(world.s.copy())
+    for name in runs[0].NAMES:
+        np.testing.assert_array_equal(getattr(runs[0], name), getattr(runs[1], name))
 
 
-@pytest.mark.parametrize("prop", PROPERTIES, ids=lambda p: p.__name__[5:])
+def _case(prop, info, seq=None):
+    """The case of a drawn scene: the property, the scene mapping, what the invariants read of
+    ``info`` and the call sequence (lists, as YAML keeps them)."""
+    case = {"property": prop, "info": {"kinematic": list(info["kinematic"]), "scale": float(info["scale"])},
+            "scene": info["scene"]}
+    if seq is not None:
+        case["calls"] = [list(c) for c in seq]
+    return case
+
+
+PROPERTIES = {"call_sequences": (draw_call_sequences, check_call_sequences),
+              "resting_on_planes": (draw_resting_on_planes, check_resting_on_planes),
+              "friction_holds_on_slopes": (draw_friction_holds_on_slopes, check_friction_holds_on_slopes),
+              "elastic_keeps_energy": (draw_elastic_keeps_energy, check_elastic_keeps_energy),
+              "deterministic": (draw_deterministic, check_deterministic)}
+
+
+# ---------------------------------------------------------------------------- saved cases
+CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "cases")
+
+
+def case_world(case):
+    """The world a case starts from: its scene (``cs.load_scene``), or its parameters' slope."""
+    if case["property"] == "friction_holds_on_slopes":
+        return slope_world(case["params"])
+    return cs.load_scene(case["scene"])
+
+
+def run_case(case):
+    """Check a case's property on the world it describes (a saved case, or one drawn now)."""
+    world = case_world(case)
+    with scene_of(case):
+        PROPERTIES[case["property"]][1](world, case)
+
+
+def load_case(path):
+    """A saved case (YAML): ``property``, ``scene`` (a scene mapping: ``cs.load_scene(case["scene"])``
+    builds its world), ``info``, ``calls``, ``params`` as the property drew them, and ``found``."""
+    with open(path) as fh:
+        return yaml.safe_load(fh)
+
+
+def save_case(case, exc, folder):
+    """Write a failing case to ``folder`` as ``<property>_<digest>.yaml`` (the same case, the same
+    name) with what failed in ``found``; returns the path."""
+    body = yaml.safe_dump(case, sort_keys=False, default_flow_style=None, width=120)
+    name = f"{case['property']}_{hashlib.sha1(body.encode()).hexdigest()[:10]}.yaml"
+    first = (f"{type(exc).__name__}: {exc}".splitlines() or [""])[0][:500]
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, name)
+    with open(path, "w") as fh:
+        fh.write(yaml.safe_dump({"found": first}, width=10_000) + body)
+    return path
+
+
+@pytest.mark.parametrize("path", sorted(glob.glob(os.path.join(CASES, "*.yaml"))), ids=os.path.basename)
+def test_saved_case(path):
+    """Every case the long profile found with fresh draws, checked again as it was saved."""
+    run_case(load_case(path))
+
+
+# ---------------------------------------------------------------------------- profiles
+@pytest.mark.parametrize("name", list(PROPERTIES))
 @QUICK
 @given(data=st.data())
-def test_quick(prop, data):
-    prop(data)
+def test_quick(name, data):
+    draw, check = PROPERTIES[name]
+    world, case = draw(data)
+    with scene_of(case):
+        check(world, case)
 
 
 @pytest.mark.fuzz
-@pytest.mark.parametrize("prop", PROPERTIES, ids=lambda p: p.__name__[5:])
-@LONG
-@given(data=st.data())
-def test_fuzz(prop, data):
-    prop(data)
+@pytest.mark.parametrize("name", list(PROPERTIES))
+def test_fuzz(name):
+    """The long profile. With ``CONTACT_SIM_FUZZ_SAVE`` (a folder; ``make fuzz-random``) a failing
+    example is saved there as a case and the run goes on, so one run finds every failure it meets;
+    the test fails at the end, naming the files."""
+    draw, check = PROPERTIES[name]
+    saved = []
+
+    @LONG
+    @given(data=st.data())
+    def examples(data):
+        world, case = draw(data)
+        try:
+            with scene_of(case):
+                check(world, case)
+        except Exception as exc:
+            if SAVE is None:
+                raise
+            saved.append(save_case(case, exc, SAVE))
+
+    examples()
+    assert not saved, f"{len(saved)} failing cases saved: " + ", ".join(saved)
 
 
 def test_a_hull_that_stops_tumbling_late_settles_within_the_margin():
