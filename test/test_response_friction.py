@@ -72,3 +72,52 @@ def test_incline_above_friction_angle_slides_with_closed_form_acceleration():
     print(f"incline 35°: a {a_fit:.5f} (fit), v/t {v / ts[-1]:.5f}, closed form {a_expect:.5f}")
     assert abs(a_fit / a_expect - 1) <= 0.01
     assert abs(v / ts[-1] / a_expect - 1) <= 0.01
+
+
+def _stack(n=4, **settings):
+    w = cs.World(settings=cs.Settings(toi="next_step", **settings), materials={"m": cs.Material(0.0, 0.6)})
+    w.add_body("ground", cs.Plane(), kind="static", material="m")
+    for i in range(n):
+        w.add_body(f"box{i}", cs.Box((0.2, 0.2, 0.2)), mass=1.0 + i, position=(0.01 * i, 0, 0.1 + 0.2 * i),
+                   velocity=(0.3, 0, 0), material="m")
+    return w
+
+
+@pytest.mark.parametrize("method", ["auto", "gs"])
+def test_a_step_whose_solve_stops_at_the_iteration_limit_says_so(method):
+    """``last_solve.unconverged``: a solve stopped at ``solver_iterations`` with an impulse still
+    changing by more than ``solver_tolerance``. A box sliding on the ground given two Gauss–Seidel
+    sweeps cannot converge; with the defaults the same steps do."""
+    short, full = _stack(1, solver_method=method, solver_iterations=2), _stack(1, solver_method=method)
+    flags = []
+    for _ in range(10):
+        short.step()
+        full.step()
+        s = short.last_solve
+        assert s.unconverged == (s.iterations >= 2 and s.residual > short.settings.solver_tolerance)
+        flags.append(s.unconverged)
+        assert not full.last_solve.unconverged, full.last_solve
+    assert any(flags)
+
+
+def test_the_resting_work_bound_holds_for_any_impulses():
+    """``resting._work_bound``: ``½|λ|·|u_start|`` plus, where a solve stopped short, the positive part
+    of ``λn (u_end,n − target)`` and of ``λt·u_end,t``; zero beyond the first term for a
+    complementary answer."""
+    from contact_sim.response.resting import _work_bound
+
+    a, b = np.array([0]), np.array([1])               # A the sliding body, B static
+    dirs = np.eye(3)[None].copy()                      # n = x, t1 = y, t2 = z; the contact at A's centre
+    ang = np.zeros((1, 3, 3))
+    vel0 = np.array([[0.0, 0.3, 0], [0.0, 0, 0]])      # A slides along t1 at 0.3 m/s
+    zero = np.zeros((2, 3))
+    target = np.array([-0.1])
+    lam = np.array([[2.0, -0.5, 0.0]])
+    base = 0.5 * np.linalg.norm(lam[0]) * 0.3
+    # converged: the normal row at its target, the friction opposing the slide at the end
+    end = np.array([[-0.1, 0.1, 0], [0.0, 0, 0]])
+    assert _work_bound(a, b, dirs, ang, ang, vel0, zero, end, zero, target, lam) == pytest.approx(base, rel=1e-15)
+    # stopped short: pushing (λn > 0) while 0.05 m/s above its target, friction along the slide
+    end = np.array([[-0.05, -0.2, 0], [0.0, 0, 0]])
+    got = _work_bound(a, b, dirs, ang, ang, vel0, zero, end, zero, target, lam)
+    assert got == pytest.approx(base + 0.5 * (2.0 * 0.05 + 0.5 * 0.2), rel=1e-15)

@@ -256,3 +256,50 @@ def test_per_contact_coefficients_with_one_material_and_after_a_second_one_is_ad
     from contact_sim.settings import combine
     np.testing.assert_array_equal(e, combine(w.restitution[c.body_a], w.restitution[c.body_b], rule))
     assert e[list(c.body_b).index(2)] == combine(np.array([0.5]), np.array([0.9]), rule)[0] != 0.9
+
+
+def _spheres_at_a_wall(toi, gap_ab, gap_wall, v, masses=(1.0, 1.0)):
+    """Two spheres (radius 0.1) on the x axis, no gravity, e = 1, no friction: A moving at ``v``
+    towards B, B ``gap_wall`` (m) from a static wall at x = 0 and ``gap_ab`` from A."""
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi=toi, dt=0.01),
+                 materials={"m": cs.Material(restitution=1.0, friction=0.0)})
+    w.add_body("wall", cs.Plane((1, 0, 0), 0.0), kind="static", material="m")
+    xb = 0.1 + gap_wall
+    w.add_body("B", cs.Sphere(0.1), mass=masses[1], position=(xb, 0, 0), material="m")
+    w.add_body("A", cs.Sphere(0.1), mass=masses[0], position=(xb + 0.2 + gap_ab, 0, 0), velocity=(-v, 0, 0),
+               material="m")
+    return w
+
+
+@pytest.mark.parametrize("toi", ["next_step", "fractional"])
+@pytest.mark.parametrize("mb", [1.0, 3.0])
+def test_a_rebound_that_sends_a_body_into_a_wall_is_an_impact_of_its_own(toi, mb):
+    """A hits B (touching, e = 1); B then closes a 50 µm gap to the wall within the same step. That
+    second impact is a round of its own (``impact.next_round``) at the speed B has after the first,
+    not a landing the resting stage absorbs: the kinetic energy is kept exactly, and for equal
+    masses the sequence A→B, B→wall, B→A ends with A leaving at v and B at rest."""
+    v = 1.0
+    w = _spheres_at_a_wall(toi, 0.0, 5e-5, v, (1.0, mb))
+    e0 = w.energy()
+    w.step()
+    assert abs(w.energy() - e0) <= 1e-12 * e0, w.energy() - e0
+    if mb == 1.0:
+        assert abs(w.body("A").velocity[0] - v) <= 1e-12 and abs(w.body("B").velocity[0]) <= 1e-12, w.velocities()
+    # momentum is not conserved (the wall pushed), but the wall's impulse is on B alone and along x
+    c = w.contacts
+    wall = (c.body_a == 0) | (c.body_b == 0)
+    assert wall.any() and np.all(c.normal_impulse[wall] > 0)
+
+
+@pytest.mark.parametrize("ma, mb", [(1.0, 1.0), (0.2, 5.0), (5.0, 0.2)])
+def test_a_body_held_against_a_wall_sends_an_impact_straight_back(ma, mb):
+    """B touches a static wall; A hits B at v (e = 1). The compression presses B into the wall, and
+    the wall holds B through the restitution too (a pressed touching contact that does not bounce
+    keeps v_n ≥ 0), so A leaves at −e v whatever the masses, as from the wall itself, and B stays
+    at rest: nothing pushes B into the wall for the resting stage to stop (which lost energy)."""
+    v = 2.0
+    w = _spheres_at_a_wall("next_step", 0.0, 0.0, v, (ma, mb))
+    w.step()
+    assert abs(w.body("A").velocity[0] - v) <= 1e-12 * v, w.body("A").velocity
+    assert np.abs(w.body("B").velocity).max() <= 1e-12, w.body("B").velocity
+    assert abs(w.energy() - 0.5 * ma * v * v) <= 1e-12 * ma * v * v

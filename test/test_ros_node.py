@@ -323,6 +323,32 @@ def test_an_overrun_is_told_off_cpu_when_the_tick_thread_did_not_run_for_it(ros)
         node.destroy_node()
 
 
+def test_steps_whose_solve_stopped_unconverged_are_counted_in_the_diagnostics(ros):
+    """A step whose solve stopped at the iteration limit still changing (``last_solve.unconverged``)
+    is counted: ``unconverged_steps`` in /diagnostics, a WARN counter (its growth since the last
+    report makes the status WARN)."""
+    from msg_adapters.publishing import WARN_COUNTERS
+
+    node = make_node(ros)
+    try:
+        node.timer.cancel()
+        world, step = node.world, node.world.step
+
+        def unconverged(dt=None):
+            step(dt)
+            world.last_solve.unconverged = True
+
+        node._on_timer()
+        assert node.diagnostics_values()["unconverged_steps"] == 0
+        world.step = unconverged
+        node._on_timer()
+        node._on_timer()
+        assert node.diagnostics_values()["unconverged_steps"] == 2 * node.cfg["substeps"]
+        assert "unconverged_steps" in WARN_COUNTERS
+    finally:
+        node.destroy_node()
+
+
 def _in_thread(fn):
     """fn() in a new thread (SCHED_FIFO set there stays there); its result, or its exception raised."""
     out = {}
