@@ -14,7 +14,8 @@ calls (step, set_pose, set_state, reset, detect, collide). Invariants:
   half-kicks around a turning body (``kick_error_bound``: the rotational energy those kicks move
   times the angle turned), and the linearisation of contact constraints on turning bodies
   (``linearisation_bound``: a pivoting body's centre follows the tangent, not the circle, for a
-  step: ``Σ m |g| r (|ω| dt)²/2``), and the first-order error of the resting-contact model (a
+  step: ``Σ m |g| r (|ω| dt)²/2``; a penalty spring's depth is off by the same ``r (|ω| dt)²/2``,
+  ``spring_turn_bound``), and the first-order error of the resting-contact model (a
   constant force over the step: its work on a contact point that moves during the step is right
   to within ``½|λ|·|v_point|``, ``rest_work_bound``); beyond those, 1e-9 of the scene's energy scale
   per step. Under the
@@ -35,6 +36,7 @@ import contextlib
 import glob
 import hashlib
 import os
+import traceback
 import warnings
 
 import numpy as np
@@ -88,12 +90,14 @@ def energy_scale(world):
 
 def spring_energy(world, new_since=None):
     """``(energy, pairs)``: energy stored in the penalty springs, ``½ k Σ depth²`` over the contacts at
-    margin 0 (J), and the set of touching pairs; with ``new_since`` (such a set), only the springs of
+    margin 0 that have a dynamic body (J), and the set of touching pairs; with ``new_since`` (such a set), only the springs of
     pairs not in it: a pair that penetrated during the step's free motion compressed its spring
     before the force could act (the penalty method's first step in), energy the step may show."""
     if choose(world).response != "penalty":
         return 0.0, set()
     c, _ = detect_world(world, margin=0.0)
+    dyn = world.kind == 2   # a spring between two bodies nothing moves (kinematic into static) stores nothing
+    c = c.select(dyn[c.body_a] | dyn[c.body_b])
     pairs = set(zip(c.body_a.tolist(), c.body_b.tolist()))
     d = np.maximum(c.depth, 0.0)
     if new_since is not None:
@@ -122,23 +126,45 @@ def linearisation_bound(world, dt):
     return float(np.sum(world.mass[d] * np.linalg.norm(world.gravity) * ext * turn * turn) * 0.5)
 
 
+def spring_turn_bound(world, dt, omega0):
+    """Energy (J) the penalty springs may gain by the same linearisation: the step computes each
+    spring's force for the depth its point reaches along the tangent, ``d − dt·v_n⁺``, but the body
+    turns on the circle, so the depth it ends with is off by up to ``δ = r (|ω| dt)²/2`` per turning
+    body (``r`` its extent; ``ω`` the larger of the spin before, ``omega0 (N,3)``, and after), and
+    ``½k(d + δ)² − ½kd² ≤ k (|d| δ + δ²/2)``, summed over the springs of the contacts at margin 0."""
+    if choose(world).response != "penalty":
+        return 0.0
+    from contact_sim.response.toi import _extents
+
+    c, _ = detect_world(world, margin=0.0)
+    dyn = world.kind == 2
+    ext = np.where(np.isfinite(_extents(world)), _extents(world), 0.0)
+    w = np.maximum(np.linalg.norm(omega0, axis=1), np.linalg.norm(world.s.omega, axis=1))
+    delta = np.where(dyn, ext * (w * dt) ** 2 / 2, 0.0)
+    dc = delta[c.body_a] + delta[c.body_b]
+    d = np.abs(c.depth)
+    return float(world.settings.penalty.stiffness * np.sum(d * dc + 0.5 * dc * dc))
+
+
 def step_checked(world, dt=None):
     """One step with every per-step invariant; returns the energy excess (J, ≤ 0 when fine)."""
     spring0, pairs0 = spring_energy(world)
     e0 = world.energy() + spring0
     scale = energy_scale(world)
-    lin = linearisation_bound(world, world.settings.dt if dt is None else dt)
+    h = world.settings.dt if dt is None else dt
+    lin = linearisation_bound(world, h)
+    omega0 = world.s.omega.copy()
     world.step(dt)
     assert finite(world)
     ls = world.last_solve
     e1 = world.energy() + spring_energy(world)[0]
-    lin += spring_energy(world, new_since=pairs0)[0]
+    lin += spring_energy(world, new_since=pairs0)[0] + spring_turn_bound(world, h, omega0)
     if ls["response"] == "penalty" and not conservative_springs(world):
         # per-point springs on meshes and hulls are no potential field (a body deep inside a concave
         # mesh is pushed by opposite faces whose nearest one flips as it moves): finite, not
         # conserved (README, Known limits)
         return 0.0
-    lin = max(lin, linearisation_bound(world, world.settings.dt if dt is None else dt))
+    lin = max(lin, linearisation_bound(world, h))
     allowed = (1e-9 * scale + ls["correction_energy"] + ls["kinematic_work"] + ls["rotation_drift"]
                + ls["kick_error_bound"] + ls["rest_work_bound"] + lin)
     excess = e1 - e0 - allowed
@@ -370,7 +396,7 @@ def load_case(path):
 
 def save_case(case, exc, folder):
     """Write a failing case to ``folder`` as ``<property>_<digest>.yaml`` (the same case, the same
-    name) with what failed in ``found``; returns the path."""
+    name) with what failed in ``found``, and the whole report beside it (``.txt``); returns the path."""
     body = yaml.safe_dump(case, sort_keys=False, default_flow_style=None, width=120)
     name = f"{case['property']}_{hashlib.sha1(body.encode()).hexdigest()[:10]}.yaml"
     first = (f"{type(exc).__name__}: {exc}".splitlines() or [""])[0][:500]
@@ -378,6 +404,8 @@ def save_case(case, exc, folder):
     path = os.path.join(folder, name)
     with open(path, "w") as fh:
         fh.write(yaml.safe_dump({"found": first}, width=10_000) + body)
+    with open(path[:-5] + ".txt", "w") as fh:   # the whole report, traceback and notes
+        fh.write("".join(traceback.format_exception(exc)))
     return path
 
 

@@ -292,6 +292,10 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
     for it in range(iterations):
         change = 0.0
         for c in range(k):
+            if K[c, 0, 0] <= 0.0:
+                # between two bodies nothing moves (a kinematic link pressed into a static floor):
+                # no impulse, as solver.solve_soft gives it none (the compliance alone would)
+                continue
             ia = a[c]
             ib = b[c]
             _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv)

@@ -57,7 +57,7 @@ def _first_quadratic_root(c0, c1, c2, T):
     ok = disc >= 0
     sq = np.sqrt(np.where(ok, disc, 0.0))
     qq = -0.5 * (c1 + np.where(c1 >= 0, sq, -sq))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(all="ignore"):   # non-finite quotients (a denormal qq) are dropped below
         r1 = np.where(c2 != 0, qq / c2, np.inf)
         r2 = np.where(qq != 0, c0 / qq, np.inf)
     r1 = np.where(np.isfinite(r1), r1, np.inf)
