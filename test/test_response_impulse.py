@@ -303,3 +303,21 @@ def test_a_body_held_against_a_wall_sends_an_impact_straight_back(ma, mb):
     assert abs(w.body("A").velocity[0] - v) <= 1e-12 * v, w.body("A").velocity
     assert np.abs(w.body("B").velocity).max() <= 1e-12, w.body("B").velocity
     assert abs(w.energy() - 0.5 * ma * v * v) <= 1e-12 * ma * v * v
+
+
+def test_a_touching_chain_takes_an_impact_together():
+    """Three equal balls in a row, touching, no gravity, e = 1: the first arrives at v. Contacts of one
+    instant take the impact together (the resting one is pressed in the compression and held in the
+    restitution), so the chain answers as one stiff body: −v/3, 2v/3, 2v/3, energy and momentum
+    exact, not Newton's cradle's 0, 0, v (a sequence of separate impacts; README, Known limits)."""
+    v = 1.5
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01),
+                 materials={"m": cs.Material(restitution=1.0, friction=0.0)})
+    for i in range(3):
+        w.add_body(f"b{i}", cs.Sphere(0.1), mass=1.0, position=(0.2 * i, 0, 0), velocity=(v if i == 0 else 0, 0, 0),
+                   material="m")
+    for _ in range(5):
+        w.step()
+    got = w.velocities()[0][:, 0]
+    assert np.abs(got - [-v / 3, 2 * v / 3, 2 * v / 3]).max() <= 1e-12, got
+    assert abs(w.energy() - 0.5 * v * v) <= 1e-12 and abs(_momentum(w)[0] - v) <= 1e-12
