@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 import contact_sim as cs
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-L_STEP = os.path.join(REPO, "config", "meshes", "l_step.obj")
+L_STEP_FILE = "config/meshes/l_step.obj"   # as a scene names it: generated scenes load with base_dir=REPO
+L_STEP = os.path.join(REPO, L_STEP_FILE)
 _L = trimesh.load(L_STEP, force="mesh", process=False)
 L_VERTS, L_FACES = np.asarray(_L.vertices, float), np.asarray(_L.faces, np.int64)
 
@@ -43,12 +44,45 @@ def shapes(draw, scale, kinds=SHAPES):
     if kind == "box":
         return {"type": "box", "size": (size * np.array(draw(st.tuples(*[st.floats(0.1, 1.0)] * 3)))).tolist()}
     if kind == "convex":
+        if draw(st.integers(0, 3)) == 0:   # the hull of a mesh file, as a URDF's convex collision mesh is
+            return {"type": "convex", "file": L_STEP_FILE, "scale": size / 2}
         seed = draw(st.integers(0, 2 ** 16))
         pts = np.random.default_rng(seed).normal(size=(draw(st.integers(6, 24)), 3))
         return {"type": "convex", "points": (pts * size / 4).tolist()}
-    # a closed concave mesh: the L-shaped step, scaled unevenly
+    # a closed concave mesh: the L-shaped step from its OBJ file, or its vertices scaled unevenly
+    if draw(st.booleans()):
+        return {"type": "mesh", "file": L_STEP_FILE, "scale": size / 2}
     stretch = size * np.array(draw(st.tuples(*[st.floats(0.3, 1.0)] * 3))) / 2
     return {"type": "mesh", "vertices": (L_VERTS * stretch).tolist(), "faces": L_FACES.tolist()}
+
+
+def robot_urdf(scale):
+    """A small arm (URDF text) about ``3·scale`` m long, as a user's robot reaches the engine: a box
+    base, a cylinder upper arm on a revolute shoulder about z, the L-step mesh (an OBJ file through
+    ``package://``) on a prismatic slide along the arm, and a sphere finger that mimics the slide.
+    Its movable joints and their limits are ``ROBOT_JOINTS`` (× ``scale`` for the slide)."""
+    h, r, l = 0.5 * scale, 0.15 * scale, 2.0 * scale
+    return f"""<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base"><collision><origin xyz="0 0 {h / 2}"/><geometry><box size="{h} {h} {h}"/></geometry></collision></link>
+  <link name="upper"><collision><origin xyz="{l / 2} 0 0" rpy="0 1.5707963267948966 0"/>
+    <geometry><cylinder radius="{r}" length="{l}"/></geometry></collision></link>
+  <link name="hand"><collision><geometry>
+    <mesh filename="package://cs_fuzz/{L_STEP_FILE}" scale="{0.25 * scale} {0.25 * scale} {0.25 * scale}"/>
+  </geometry></collision></link>
+  <link name="finger"><collision><geometry><sphere radius="{0.1 * scale}"/></geometry></collision></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 {h + r}"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="upper"/><child link="hand"/><origin xyz="{l} 0 0"/>
+    <axis xyz="1 0 0"/><limit lower="0" upper="{0.5 * scale}" effort="1" velocity="1"/></joint>
+  <joint name="finger_joint" type="prismatic"><parent link="hand"/><child link="finger"/><origin xyz="0 0 {-h}"/>
+    <axis xyz="0 0 -1"/><limit lower="0" upper="{scale}" effort="1" velocity="1"/>
+    <mimic joint="slide" multiplier="1" offset="0"/></joint>
+</robot>
+"""
+
+
+ROBOT_JOINTS = {"shoulder": (-3.0, 3.0), "slide": (0.0, 0.5)}   # (lower, upper); the slide's × scale
 
 
 def flat_tile(half, n=3):
@@ -107,7 +141,15 @@ def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, e
                        "material": "m"})
     n = draw(st.integers(1, max_bodies))
     m0 = draw(st.floats(0.1, 10.0))
-    kin = []
+    kin, joints = [], {}
+    if kinematic and not separated and draw(st.integers(0, 3)) == 0:   # a robot among the bodies, its links kinematic
+        yaw = draw(st.floats(-np.pi, np.pi))
+        scene["robots"] = [{"urdf": robot_urdf(scale), "prefix": "r_", "package_paths": {"cs_fuzz": "."},
+                            "base_pose": {"position": [draw(st.floats(-extent, extent)), draw(st.floats(-extent, extent)),
+                                                       0.0],
+                                          "orientation": [0.0, 0.0, float(np.sin(yaw / 2)), float(np.cos(yaw / 2))]}}]
+        joints = {"r_" + j: [lo * (scale if j == "slide" else 1.0), hi * (scale if j == "slide" else 1.0)]
+                  for j, (lo, hi) in ROBOT_JOINTS.items()}
     for i in range(n):
         shape = draw(shapes(scale, kinds))
         is_kin = kinematic and i > 0 and draw(st.booleans()) and draw(st.booleans())   # about a quarter
@@ -127,16 +169,18 @@ def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, e
             b.update(name=f"b{i}", kind="dynamic", mass=m0 * 10 ** draw(st.floats(0.0, 3.0)),
                      angular_velocity=(spin * np.array(unit_quaternion(draw)[:3])).tolist())
         bodies.append(b)
-    return cs.load_scene(scene), {"kinematic": kin, "scale": scale, "response": response, "scene": scene}
+    return cs.load_scene(scene, base_dir=REPO), {"kinematic": kin, "joints": joints, "scale": scale, "response": response,
+                                                 "scene": scene}
 
 
 @st.composite
-def calls(draw, names, kinematic, n=12):
+def calls(draw, names, kinematic, n=12, joints=None):
     """A sequence of API calls on a generated world: mostly steps, with poses of kinematic
-    bodies driven towards the others, velocity changes, resets, detection and stateless queries."""
+    bodies driven towards the others, a robot's joints moved within their limits (``joints``: name →
+    [lower, upper]), velocity changes, resets, detection and stateless queries."""
     out = []
     for _ in range(n):
-        kind = draw(st.sampled_from(["step"] * 6 + ["pose"] * (2 if kinematic else 0)
+        kind = draw(st.sampled_from(["step"] * 6 + ["pose"] * (2 if kinematic else 0) + ["joints"] * (2 if joints else 0)
                                     + ["state", "reset", "detect", "collide"]))
         if kind == "step":
             out.append(("step", draw(st.integers(1, 6))))
@@ -147,6 +191,9 @@ def calls(draw, names, kinematic, n=12):
                         draw(st.floats(-1.0, 0.0)), turn.tolist()))
         elif kind == "state":
             out.append(("state", draw(st.sampled_from(names)), draw(st.floats(-3.0, 3.0))))
+        elif kind == "joints":   # some of the robot's joints, anywhere within their limits
+            moved = draw(st.lists(st.sampled_from(sorted(joints)), min_size=1, max_size=len(joints), unique=True))
+            out.append(("joints", {j: draw(st.floats(*joints[j])) for j in moved}))
         elif kind == "collide":
             out.append(("collide", draw(st.sampled_from(names)), draw(st.sampled_from(names))))
         else:

@@ -49,7 +49,7 @@ import contact_sim as cs
 from contact_sim import quat
 from contact_sim.collision import detect_world
 from contact_sim.response import ContactModelWarning, MassRatioWarning, choose
-from scenegen import calls, scenes
+from scenegen import REPO, calls, scenes
 
 # derandomized: CI sees the same examples every run (a red CI is a regression, not a new draw);
 # CONTACT_SIM_FUZZ_RANDOM=1 draws new ones, to look for more (``make fuzz-random``:
@@ -200,6 +200,7 @@ def step_checked(world, dt=None):
 def run_calls(world, info, sequence):
     """Apply a generated call sequence, checking the invariants after every step."""
     t_pose = {k: 0.0 for k in info["kinematic"]}
+    t_joints = 0.0
     for call in sequence:
         kind = call[0]
         if kind == "step":
@@ -216,9 +217,13 @@ def run_calls(world, info, sequence):
             _, name, v = call
             if world.kind[world.index(name)] != 0:
                 world.set_state(name, velocity=[0.0, 0.0, v * info["scale"]])
+        elif kind == "joints":
+            t_joints = max(world.time, t_joints) + world.settings.dt
+            world.set_joint_positions(list(call[1]), list(call[1].values()), t_joints)
         elif kind == "reset":
             world.reset()
             t_pose = {k: 0.0 for k in info["kinematic"]}
+            t_joints = 0.0
         elif kind == "detect":
             c = world.detect()
             assert all(np.isfinite(getattr(c, f)).all() for f in ("point", "normal", "depth"))
@@ -256,7 +261,7 @@ def scene_of(case):
 # saved as it is (``save_case``) and checked again from its file (``test_saved_case``).
 def draw_call_sequences(data):
     world, info = data.draw(scenes())
-    seq = data.draw(calls([n for n in world.body_names], info["kinematic"]))
+    seq = data.draw(calls([n for n in world.body_names], info["kinematic"], joints=info["joints"]))
     return world, _case("call_sequences", info, seq)
 
 
@@ -360,7 +365,7 @@ def check_elastic_keeps_energy(world, case):
 
 def draw_deterministic(data):
     world, info = data.draw(scenes(max_bodies=5))
-    seq = data.draw(calls(world.body_names, info["kinematic"], n=6))
+    seq = data.draw(calls(world.body_names, info["kinematic"], n=6, joints=info["joints"]))
     return world, _case("deterministic", info, seq)
 
 
@@ -380,6 +385,8 @@ def _case(prop, info, seq=None):
     ``info`` and the call sequence (lists, as YAML keeps them)."""
     case = {"property": prop, "info": {"kinematic": list(info["kinematic"]), "scale": float(info["scale"])},
             "scene": info["scene"]}
+    if info.get("joints"):
+        case["info"]["joints"] = info["joints"]
     if seq is not None:
         case["calls"] = [list(c) for c in seq]
     return case
@@ -400,7 +407,7 @@ def case_world(case):
     """The world a case starts from: its scene (``cs.load_scene``), or its parameters' slope."""
     if case["property"] == "friction_holds_on_slopes":
         return slope_world(case["params"])
-    return cs.load_scene(case["scene"])
+    return cs.load_scene(case["scene"], base_dir=REPO)
 
 
 def run_case(case):
@@ -411,8 +418,9 @@ def run_case(case):
 
 
 def load_case(path):
-    """A saved case (YAML): ``property``, ``scene`` (a scene mapping: ``cs.load_scene(case["scene"])``
-    builds its world), ``info``, ``calls``, ``params`` as the property drew them, and ``found``."""
+    """A saved case (YAML): ``property``, ``scene`` (a scene mapping: ``cs.load_scene(case["scene"],
+    base_dir=<the repository>)`` builds its world; its files are named relative to the repository),
+    ``info``, ``calls``, ``params`` as the property drew them, and ``found``."""
     with open(path) as fh:
         return yaml.safe_load(fh)
 
