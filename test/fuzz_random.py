@@ -30,7 +30,8 @@ def run_property(name, examples, seed, save):
                CONTACT_SIM_FUZZ_SAVE=save)
     before = set(os.listdir(save)) if os.path.isdir(save) else set()
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "fuzz",
+    # no per-test timeout (pytest.ini's 300 s): one test is a whole property's examples
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "fuzz", "--timeout=0",
                            f"--hypothesis-seed={seed}", f"test/test_properties.py::test_fuzz[{name}]"],
                           cwd=REPO, env=env, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
