@@ -136,6 +136,22 @@ def test_cylinder_sphere_is_the_closest_point_of_the_solid(where, local, depth, 
 
 
 @pytest.mark.exact
+@pytest.mark.parametrize("local, outward", [
+    ([0.066, 0.0, HH * (1 + 2e-16)], [0, 0, 1]),                       # on the cap, outside by round-off
+    ([R_ * (1 + 2e-16) * np.cos(0.3), R_ * (1 + 2e-16) * np.sin(0.3), 0.02], [np.cos(0.3), np.sin(0.3), 0]),
+])
+def test_a_sphere_centred_on_the_cylinder_surface_gets_its_normal(local, outward):
+    """A centre on the surface (outside it by round-off: a robot's finger sphere on its arm's cap)
+    is as deep as the sphere's radius, along the surface's normal; the closest point was the centre
+    itself and its direction 0/0 (NaN contacts, then NaN work in the step's statistics)."""
+    c, centre = _sphere_case(local, 0.05, POSE_Q, POSE_P)
+    n = rot(POSE_Q, np.asarray(outward, float))
+    assert len(c) == 1 and np.isfinite(c.point).all()
+    assert c.depth[0] == pytest.approx(0.05, abs=1e-15)
+    assert np.allclose(c.normal[0], -n, atol=1e-15)
+
+
+@pytest.mark.exact
 def test_sphere_beside_the_cylinder_beyond_the_rim_does_not_touch():
     # 1 mm clear of the rim along the diagonal: the prism hull would differ, the exact kernel does not
     d = 0.05 + 1e-3

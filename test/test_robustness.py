@@ -382,3 +382,47 @@ def test_an_empty_world_steps_and_detects_nothing():
     w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=(0, 0, 1.0))
     w.step(0.01)   # one body: no pair either
     assert w.s.pos[0, 2] == pytest.approx(1.0 - 0.5 * 9.81 * 0.01 ** 2, rel=1e-15)
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.1, 1.0])
+def test_a_body_wholly_behind_an_open_mesh_has_no_contact_with_it_whatever_the_margin(margin):
+    """An open mesh acts on a body that straddles it; one entirely behind it has gone through. The
+    broad phase pairs such a body with the surface only within the margin, so a contact there came
+    and went with the margin: a box resting on the ground 0.4 m under a terrain tile was pushed up
+    through the tile when a fast body elsewhere widened the step's speculative margin."""
+    w = cs.World()
+    w.add_body("tile", flat_tile_mesh(2.0, 4), kind="static", position=[0, 0, 0.5])
+    w.add_body("box", cs.Box([0.2] * 3), mass=1.0, position=[0.3, 0.1, 0.1])          # 0.3 m under it
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[-0.5, 0.2, 0.3])           # its top 0.1 m under
+    w.add_body("hull", cs.Convex(cs.Box([0.2] * 3).vertices), mass=1.0, position=[0.7, -0.4, 0.42])   # straddles
+    w.add_body("rock", cs.TriMesh(*_cube_mesh(0.2)), mass=1.0, position=[-0.7, -0.4, 0.1])   # a closed mesh under it
+    c, _ = cs.collision.detect_world(w, margin=margin)
+    tile = w.index("tile")
+    hit = {w.body_names[b] for a, b in zip(c.body_a, c.body_b) if a == tile}
+    assert hit == {"hull"}, hit
+    # the hull's lower face is 0.18 m behind the tile, its upper one 0.02 m in front: pushed back up
+    assert np.allclose(c.depth[(c.body_a == tile) & (c.body_b == w.index("hull"))], 0.18, rtol=1e-9)
+
+
+def _cube_mesh(edge):
+    m = trimesh.creation.box([edge] * 3)
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+def test_a_tilted_box_keeps_a_spring_at_every_corner_below_a_plane():
+    """Four corners below the ground (a box on an edge, tipped): every one is a contact with its own
+    depth. The manifold's reduction kept three of four (its rule picks the farthest and the widest
+    triangle, and the fourth lay on their side); and of four corners inside and one apart within the
+    margin it kept the apart one, dropping a corner 15 cm deep."""
+    from contact_sim import quat
+
+    box = cs.Box([0.4, 0.3, 0.06])
+    q = quat.mul(quat.from_rotvec(np.array([0.0, 0.4, 0.0])), quat.from_rotvec(np.array([0.2, 0.0, 0.0])))
+    corners = quat.rotate(np.tile(q, (8, 1)), box.vertices)
+    for z0, margin in ((-corners[:, 2].min() - 0.15, 0.0), (-corners[:, 2].min() - 0.15, 0.1)):
+        z = corners[:, 2] + z0
+        c = cs.collide(box, ([0, 0, z0], q), cs.Plane(), ([0, 0, 0], [0, 0, 0, 1]), margin=margin)
+        below = np.sort(-z[z < 0])
+        assert len(below) == 4
+        inside = np.sort(c.depth[c.depth > 0])
+        np.testing.assert_allclose(inside, below, rtol=1e-12)

@@ -11,6 +11,7 @@ import numpy as np
 from ..jit import njit
 from .dispatch import collider
 from .geometry import BOX, CONVEX, CYLINDER, MESH, PLANE, SF_HALF, SF_RADIUS, SPHERE
+from .manifold import TOUCH_TOLERANCE
 from .meshes import mesh_poly
 from .polyhedra import poly_poly
 from .primitives import plane_contacts, plane_world, sphere_row
@@ -89,7 +90,13 @@ def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, 
             g = mv(Ra, ql) + pa - cb       # from the centre to the closest point
             dist = np.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
             sep = dist - rb
-            normal = g / dist
+            if dist > TOUCH_TOLERANCE * min(r, rb):
+                normal = g / dist
+            else:   # the centre on the surface (outside by round-off): against the outward normal there
+                on_side, on_cap = rho >= r, abs(z) >= hh
+                nz = (1.0 if z >= 0 else -1.0) if on_cap else 0.0
+                nl = np.array([ex if on_side else 0.0, ey if on_side else 0.0, nz])
+                normal = -mv(Ra, nl / np.sqrt(nl[0] * nl[0] + nl[1] * nl[1] + nl[2] * nl[2]))
         k = sphere_row(out_i, out_f, k, i, sep, normal, cb, rb, margin)
     return k
 

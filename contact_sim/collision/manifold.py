@@ -1,8 +1,10 @@
 """Contact manifolds: at most four points per pair, and the face–face patch of two polyhedra.
 
-``reduce4`` keeps the deepest point, the farthest from it, the one making the largest triangle
-with those two and the one farthest on the other side (a flat patch keeps its corners: among points
-equally deep to round-off the one farthest from the patch centre is the first pick).
+``reduce4`` keeps every candidate when there are at most four (one of two that coincide), puts the
+points inside the other body before those that touch or are apart, and of more than four keeps the
+deepest point, the farthest from it, the one making the largest triangle with those two and the one
+farthest on the other side (a flat patch keeps its corners: among points equally deep to round-off
+the one farthest from the patch centre is the first pick).
 ``face_patch`` is the intersection of a reference face and the most anti-parallel face of the other
 body, which is what Sutherland–Hodgman clipping of the incident face against the reference face's
 side planes produces: incident vertices inside the reference face's prism, reference vertices
@@ -27,7 +29,13 @@ CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18
 @njit
 def reduce4(pts, depth, valid, normal, keep):
     """``keep (C,)`` bool: at most 4 of the ``valid (C,)`` candidates ``pts (C, 3)`` with ``depth (C,)``;
-    returns how many. (Scalar arithmetic throughout: a temporary array costs more than the math.)"""
+    returns how many. Points inside the other body (deeper than the touching tolerance) come first:
+    when at most four are, they all stay and the deepest of the others fill the four; when more are,
+    four of them span the patch (``_span4``); a patch that only touches (a face resting flat) spans
+    over all its points. With at most four candidates every one stays (of two that coincide, the
+    deeper). Spanning over all the points dropped a corner 15 cm deep for one 3 cm apart (a tumbling
+    box, its spring missing), and one of four corners below a plane. (Scalar arithmetic throughout: a
+    temporary array costs more than the math.)"""
     C = pts.shape[0]
     dmax, cnt = -np.inf, 0
     cx, cy, cz = 0.0, 0.0, 0.0
@@ -45,11 +53,67 @@ def reduce4(pts, depth, valid, normal, keep):
         if valid[i]:
             smax = max(smax, (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2)
     tol = TOUCH_TOLERANCE * np.sqrt(smax) + 1e-300
-    # the deepest point; among points equally deep to round-off (a face resting flat on a face), the
-    # one farthest from the patch's centre, so that a flat patch keeps its corners
+    if cnt <= 4:
+        return _keep_all(pts, depth, valid, -np.inf, tol, keep)
+    deep = 0
+    for i in range(C):
+        deep += valid[i] and depth[i] > tol
+    if deep > 4:
+        return _span4(pts, depth, valid, tol, normal, keep, cx, cy, cz)
+    if deep == 0:
+        return _span4(pts, depth, valid, -np.inf, normal, keep, cx, cy, cz)
+    n = _keep_all(pts, depth, valid, tol, tol, keep)
+    while n < 4:   # the others nearest to touching, deepest first
+        best, bd = -1, -np.inf
+        for i in range(C):
+            if valid[i] and not keep[i] and depth[i] <= tol and depth[i] > bd:
+                best, bd = i, depth[i]
+        if best < 0:
+            break
+        keep[best] = True
+        n += 1
+    return n
+
+
+@njit
+def _keep_all(pts, depth, valid, dmin, tol, keep):
+    """Keep every valid candidate deeper than ``dmin``, but for one of two within ``tol`` of each
+    other (the deeper); returns how many."""
+    n = 0
+    for i in range(pts.shape[0]):
+        if not (valid[i] and depth[i] > dmin):
+            continue
+        dup = -1
+        for j in range(i):
+            if keep[j] and (pts[i, 0] - pts[j, 0]) ** 2 + (pts[i, 1] - pts[j, 1]) ** 2 \
+                    + (pts[i, 2] - pts[j, 2]) ** 2 <= tol * tol:
+                dup = j
+                break
+        if dup < 0:
+            keep[i] = True
+            n += 1
+        elif depth[i] > depth[dup]:
+            keep[dup], keep[i] = False, True
+    return n
+
+
+@njit
+def _span4(pts, depth, valid, dmin, normal, keep, cx, cy, cz):
+    """Four of the valid candidates deeper than ``dmin`` that span the patch: the deepest point (among
+    points equally deep to round-off, a face resting flat on a face, the one farthest from the
+    patch's centre ``c``, so that a flat patch keeps its corners), the farthest from it, the one
+    making the largest triangle with those two and the one farthest on the other side. Returns how
+    many (fewer where the points are collinear or coincide)."""
+    C = pts.shape[0]
+    dmax, smax = -np.inf, 0.0
+    for i in range(C):
+        if valid[i] and depth[i] > dmin:
+            dmax = max(dmax, depth[i])
+            smax = max(smax, (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2)
+    tol = TOUCH_TOLERANCE * np.sqrt(smax) + 1e-300
     i0, best = 0, -1.0
     for i in range(C):
-        if valid[i] and depth[i] >= dmax - tol:
+        if valid[i] and depth[i] > dmin and depth[i] >= dmax - tol:
             sp = (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2
             if sp > best:
                 i0, best = i, sp
@@ -57,7 +121,7 @@ def reduce4(pts, depth, valid, normal, keep):
     x0, y0, z0 = pts[i0, 0], pts[i0, 1], pts[i0, 2]
     i1, far = 0, -1.0
     for i in range(C):
-        if valid[i]:
+        if valid[i] and depth[i] > dmin:
             d2 = (pts[i, 0] - x0) ** 2 + (pts[i, 1] - y0) ** 2 + (pts[i, 2] - z0) ** 2
             if d2 > far:
                 i1, far = i, d2
@@ -66,7 +130,7 @@ def reduce4(pts, depth, valid, normal, keep):
     ax, ay, az = pts[i1, 0] - x0, pts[i1, 1] - y0, pts[i1, 2] - z0
     i2, big, a2 = 0, -1.0, 0.0
     for i in range(C):
-        if valid[i]:
+        if valid[i] and depth[i] > dmin:
             rx, ry, rz = pts[i, 0] - x0, pts[i, 1] - y0, pts[i, 2] - z0
             ar = (ay * rz - az * ry) * normal[0] + (az * rx - ax * rz) * normal[1] + (ax * ry - ay * rx) * normal[2]
             if abs(ar) > big:
@@ -76,7 +140,7 @@ def reduce4(pts, depth, valid, normal, keep):
     side = np.sign(a2)
     i3, opp = 0, -1.0
     for i in range(C):
-        if valid[i]:
+        if valid[i] and depth[i] > dmin:
             rx, ry, rz = pts[i, 0] - x0, pts[i, 1] - y0, pts[i, 2] - z0
             ar = (ay * rz - az * ry) * normal[0] + (az * rx - ax * rz) * normal[1] + (ax * ry - ay * rx) * normal[2]
             if -side * ar > opp:

@@ -237,9 +237,11 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, clos
               RY, pY, kind, P, Nn, D, F, I, c):
     """Step 1 for the vertices ``X[:nx]`` of one mesh (in the frame of the other, Y: vertices
     ``VY``): each one inside Y or within ``margin`` of it becomes a candidate (world point, normal
-    B→A, depth). ``side`` +1 when X is B's vertices (Y = A), -1 for A's. Returns ``(c, any inside)``."""
+    B→A, depth). ``side`` +1 when X is B's vertices (Y = A), -1 for A's. Returns ``(c, any inside, any
+    outside)``: a mesh with no vertex outside an open mesh Y is wholly behind it (no contact)."""
     stack = np.empty(STACK, np.int64)
     anyin = False
+    anyout = closedY   # only asked of an open Y (whose every vertex is looked at)
     reach = margin + tol
     for u in range(nx):
         px, py, pz = X[u, 0], X[u, 1], X[u, 2]
@@ -258,6 +260,7 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, clos
             j, qx, qy, qz, dist = bvh_nearest(px, py, pz, VY, tris, nodes, boxes, perm, rootY, np.inf, stack)
             f = p0Y + j - t0Y
             inside = (px - qx) * planes[f, 0] + (py - qy) * planes[f, 1] + (pz - qz) * planes[f, 2] < 0
+            anyout |= not inside
         sep = -dist if inside else dist
         if sep > margin or c >= P.shape[0]:
             continue
@@ -276,7 +279,7 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, clos
             Nn[c, r] = RY[r, 0] * nx_ + RY[r, 1] * ny_ + RY[r, 2] * nz_
         D[c], F[c], I[c] = -sep, F_VERTEX, fid(kind, u, j - t0Y, 0)
         c += 1
-    return c, anyin
+    return c, anyin, anyout
 
 
 @njit
@@ -436,10 +439,14 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         tol = TOUCH_TOLERANCE * min(sf[sa, SF_SCALE], sf[sb, SF_SCALE])
         p0A, t0A, p0B, t0B = si[sa, SI_P0], si[sa, SI_T0], si[sb, SI_P0], si[sb, SI_T0]
         c = np.int64(0)
-        c, inB = _vertices(XB, nvb, VA, tris, planes, p0A, t0A, nodes, boxes, perm, root[sa], si[sa, SI_CLOSED] != 0,
-                           sf[sa, SF_BOX:SF_BOX + 6], margin, tol, 1.0, Ra, pa, FID_MESH_VERTEX, P, Nn, D, F, I, c)
-        c, inA = _vertices(XA, nva, VB, tris, planes, p0B, t0B, nodes, boxes, perm, root[sb], si[sb, SI_CLOSED] != 0,
-                           sf[sb, SF_BOX:SF_BOX + 6], margin, tol, -1.0, Rb, pb, FID_POLY_VERTEX, P, Nn, D, F, I, c)
+        c, inB, outB = _vertices(XB, nvb, VA, tris, planes, p0A, t0A, nodes, boxes, perm, root[sa],
+                                 si[sa, SI_CLOSED] != 0, sf[sa, SF_BOX:SF_BOX + 6], margin, tol, 1.0, Ra, pa,
+                                 FID_MESH_VERTEX, P, Nn, D, F, I, c)
+        c, inA, outA = _vertices(XA, nva, VB, tris, planes, p0B, t0B, nodes, boxes, perm, root[sb],
+                                 si[sb, SI_CLOSED] != 0, sf[sb, SF_BOX:SF_BOX + 6], margin, tol, -1.0, Rb, pb,
+                                 FID_POLY_VERTEX, P, Nn, D, F, I, c)
+        if not (outA and outB):   # one wholly behind the other, an open mesh: gone through, no contact
+            continue
         if inA or inB:
             counters[0] += 1
         else:   # no vertex inside: the edge–face test (it finds the penetrations no vertex test sees)

@@ -5,7 +5,11 @@ A closed mesh is a solid: a point is inside by odd ray-crossing parity over thre
 (a ray that grazes an edge or vertex is discarded for the next). An open mesh (a terrain tile, a
 flat floor) has no inside; it is a one-sided surface whose back is below it: a point is inside
 when it lies behind the nearest triangle, so a body pressed through a terrain is pushed back out
-the way it came. A distance below ``TOUCH_TOLERANCE`` × the smaller body's size is touching, and
+the way it came. A body entirely behind it (every vertex behind; a sphere whose centre is behind by
+more than its radius) has gone through and has no contact with it: the broad phase pairs such a
+body with the surface only within the margin, so a contact there would come and go with the
+margin (a box resting on the ground 0.4 m under a terrain tile was pushed up through the tile
+when a fast body elsewhere widened the step's speculative margin). A distance below ``TOUCH_TOLERANCE`` × the smaller body's size is touching, and
 its direction round-off noise: the triangle's normal is the answer there.
 """
 import numpy as np
@@ -65,9 +69,10 @@ def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
         world_verts(verts, si[sa, SI_V0], si[sa, SI_NV], pos[a[i]], R[a[i]], V)
         t0, nt = si[sa, SI_T0], si[sa, SI_NT]
         j, qb, dist = nearest_triangle(V, tris, t0, nt, cb)
-        sgn = -1.0 if inside_mesh(cb, V, tris, t0, nt, si[sa, SI_CLOSED] != 0, qb, j) else 1.0
+        closed = si[sa, SI_CLOSED] != 0
+        sgn = -1.0 if inside_mesh(cb, V, tris, t0, nt, closed, qb, j) else 1.0
         sep = sgn * dist - rb
-        if sep > margin:
+        if sep > margin or (not closed and sgn < 0 and dist > rb):   # entirely behind an open mesh
             continue
         if dist > TOUCH_TOLERANCE * min(sf[sa, SF_SCALE], rb):
             normal = sgn * (qb - cb) / dist
@@ -215,9 +220,11 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                     P[c, j], Nn[c, j] = VM[v, j] - 0.5 * m * NP[pm, j], NP[pm, j]
                 D[c], F[c], I[c] = -m, F_VERTEX, fid(FID_POLY_VERTEX, v, pm, 0)
                 c += 1
+        front = False              # a vertex of B in front of an open mesh: B is not wholly behind it
         for u in range(nvp):       # (a) polyhedron vertices against the mesh triangles
             j, qb, dist = nearest_triangle(VM, tris, t0, nt, VP[u])
             inside = inside_mesh(VP[u], VM, tris, t0, nt, closed, qb, j)
+            front |= not inside
             sep = -dist if inside else dist
             if sep > margin:
                 continue
@@ -231,6 +238,8 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                 P[c, jj], Nn[c, jj] = VP[u, jj] + 0.5 * sep * na[jj], na[jj]
             D[c], F[c], I[c] = -sep, F_VERTEX, fid(FID_MESH_VERTEX, u, j, 0)
             c += 1
+        if not (closed or front):   # entirely behind an open mesh: gone through, no contact
+            continue
         if c:
             counters[0] += 1
         else:                      # (c) edge-face for the pairs no vertex settled
