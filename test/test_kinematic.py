@@ -137,3 +137,20 @@ def test_push_cap_scales_to_the_budget_of_the_fastest_body():
     assert abs(f - np.sqrt(2.0) / 30.0) < 1e-15
     assert abs(np.linalg.norm(big[1]) - np.sqrt(2.0)) < 1e-14   # applied in place: b ends on its budget
     assert push_cap(w, bodies, 0.0, v0, w0, v0, w0) == 1.0
+
+
+@pytest.mark.parametrize("spin", [0.0, 3.0, -40.0])
+def test_the_work_of_a_turning_moving_kinematic_body_is_taken_where_it_touches(spin):
+    """A kinematic box moving at v and turning at ω about z hits a resting ball (e = 1, no friction,
+    no gravity): the ball gains exactly the work ``λ·(v + ω × (p − x))`` of the box's contact point
+    at the impact, which ``last_solve.kinematic_work`` reports. Taken after the step, with the box's
+    centre moved on by v·dt, it was off by ``λ·(ω × v dt)``."""
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01),
+                 materials={"m": cs.Material(restitution=1.0, friction=0.0)})
+    w.add_body("paddle", cs.Box([1.0, 1.0, 1.0]), kind="kinematic", material="m")
+    w.set_state("paddle", velocity=[2.0, 0.0, 0.0], angular_velocity=[0.0, 0.0, spin])
+    w.add_body("ball", cs.Sphere(0.1), mass=0.7, position=[0.6, 0.2, 0.0], material="m")
+    e0 = w.energy()
+    w.step()
+    assert w.last_solve.kinematic_work > 0
+    assert abs((w.energy() - e0) - w.last_solve.kinematic_work) <= 1e-12 * w.last_solve.kinematic_work

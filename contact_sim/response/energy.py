@@ -7,7 +7,7 @@ import numpy as np
 from .. import dynamics, quat
 from ..free_motion import _qrot
 from ..jit import njit
-from ..kinds import DYNAMIC, KINEMATIC
+from ..kinds import DYNAMIC, KINEMATIC, STATIC
 from ..vec import cross
 
 
@@ -45,24 +45,72 @@ def _touches(kind, a, b, which):
     return False
 
 
-def kinetic_energy(world, idx):
-    """Kinetic energy (J, a float) of the bodies ``idx (k,)``, linear plus rotational."""
+def impact_frame(world, a, b):
+    """The frame an impact's kinetic energy is measured in, for the contacts ``a, b (K,)``: ``None``
+    (the world's) when no kinematic body takes part; the rigid motion ``(v, ω, x) (3,)`` of the one
+    kinematic body that does, with no static body in the impact; ``False`` otherwise (no frame).
+
+    Against a moving kinematic body a rebound gains kinetic energy in the world frame (a paddle at
+    v sends a resting ball off at 2v with e = 1): capped there, the rebound was lost. In the frame
+    that moves with the body's rigid motion (each dynamic body's velocity less that field's at its
+    centre, its spin less ω) every contact velocity is what it was, so the impulses are the same and
+    Stronge's bound holds there; a static body or a second kinematic one moves differently, and no
+    frame serves (the push cap, ``push_cap``, bounds the impact then)."""
+    kind = world.kind
+    kin = np.unique(np.concatenate([a[kind[a] == KINEMATIC], b[kind[b] == KINEMATIC]]))
+    if kin.size == 0:
+        return None
+    if kin.size > 1 or np.any(kind[a] == STATIC) or np.any(kind[b] == STATIC):
+        return False
+    k = int(kin[0])
+    s = world.s
+    return s.vel[k].copy(), s.omega[k].copy(), s.pos[k].copy()
+
+
+def _in_frame(world, idx, frame, vel, omega):
+    """``vel, omega (k,3)`` of the bodies ``idx (k,)`` in ``frame`` (``impact_frame``; None: as they are)."""
+    if frame is None:
+        return vel, omega
+    v, w, x = frame
+    return vel - (v + cross(w, world.s.pos[idx] - x)), omega - w
+
+
+def kinetic_energy(world, idx, frame=None):
+    """Kinetic energy (J, a float) of the bodies ``idx (k,)``, linear plus rotational, in ``frame``
+    (``impact_frame``; default the world's)."""
     s = world.s
     c = np.ascontiguousarray
-    return float(kinetic(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
-                         c(world.inertia_body), s.vel, s.omega))
+    idx = c(idx, dtype=np.int64)
+    vel, omega = s.vel, s.omega
+    if frame is not None:
+        vel, omega = vel.copy(), omega.copy()
+        vel[idx], omega[idx] = _in_frame(world, idx, frame, s.vel[idx], s.omega[idx])
+    return float(kinetic(idx, c(world.mass, dtype=float), c(world.particle), s.quat, c(world.inertia_body), vel,
+                         omega))
 
 
-def energetic_cap(world, idx, kinetic0, vel_c, omega_c):
+def energetic_cap(world, idx, kinetic0, vel_c, omega_c, frame=None):
     """Scale the restitution stage's velocity change back so that the impact ends with no more
-    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx (k,)``; ``vel_c,
-    omega_c (k,3)`` their velocities after compression); returns the factor applied (1 when
-    nothing was needed). The kernel, ``restitution_cap``, is the one the compiled step calls."""
+    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx (k,)``, in ``frame``:
+    ``impact_frame``, default the world's); ``vel_c, omega_c (k,3)`` their velocities after
+    compression; returns the factor applied (1 when nothing was needed). The kernel,
+    ``restitution_cap``, is the one the compiled step calls."""
     s = world.s
     c = np.ascontiguousarray
-    return float(restitution_cap(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
-                                 c(world.inertia_body), float(kinetic0), c(vel_c, dtype=float),
-                                 c(omega_c, dtype=float), s.vel, s.omega))
+    idx = c(idx, dtype=np.int64)
+    if frame is None:
+        return float(restitution_cap(idx, c(world.mass, dtype=float), c(world.particle), s.quat,
+                                     c(world.inertia_body), float(kinetic0), c(vel_c, dtype=float),
+                                     c(omega_c, dtype=float), s.vel, s.omega))
+    vel, omega = s.vel.copy(), s.omega.copy()
+    vel[idx], omega[idx] = _in_frame(world, idx, frame, s.vel[idx], s.omega[idx])
+    vc, wc = _in_frame(world, idx, frame, vel_c, omega_c)
+    f = float(restitution_cap(idx, c(world.mass, dtype=float), c(world.particle), s.quat, c(world.inertia_body),
+                              float(kinetic0), c(vc, dtype=float), c(wc, dtype=float), vel, omega))
+    if f < 1.0:   # back from the frame
+        s.vel[idx] = vel_c + f * (s.vel[idx] - vel_c)
+        s.omega[idx] = omega_c + f * (s.omega[idx] - omega_c)
+    return f
 
 
 @njit

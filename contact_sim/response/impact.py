@@ -16,7 +16,7 @@ from ..kinds import DYNAMIC
 from . import kinematic as kinematic_mod
 from . import pgs
 from .context import IMPACT_ROUNDS, REST_REBOUND_FRACTION
-from .energy import energetic_cap, kinematic_push, kinetic_energy, push_cap
+from .energy import energetic_cap, impact_frame, kinematic_push, kinetic_energy, push_cap
 
 
 def impact_solve(ctx):
@@ -86,7 +86,8 @@ def _round(ctx, ti, vn, e, bounced, lam):
     if bounces:
         bodies0 = np.unique(np.concatenate([c.body_a[ti], c.body_b[ti]]))
         bodies0 = bodies0[(world.kind == DYNAMIC)[bodies0]]
-        kinetic0 = kinetic_energy(world, bodies0)
+        frame = impact_frame(world, c.body_a[ti], c.body_b[ti])   # against a moving kinematic body: its frame
+        kinetic0 = kinetic_energy(world, bodies0, frame) if frame is not False else 0.0
     target = np.where(ctx.touching[ti], 0.0, ctx.spec_target[ti])
     fr = ctx.friction
     pushed = kinematic_push(world, c.body_a[ti], c.body_b[ti], c.point[ti])
@@ -109,7 +110,8 @@ def _round(ctx, ti, vn, e, bounced, lam):
         # into the ground, where nothing would give it back
         hi = np.flatnonzero(hit | (pressed & ctx.touching & ~bounced))
         res = ctx.solve(ctx.rows.select(hi), s.vel, s.omega, target_n=np.where(hit[hi], -e[hi] * vn[hi], 0.0))
-        lam_r[hi, 0] += res.impulse[:, 0] * energetic_cap(world, bodies0, kinetic0, vel_c, omega_c)
+        f = 1.0 if frame is False else energetic_cap(world, bodies0, kinetic0, vel_c, omega_c, frame)
+        lam_r[hi, 0] += res.impulse[:, 0] * f
         ctx.note(res, residual=False)
     lam += lam_r
 
