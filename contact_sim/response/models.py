@@ -88,9 +88,9 @@ def _build_shape_info(world):
     return thin, spheres, thinnest, np.minimum(thin, thinnest)
 
 
-def thinnest_finite(world):
-    """The smallest thinnest size (m) of any finite body (``inf`` when there is none)."""
-    return _shape_info(world)[2]
+def body_thinness(world):
+    """Each body's thinnest size ``(N,)`` (m; ``inf`` for a plane)."""
+    return _shape_info(world)[0]
 
 
 def step_travel(world, dt):

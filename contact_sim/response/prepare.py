@@ -26,7 +26,7 @@ from .cache import local_points
 from .context import REST_REBOUND_FRACTION
 
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
-SPECULATIVE_MAX_FRACTION = 0.5  # the look-ahead is at most this × the thinnest finite body (beyond: swept's job)
+SPECULATIVE_MAX_FRACTION = 0.5  # a body's look-ahead is at most this × its thinnest size (beyond: swept's job)
 
 
 def prepare_contacts(ctx):
@@ -179,19 +179,20 @@ def speculative_reach(world, dt):
 
     ``margin`` is the largest closing distance of any pair in ``dt`` (twice the fastest body's
     speed, including spin × size, times ``dt``, plus ``|g| dt²``), at least
-    ``settings.contact_margin`` and at most ``SPECULATIVE_MAX_FRACTION`` × the thinnest finite body
-    (a body moving farther than that in a step is the tunnelling case that ``swept`` handles and the
-    preflight warns about); it finds the pairs. ``reach`` is the farthest a body's points move in
-    ``dt`` (``_speed · dt``, 0 for a body that does not move) and ``floor = contact_margin + |g| dt²``.
+    ``settings.contact_margin`` and at most ``SPECULATIVE_MAX_FRACTION`` × the thickest finite body;
+    it finds the pairs. ``reach`` is the farthest a body's points move in ``dt`` (``_speed · dt``, 0
+    for a body that does not move), at most ``SPECULATIVE_MAX_FRACTION`` × the body's own thinnest
+    size (a body moving farther than that in a step is the tunnelling case that ``swept`` handles
+    and the preflight warns about), and ``floor = contact_margin + |g| dt²``.
     A pair can close by at most ``floor + reach[a] + reach[b]`` (the look-ahead keeps nothing
     farther), so the narrow phase takes that as the pair's margin (``detect_world``'s ``reach``): a
     hull at rest beside a fast ball then builds its manifold from the points that touch, not from
     vertices a centimetre up that the look-ahead would drop, leaving its support short of a corner."""
     s = world.s
     base = world.settings.contact_margin
-    ext, moving, cap = _margin_facts(world)
+    ext, moving, caps, cap = _margin_facts(world)
     reach = np.empty(len(s.vel))
-    vmax = _reach(s.vel, s.omega, ext, moving, dt, reach)
+    vmax = _reach(s.vel, s.omega, ext, moving, caps, dt, reach)
     g = world.gravity_norm() * dt * dt
     if vmax < 0:   # nothing moves
         return base, reach, base + g
@@ -199,27 +200,35 @@ def speculative_reach(world, dt):
 
 
 @njit
-def _reach(vel, omega, ext, moving, dt, out):
-    """``out (N,)``: ``_speed · dt`` of the ``moving`` bodies, 0 for the others; returns the largest
-    ``_speed`` (m/s), −1 when none moves."""
+def _reach(vel, omega, ext, moving, caps, dt, out):
+    """``out (N,)``: ``_speed · dt`` of the ``moving`` bodies, at most their ``caps (N,)``, 0 for the
+    others; returns the largest ``_speed`` (m/s), −1 when none moves."""
     best = -1.0
     for i in range(vel.shape[0]):
         out[i] = 0.0
         if moving[i]:
             speed = _speed(vel, omega, ext, i)
             best = max(best, speed)
-            out[i] = speed * dt
+            out[i] = min(speed * dt, caps[i])
     return best
 
 
 def _margin_facts(world):
     """What ``speculative_reach`` reads of the bodies, kept while they are the same (the kind
     array and the shape list are replaced when a body is added or removed): ``(extents (N,),
-    moving (N,) bool, the largest look-ahead (m))``."""
+    moving (N,) bool, each body's largest reach (N,): SPECULATIVE_MAX_FRACTION × its thinnest size,
+    the largest look-ahead (m): that fraction of the thickest finite body)``. Each body's own: with
+    the world's thinnest body setting every reach, a 2 cm ball kept a 12 cm box spinning at 19 rad/s
+    to a 1 cm look-ahead, and its corners 1.7 cm up entered the ground unseen."""
     bm = world.body_masks()
-    return derived(world, "margin_facts", (world.kind, world.shapes[-1] if len(world) else None, bm),
-                   lambda: (toi_mod._extents(world), bm.moving,
-                            SPECULATIVE_MAX_FRACTION * _models.thinnest_finite(world)))
+
+    def build():
+        thin = _models.body_thinness(world)
+        finite = np.isfinite(thin)
+        return (toi_mod._extents(world), bm.moving, SPECULATIVE_MAX_FRACTION * thin,
+                SPECULATIVE_MAX_FRACTION * float(thin[finite].max()) if finite.any() else np.inf)
+
+    return derived(world, "margin_facts", (world.kind, world.shapes[-1] if len(world) else None, bm), build)
 
 
 @njit
