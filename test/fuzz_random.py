@@ -36,7 +36,7 @@ def run_property(name, examples, seed, save):
                           cwd=REPO, env=env, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
     after = set(os.listdir(save)) if os.path.isdir(save) else set()
-    saved = sorted(f for f in after - before if f.startswith(name + "_"))
+    saved = sorted(f for f in after - before if f.startswith(name + "_") and f.endswith(".yaml"))
     if proc.returncode and not saved:   # a failure that saved nothing (a crash, a collection error)
         sys.stderr.write(proc.stdout[-4000:] + proc.stderr[-4000:])
     return name, seconds, proc.returncode, saved
