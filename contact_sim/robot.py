@@ -6,10 +6,13 @@ link ``L`` is body ``L``, further ones ``L#1``, ``L#2``, ... (the engine has no 
 bodies of one link always move together). Each body's frame is its element's frame: link pose ∘
 element ``origin``, so every shape stays centred as the engine's exact kernels expect.
 
-``World.set_joint_positions`` computes forward kinematics (revolute, continuous, prismatic, fixed
-and mimic joints; floating and planar joints stay at their origin) and applies every body of the
-robot through the vectorised ``World.set_poses``, so link velocities are finite differences of
-consecutive stamps like any kinematic body's. Bad input is refused by name before anything changes.
+``World.set_joint_positions`` keeps each joint's own stamp, as robot_state_publisher does: a joint's
+velocity is the finite difference of its consecutive positions over their stamps, so two publishers
+(an arm driver and a gripper driver) each move their own joints at their own times. Forward
+kinematics (revolute, continuous, prismatic, fixed and mimic joints; floating and planar joints stay
+at their origin) gives every link's pose, and the joint velocities propagated down the tree its
+velocity; every body of the robot is set at once (``World.set_states``). Bad input is refused by
+name before anything changes.
 
 Links joined by a joint never collide with each other (MoveIt's "Adjacent"; a link without
 geometry in between is skipped, so its geometric neighbours are adjacent); nor do the bodies of one
@@ -25,6 +28,7 @@ from .errors import ContactSimError
 from .validate import show
 
 LIMIT_TOLERANCE = 1e-9      # a joint position may exceed its limits by this much (round-off of the sender)
+MIMIC_TOLERANCE = 1e-9      # a mimic joint's given position agreeing with its leader's this closely is accepted
 MOVABLE = ("revolute", "continuous", "prismatic")
 PACKAGE_PATH_ENV = "CONTACT_SIM_PACKAGE_PATH"   # folders holding ROS packages, os.pathsep-separated
 
@@ -160,6 +164,55 @@ class RobotModel:
         self.q = dict(q)
         self.q_initial = dict(q)
         self.by_name = {j["name"]: j for j in joints}
+        self.reset()
+
+    def reset(self):
+        """Back to ``q_initial``, at rest, with no stamp yet: each joint's next position places it."""
+        self.q = dict(self.q_initial)
+        self.qd = {n: 0.0 for n in self.q}     # joint velocities (rad/s or m/s)
+        # per joint: its last stamp, and the position and stamp before that one (a later position at
+        # the same stamp replaces the last, its velocity still taken from the one before)
+        self.t = {n: None for n in self.q}
+        self.before = {n: None for n in self.q}
+
+    def restart_stamps(self):
+        """Keep the positions, forget the stamps and velocities: each joint's next position places it
+        at rest (after a clock jump, or a pause in the joint states)."""
+        self.qd = {n: 0.0 for n in self.q}
+        self.t = {n: None for n in self.q}
+        self.before = {n: None for n in self.q}
+
+    def update(self, names, positions, stamp, call):
+        """The state after the joints ``names (M,)`` take ``positions (M,)`` at ``stamp`` (s), not yet
+        applied: ``(q, qd, t, before)`` dicts. Refuses (``ContactSimError`` naming the joint) a position
+        outside the limits, a stamp before the joint's last one, and a mimic joint's position that
+        disagrees with its leader's (one that agrees within ``MIMIC_TOLERANCE`` is accepted, and
+        ignored: a driver's JointState lists mimic joints too)."""
+        q, qd, t, before = dict(self.q), dict(self.qd), dict(self.t), dict(self.before)
+        given = {n: float(x) for n, x in zip(names, positions)}
+        for n, x in given.items():
+            j = self.by_name[n]
+            if j["mimic"] is not None:
+                continue
+            lo, hi = j["limits"]
+            if not (lo - LIMIT_TOLERANCE <= x <= hi + LIMIT_TOLERANCE):
+                raise ContactSimError(f"{call}: joint {n!r} position {x!r} is outside its limits [{lo!r}, {hi!r}]")
+            last = t[n]
+            if last is not None and stamp < last:
+                raise ContactSimError(f"{call}: joint {n!r}: stamp {stamp!r} is before its previous one ({last!r})")
+            if last is None or stamp > last:
+                before[n] = (q[n], last) if last is not None else None
+            t[n], q[n] = stamp, float(x)
+            b = before[n]
+            qd[n] = 0.0 if b is None else (q[n] - b[0]) / (stamp - b[1])
+        for n, x in given.items():
+            m = self.by_name[n]["mimic"]
+            if m is not None:
+                want = m[1] * q[m[0]] + m[2]
+                if not abs(x - want) <= MIMIC_TOLERANCE * max(1.0, abs(want)):
+                    raise ContactSimError(f"{call}: joint {n!r} mimics {m[0]!r}: its position {x!r} disagrees with "
+                                          f"{m[1]!r} × {m[0]} + {m[2]!r} = {want!r} (set {m[0]!r} instead)")
+        return q, qd, t, before
 
     def link_transforms(self, q):
         """World transforms ``{link: (4, 4)}`` of every link for joint positions ``q`` (a mapping)."""
@@ -185,19 +238,45 @@ class RobotModel:
         W = np.array([T[link] for link in self.body_link]).reshape(-1, 4, 4) @ self.body_origin
         return W[:, :3, 3].copy(), matrix_to_quat(W[:, :3, :3])
 
-    def check(self, names, positions, call):
-        """The new joint positions (a dict) after setting ``names (M,)`` to ``positions (M,)``; refuses
-        (``ContactSimError`` naming the joint) unknown, mimic, repeated, non-finite or out-of-limit ones."""
-        q = dict(self.q)
-        for n, x in zip(names, positions):
-            j = self.by_name[n]
-            if j["mimic"] is not None:
-                raise ContactSimError(f"{call}: joint {n!r} mimics {j['mimic'][0]!r}; set that joint instead")
-            lo, hi = j["limits"]
-            if not (lo - LIMIT_TOLERANCE <= x <= hi + LIMIT_TOLERANCE):
-                raise ContactSimError(f"{call}: joint {n!r} position {x!r} is outside its limits [{lo!r}, {hi!r}]")
-            q[n] = float(x)
-        return q
+    def body_states(self, q, qd):
+        """Positions ``(B, 3)``, quaternions ``(B, 4)``, velocities ``(B, 3)`` and angular velocities
+        ``(B, 3)`` of the robot's bodies (world frame; each body's velocity is its origin's) for joint
+        positions ``q`` and velocities ``qd`` (mappings). Velocities down the tree from a base at rest:
+        a child's angular velocity is its parent's plus ``axis · q̇`` of a revolute joint, its origin's
+        velocity its parent's plus ``ω_parent × (o_child − o_parent)`` plus ``axis · q̇`` of a
+        prismatic one (the joint's axis in the world; a mimic joint moves at ``multiplier · q̇`` of
+        its leader)."""
+        T = {self.root: self.base}
+        V = {self.root: (np.zeros(3), np.zeros(3))}
+        for j in self.joints:
+            parent = T[j["parent"]]
+            M = parent @ j["origin"]
+            v, w = V[j["parent"]]
+            axis = M[:3, :3] @ j["axis"]
+            xd = 0.0
+            if j["type"] in MOVABLE:
+                m = j["mimic"]
+                x, xd = (q[j["name"]], qd[j["name"]]) if m is None else (m[1] * q[m[0]] + m[2], m[1] * qd[m[0]])
+                J = np.eye(4)
+                if j["type"] == "prismatic":
+                    J[:3, 3] = j["axis"] * x
+                else:
+                    J[:3, :3] = rotation_about(j["axis"], x)
+                M = M @ J
+            v = v + np.cross(w, M[:3, 3] - parent[:3, 3])   # the child's origin, where the joint put it
+            if j["type"] == "prismatic":
+                v = v + axis * xd
+            elif j["type"] in MOVABLE:
+                w = w + axis * xd
+            T[j["child"]], V[j["child"]] = M, (v, w)
+        W = np.array([T[link] for link in self.body_link]).reshape(-1, 4, 4) @ self.body_origin
+        pos = W[:, :3, 3].copy()
+        vel, omega = np.empty((len(pos), 3)), np.empty((len(pos), 3))
+        for i, link in enumerate(self.body_link):
+            v, w = V[link]
+            vel[i] = v + np.cross(w, pos[i] - T[link][:3, 3])
+            omega[i] = w
+        return pos, matrix_to_quat(W[:, :3, :3]), vel, omega
 
 
 def _joint_dict(j, prefix, where):
@@ -363,14 +442,15 @@ def initial_positions(model, joint_positions, where):
         if j["type"] in MOVABLE and j["mimic"] is None:
             lo, hi = j["limits"]
             q[j["name"]] = float(min(max(0.0, lo), hi))
-    model.q = q
+    model.q_initial = q
+    model.reset()
     if joint_positions:
         if not isinstance(joint_positions, Mapping):
             raise ContactSimError(f"{where}.joint_positions: must be a mapping of joint name → position, "
                                   f"got {show(joint_positions)}")
         names = [model.prefix + str(k) if model.prefix + str(k) in model.by_name else str(k) for k in joint_positions]
         names, pos = check_request(model.by_name, names, list(joint_positions.values()), f"{where}.joint_positions")
-        q = model.check(names, pos, f"{where}.joint_positions")
+        q = model.update(names, pos, 0.0, f"{where}.joint_positions")[0]
     return q
 
 
@@ -430,7 +510,8 @@ def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, packa
     """See ``World.add_urdf``; ``where`` starts error messages (a scene path)."""
     model, shapes, pairs = parse(urdf, prefix, base_pose, package_paths, convex_meshes, where, srdf)
     q = initial_positions(model, joint_positions, where)
-    model.q, model.q_initial = dict(q), dict(q)
+    model.q_initial = dict(q)
+    model.reset()
     taken = [b for b in model.bodies if b in world._index]
     if taken:
         raise ContactSimError(f"{where}: body {taken[0]!r} already exists (use prefix= for a second robot)")
@@ -450,25 +531,27 @@ def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, packa
 
 def set_joint_positions(world, names, positions, stamp=None):
     """See ``World.set_joint_positions``."""
+    from .validate import STAMP
+
     call = "set_joint_positions"
     owner = {j["name"]: r for r in world.robots for j in r.joints if j["type"] in MOVABLE}
     names, pos = check_request(owner, names, positions, call)
     if not names:
         return
+    t = world.time if stamp is None else STAMP.check(stamp, f"{call}.stamp")
     new = {}
     for n, x in zip(names, pos):
         r = owner[n]
         new.setdefault(id(r), (r, [], []))
         new[id(r)][1].append(n)
         new[id(r)][2].append(x)
-    qs, bodies, P, Q = [], [], [], []
+    states, bodies, parts = [], [], []
     for r, ns, xs in new.values():
-        q = r.check(ns, xs, call)
-        p, o = r.body_poses(q)
-        qs.append((r, q))
+        state = r.update(ns, xs, t, call)
+        states.append((r, state))
         bodies += r.bodies
-        P.append(p)
-        Q.append(o)
-    world.set_poses(bodies, np.concatenate(P), np.concatenate(Q), stamp)   # checks everything first
-    for r, q in qs:
-        r.q = q
+        parts.append(r.body_states(state[0], state[1]))
+    P, Q, V, W = (np.concatenate([part[k] for part in parts]) for k in range(4))
+    world.set_states(bodies, positions=P, orientations=Q, velocities=V, angular_velocities=W)   # checks first
+    for r, (q, qd, tt, before) in states:
+        r.q, r.qd, r.t, r.before = q, qd, tt, before

@@ -427,11 +427,15 @@ class World(BodyInput):
 
     def set_joint_positions(self, names, positions, stamp=None):
         """Move robots: ``names (M,)`` joints (with their robot's prefix), ``positions (M,)`` (rad or m)
-        at ``stamp`` (s; default the world time). Forward kinematics (revolute, continuous, prismatic,
-        fixed, mimic) poses every body of each robot concerned through ``set_poses`` at once, so link
-        velocities are finite differences of consecutive stamps. Refused by name, world unchanged:
-        an unknown or mimic joint, a repeated name, a non-finite value, a position beyond its limits
-        by more than 1e-9, a stamp not after the previous one."""
+        at ``stamp`` (s; default the world time). Each joint keeps its own stamp (as
+        robot_state_publisher does): its velocity is the finite difference of its consecutive
+        positions over their stamps, and a later position at the same stamp replaces the last. Forward
+        kinematics (revolute, continuous, prismatic, fixed, mimic) poses every body of each robot
+        concerned, and the joint velocities give the bodies' velocities, all at once. A mimic joint's
+        position that agrees with its leader's (within 1e-9) is accepted and ignored. Refused by name,
+        world unchanged: an unknown joint, a mimic joint that disagrees with its leader, a repeated
+        name, a non-finite value, a position beyond its limits by more than 1e-9, a stamp before the
+        joint's previous one, a body speed beyond the world's bounds."""
         from . import robot
 
         robot.set_joint_positions(self, names, positions, stamp)
@@ -632,5 +636,5 @@ class World(BodyInput):
         self.time = t
         self.contacts = Contacts.empty()
         for r in self.robots:
-            r.q = {n: r.q_initial.get(n, x) for n, x in r.q.items()}
+            r.reset()
         self.contact_cache.reset()

@@ -9,11 +9,14 @@ A mixin of ``ContactSimNode``:
   about, and the robot already there stays.
 - ``joint_states_topic`` (``sensor_msgs/JointState``, best effort so reliable publishers match too;
   default ``joint_states``): positions of the robot's joints, applied with
-  ``World.set_joint_positions`` at the message stamp (zero: time of receipt), so link velocities are
-  finite differences of consecutive stamps. Joints the robot does not have are counted
-  (``joint_states_unknown_joints``) and warned about, the known ones applied; mimic joints are
-  computed from the joints they follow and skipped. A message stamped no later than the last one
-  applied (``rejected_joint_state_out_of_order``), older than ``pose_timeout`` on arrival
+  ``World.set_joint_positions`` at the message stamp (zero: time of receipt). Each joint keeps its
+  own stamp, as robot_state_publisher does, so an arm driver and a gripper driver publishing at
+  their own rates and times each move their own joints: a message is judged joint by joint, and
+  only its joints stamped before their own previous one are left out (all of them:
+  ``rejected_joint_state_out_of_order``). A joint's velocity is the finite difference of its own
+  consecutive stamps. Joints the robot does not have are counted (``joint_states_unknown_joints``)
+  and warned about, the known ones applied; mimic joints are accepted when they agree with the
+  joints they follow (``..._invalid`` when not). A message older than ``pose_timeout`` on arrival
   (``..._stale``), malformed or refused by the engine (NaN, beyond the joint limits:
   ``..._invalid``) changes nothing and is counted and warned about, like a bad pose.
 - ``robot_description_semantic_topic`` (``std_msgs/String``, transient local; default
@@ -42,7 +45,6 @@ class RobotInput:
         self._robot = None               # its RobotModel in the world
         self._robot_srdf = None          # the last accepted semantic description
         self._js_t0_ns = None
-        self._js_last_ns = None
         self._js_last_rx = -np.inf
         self._robot_held = True
         self.sub_description = self.sub_joint_states = None
@@ -133,7 +135,7 @@ class RobotInput:
             raise
         self._robot = world.robots[-1]
         self._robot_urdf = urdf
-        self._js_t0_ns = self._js_last_ns = None     # a new robot: its first joint state places it
+        self._js_t0_ns = None     # a new robot: its first joint state places it
         self._robot_held = True
         if refreeze:
             self._refreeze_heap()     # the new links' meshes out of the collector's reach, the old ones freed
@@ -172,12 +174,19 @@ class RobotInput:
             self._warn("joint_state_unknown", f"{self.cfg['joint_states_topic']}: unknown joints "
                                               f"{', '.join(map(repr, unknown[:5]))}{' ...' if len(unknown) > 5 else ''}"
                                               f" ignored (robot {robot.name!r})")
-        keep = [i for i, n in enumerate(names) if n in movable and movable[n]["mimic"] is None]
         now_ns = self._now_ns()
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or now_ns
-        if self._js_last_ns is not None and stamp_ns <= self._js_last_ns:
-            return self._reject_joint_state("out_of_order", f"stamp {stamp_ns * 1e-9:.9f} s is not after the "
-                                                            f"previous joint state's {self._js_last_ns * 1e-9:.9f} s")
+        t = (stamp_ns - (stamp_ns if self._js_t0_ns is None else self._js_t0_ns)) * 1e-9
+        # joint by joint: a joint stamped before its own last stamp is left out (another publisher's
+        # newer message moved it), and a mimic joint whose leader is left out with it
+        late = {n for n in names if n in movable and movable[n]["mimic"] is None
+                and robot.t.get(n) is not None and t < robot.t[n]}
+        keep = [i for i, n in enumerate(names) if n in movable and n not in late
+                and (movable[n]["mimic"] is None or movable[n]["mimic"][0] not in late)]
+        if late and not any(movable[names[i]]["mimic"] is None for i in keep):
+            n = min(late)
+            return self._reject_joint_state("out_of_order", f"stamp {stamp_ns * 1e-9:.9f} s is before joint {n!r}'s "
+                                                            f"previous one ({robot.t[n] + self._js_t0_ns * 1e-9:.9f} s)")
         if (now_ns - stamp_ns) * 1e-9 > self.cfg["pose_timeout"]:
             return self._reject_joint_state("stale", f"stamp {stamp_ns * 1e-9:.9f} s is older than pose_timeout "
                                                      f"({self.cfg['pose_timeout']:g} s) at {now_ns * 1e-9:.9f} s")
@@ -186,19 +195,18 @@ class RobotInput:
         if self._js_t0_ns is None:
             self._js_t0_ns = stamp_ns
         try:
-            self.world.set_joint_positions([names[i] for i in keep], pos[keep], (stamp_ns - self._js_t0_ns) * 1e-9)
+            self.world.set_joint_positions([names[i] for i in keep], pos[keep], t)
         except contact_sim.ContactSimError as exc:
             return self._reject_joint_state("invalid", str(exc))
-        self._js_last_ns = stamp_ns
         self._js_last_rx = now_ns * 1e-9
         self._robot_held = False
         self.counts["joint_states_accepted"] += 1
 
     def _reset_joint_times(self):
         """Forget joint-state stamps (a reset, a clock jump): the next one places the links afresh."""
-        self._js_t0_ns = self._js_last_ns = None
+        self._js_t0_ns = None
         if self._robot is not None and self._robot in self.world.robots:
-            self.world.restart_pose_history(self._robot.bodies)
+            self._robot.restart_stamps()
 
     def _hold_robot(self, now_s):
         """No joint states for pose_timeout: the links stay at the last forward kinematics, at rest
@@ -211,4 +219,5 @@ class RobotInput:
         p, q = robot.body_poses(robot.q)
         zeros = np.zeros((len(p), 3))
         self.world.set_states(robot.bodies, positions=p, orientations=q, velocities=zeros, angular_velocities=zeros)
+        robot.restart_stamps()   # at rest: the next joint state places the links, no difference across the gap
         self._robot_held = True

@@ -66,18 +66,61 @@ def test_link_poses_match_hand_computed_forward_kinematics(mesh):
 
 
 @pytest.mark.exact
-def test_link_velocities_are_finite_differences_of_consecutive_stamps(mesh):
+def test_link_velocities_follow_each_joints_own_finite_differences(mesh):
+    """Each joint's velocity is the finite difference of its own consecutive positions over their
+    stamps (as robot_state_publisher keeps each joint's); the links move with those joint velocities
+    at the new configuration: the gripper at ``θ̇ ẑ × (p − p_shoulder) + ḋ (cos θ, sin θ, 0)``, and
+    a joint given at another time than the others keeps its own stamps."""
     w, _ = arm_world(mesh)
     w.set_joint_positions(["shoulder", "slide"], [0.2, 0.02], stamp=1.0)
     w.set_joint_positions(["shoulder", "slide"], [0.25, 0.03], stamp=1.1)
     vel, omega = w.velocities()
     g = w.index("gripper")
-    dp = hand_fk(0.25, 0.03)["gripper"][0] - hand_fk(0.2, 0.02)["gripper"][0]
-    assert np.allclose(vel[g], dp / 0.1, rtol=0, atol=1e-12)
+    theta, thetad, dd = 0.25, 0.05 / 0.1, 0.01 / 0.1
+    p_g, p_u = hand_fk(0.25, 0.03)["gripper"][0], np.array([0, 0, SHOULDER_Z])
+    want = np.cross([0, 0, thetad], p_g - p_u) + dd * np.array([np.cos(theta), np.sin(theta), 0.0])
+    assert np.allclose(vel[g], want, rtol=0, atol=1e-12)
     assert np.allclose(omega[g], [0, 0, 0.5], rtol=0, atol=1e-12)
     assert np.allclose(omega[w.index("base")], 0, atol=0)
+    # the slide alone at 1.15 (another driver): its velocity from its own stamps, the shoulder's kept
+    w.set_joint_positions(["slide"], [0.035], stamp=1.15)
+    vel, omega = w.velocities()
+    want = np.cross([0, 0, thetad], hand_fk(0.25, 0.035)["gripper"][0] - p_u) + \
+        0.005 / 0.05 * np.array([np.cos(theta), np.sin(theta), 0.0])
+    assert np.allclose(vel[g], want, rtol=0, atol=1e-12)
+    # the shoulder at 1.12, before the slide's last stamp but after its own: accepted
+    w.set_joint_positions(["shoulder"], [0.26], stamp=1.12)
+    assert np.allclose(w.velocities()[1][g], [0, 0, 0.01 / 0.02], rtol=0, atol=1e-12)
 
 
+@pytest.mark.exact
+def test_a_second_position_at_the_same_stamp_replaces_the_first(mesh):
+    """Two calls before a step at the default stamp (the world time): the second replaces the first,
+    its velocity taken from the position before that stamp (it raised "stamp must be after the
+    previous pose")."""
+    w, _ = arm_world(mesh)
+    w.set_joint_positions(["shoulder"], [0.1])
+    w.set_joint_positions(["shoulder"], [0.2])
+    assert w.joint_positions()["shoulder"] == 0.2
+    w.step(0.01)
+    w.set_joint_positions(["shoulder"], [0.25])
+    w.set_joint_positions(["shoulder"], [0.3])
+    assert np.allclose(w.velocities()[1][w.index("gripper")], [0, 0, 0.1 / 0.01], rtol=0, atol=1e-9)
+
+
+@pytest.mark.exact
+def test_a_mimic_joint_that_agrees_with_its_leader_is_accepted(mesh):
+    """A driver's JointState lists mimic joints too: a value within 1e-9 of ``multiplier × leader +
+    offset`` is accepted (and ignored), with the leader given in the same call or before."""
+    w, _ = arm_world(mesh)
+    w.set_joint_positions(["slide", "finger_joint"], [0.04, FINGER_MULT * 0.04 + FINGER_OFF], stamp=1.0)
+    w.set_joint_positions(["finger_joint"], [FINGER_MULT * 0.04 + FINGER_OFF + 5e-10], stamp=2.0)
+    assert w.joint_positions()["slide"] == 0.04
+    with pytest.raises(cs.ContactSimError, match="joint 'finger_joint' mimics 'slide'.*disagrees"):
+        w.set_joint_positions(["finger_joint"], [FINGER_MULT * 0.04 + FINGER_OFF + 1e-6], stamp=3.0)
+
+
+@pytest.mark.exact
 def test_gripper_touches_a_box_at_the_joint_angle_geometry_gives(mesh):
     # shoulder turns about z; the gripper cube (half edge a) at L = SLIDE_X + d from the axis first
     # reaches the face y = y0 with its corner: L sin t + a (sin t + cos t) = y0
@@ -125,11 +168,11 @@ def same(a, b):
     (["shoulder", "slide"], [0.1, float("inf")], 5.0, "joint 'slide' position must be finite"),
     (["slide"], [SLIDE_LIMITS[1] + 2e-9], 5.0, "joint 'slide' position"),
     (["slide"], [-1e-3], 5.0, "outside its limits"),
-    (["finger_joint"], [0.02], 5.0, "joint 'finger_joint' mimics 'slide'"),
+    (["finger_joint"], [0.02], 5.0, "joint 'finger_joint' mimics 'slide': its position 0.02 disagrees"),
     (["shoulder", "shoulder"], [0.1, 0.2], 5.0, "named twice"),
     (["shoulder"], [0.1, 0.2], 5.0, "1 joint names but 2 positions"),
     ("shoulder", [0.1], 5.0, "names: must be a list"),
-    (["shoulder"], [0.1], 1.0, "stamp: must be after the previous pose"),
+    (["shoulder"], [0.1], 1.0, "joint 'shoulder': stamp 1.0 is before its previous one (2.0)"),
     (["tool"], [0.0], 5.0, "unknown joint 'tool'"),          # a fixed joint has no position
     (["shoulder"], [True], 5.0, "set_joint_positions.positions: must be 1 numbers"),
     (["shoulder"], ["0.1"], 5.0, "set_joint_positions.positions"),

@@ -349,6 +349,45 @@ def test_steps_whose_solve_stopped_unconverged_are_counted_in_the_diagnostics(ro
         node.destroy_node()
 
 
+def test_an_arm_driver_and_a_gripper_driver_each_move_their_own_joints(ros, tmp_path):
+    """Two JointState publishers, as a ros2_control arm and a separate gripper driver: the arm's
+    joint at 100 Hz, the gripper's at 20 Hz with stamps 5 ms older than the arm's latest when they
+    arrive. Each joint keeps its own stamp, so none is refused, and each joint's velocity is the
+    finite difference of its own stamps (one stamp for the whole robot refused 89 of ~109 gripper
+    messages as out of order)."""
+    from builtin_interfaces.msg import Time
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header
+
+    from robot_arm import arm_urdf, write_gripper_mesh
+
+    node = make_node(ros)
+    try:
+        node.timer.cancel()
+        mesh = write_gripper_mesh(tmp_path / "gripper.stl")
+        node._on_robot_description(String(data=arm_urdf("file://" + mesh)))
+        t0 = node.get_clock().now().nanoseconds
+
+        def send(names, values, t_ns):
+            s = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+            node._on_joint_states(JointState(header=Header(stamp=s), name=names, position=values))
+
+        for k in range(20):                                  # 200 ms of arm messages, every 10 ms
+            t = t0 + k * 10_000_000
+            send(["shoulder"], [0.01 * k], t)
+            if k % 5 == 4:                                    # the gripper's, 5 ms older, every 50 ms
+                send(["slide", "finger_joint"], [0.002 * k, 0.5 * 0.002 * k + 0.01], t - 5_000_000)
+        assert node.counts["rejected_joint_states"] == 0 and node.counts["joint_states_accepted"] == 24
+        q, robot = node.world.joint_positions(), node._robot
+        assert q["shoulder"] == pytest.approx(0.19) and q["slide"] == pytest.approx(0.002 * 19)
+        assert robot.qd["shoulder"] == pytest.approx(1.0) and robot.qd["slide"] == pytest.approx(0.01 / 0.05)
+        # a gripper message older than the gripper's own last one is refused as out of order
+        send(["slide"], [0.0], t0 + 150_000_000)
+        assert node.counts["rejected_joint_state_out_of_order"] == 1
+    finally:
+        node.destroy_node()
+
+
 def _in_thread(fn):
     """fn() in a new thread (SCHED_FIFO set there stays there); its result, or its exception raised."""
     out = {}
