@@ -93,8 +93,11 @@ def resolve_uri(uri, base_dir, package_paths=None):
     ``package://pkg/rest``: ``package_paths[pkg]/rest`` (a mapping), ``DIR/pkg/rest`` for each
     ``DIR`` of ``package_paths`` (a list) and of ``$CONTACT_SIM_PACKAGE_PATH`` / ``$ROS_PACKAGE_PATH``,
     then the package's share folder from the ament index when ``ament_index_python`` is installed
-    (it imports no ROS client library); ``file://`` an absolute path; anything else a path
-    relative to ``base_dir`` (the URDF file's folder)."""
+    (it imports no ROS client library), then ``base_dir/pkg/rest`` and ``base_dir/rest``: a URDF
+    written for another simulator names folders beside it as packages (pybullet_data's Panda:
+    ``package://meshes/collision/link0.obj``), and pybullet and yourdfpy look there too;
+    ``file://`` an absolute path; anything else a path relative to ``base_dir`` (the URDF file's
+    folder)."""
     looked = []
     if uri.startswith("package://"):
         pkg, _, rest = uri[len("package://"):].partition("/")
@@ -110,16 +113,25 @@ def resolve_uri(uri, base_dir, package_paths=None):
         for p in looked:
             if os.path.isfile(p):
                 return p, looked
+        beside = [os.path.join(base_dir, pkg, rest), os.path.join(base_dir, rest)]
         try:
             from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
         except ImportError:
-            return None, looked + ["(ament index: ament_index_python not installed)"]
-        try:
-            p = os.path.join(get_package_share_directory(pkg), rest)
-        except (PackageNotFoundError, LookupError, ValueError, OSError):   # OSError: no AMENT_PREFIX_PATH
-            return None, looked + [f"(ament index: no package {pkg!r})"]
-        looked.append(p)
-        return (p if os.path.isfile(p) else None), looked
+            looked.append("(ament index: ament_index_python not installed)")
+        else:
+            try:
+                p = os.path.join(get_package_share_directory(pkg), rest)
+            except (PackageNotFoundError, LookupError, ValueError, OSError):   # OSError: no AMENT_PREFIX_PATH
+                looked.append(f"(ament index: no package {pkg!r})")
+            else:
+                looked.append(p)
+                if os.path.isfile(p):
+                    return p, looked
+        for p in beside:
+            looked.append(p)
+            if os.path.isfile(p):
+                return p, looked
+        return None, looked
     path = uri[len("file://"):] if uri.startswith("file://") else uri
     if not os.path.isabs(path):
         path = os.path.join(base_dir, path)
@@ -164,6 +176,7 @@ class RobotModel:
         self.q = dict(q)
         self.q_initial = dict(q)
         self.by_name = {j["name"]: j for j in joints}
+        self.exclusions = {}   # body-name pair -> why it is never tested (adjacent links, SRDF, given, touching)
         self.reset()
 
     def reset(self):
@@ -400,7 +413,13 @@ def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=Fal
                 uri = g.mesh.filename
                 path, looked = resolve_uri(uri, base_dir, package_paths)
                 if path is None:
-                    raise ContactSimError(f"{what}: cannot find mesh {uri!r} (looked in: {', '.join(looked)})")
+                    how = ""
+                    if uri.startswith("package://"):
+                        pkg = uri[len("package://"):].partition("/")[0]
+                        how = (f"; add the folder that holds the package {pkg!r} to package_paths (add_urdf's "
+                               f"package_paths, a scene robot's package_paths, the node's package_paths parameter) "
+                               f"or to ${PACKAGE_PATH_ENV}")
+                    raise ContactSimError(f"{what}: cannot find mesh {uri!r} (looked in: {', '.join(looked)}){how}")
                 sc = np.broadcast_to(np.asarray(1.0 if g.mesh.scale is None else g.mesh.scale, float), (3,)).copy()
                 if not np.all(np.isfinite(sc)) or np.any(sc == 0):
                     raise ContactSimError(f"{what}: mesh {uri!r} scale must be finite and non-zero, got {sc.tolist()}")
@@ -430,8 +449,11 @@ def parse(urdf, prefix="", base_pose=None, package_paths=None, convex_meshes=Fal
             pairs |= {tuple(sorted((a, b))) for a in of_link[lname] for b in of_link[up.parent]}
     rm = RobotModel(prefix + robot.name, prefix, roots[0], joints, base, bodies, body_link,
                     np.array(origins).reshape(-1, 4, 4), {})
+    rm.exclusions = {pair: "adjacent links" for pair in pairs}
     if srdf is not None:
-        pairs |= srdf_pairs(srdf, links, of_link, prefix, where)
+        more = srdf_pairs(srdf, links, of_link, prefix, where)
+        rm.exclusions.update({pair: "SRDF" for pair in more - pairs})
+        pairs |= more
     return rm, shapes, pairs
 
 
@@ -506,7 +528,7 @@ def srdf_pairs(srdf, links, of_link, prefix, where):
 
 # ---------------------------------------------------------------- world operations
 def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None, convex_meshes=False,
-             material=None, where="add_urdf", srdf=None):
+             material=None, where="add_urdf", srdf=None, disable_collisions=None, exclude_touching=True):
     """See ``World.add_urdf``; ``where`` starts error messages (a scene path)."""
     model, shapes, pairs = parse(urdf, prefix, base_pose, package_paths, convex_meshes, where, srdf)
     q = initial_positions(model, joint_positions, where)
@@ -519,14 +541,60 @@ def add_urdf(world, urdf, prefix="", base_pose=None, joint_positions=None, packa
     clash = [j["name"] for j in model.joints if j["name"] in names]
     if clash:
         raise ContactSimError(f"{where}: joint {clash[0]!r} already belongs to another robot (use prefix=)")
+    given = _given_pairs(world, model, disable_collisions, f"{where}.disable_collisions")
     pos, quat = model.body_poses(q)
     extra = {} if material is None else {"material": material}
     specs = [dict(name=b, shape=s, kind="kinematic", position=p, orientation=o, where=f"{where}: body {b!r}", **extra)
              for b, s, p, o in zip(model.bodies, shapes, pos, quat)]
     world.add_bodies(specs)   # all or nothing
     world.robots = world.robots + [model]   # a new list: a caller holding the old one can roll back
-    world.disable_collisions(sorted(pairs))
+    model.exclusions.update({pair: "given" for pair in given - set(model.exclusions)})
+    world.disable_collisions(sorted(pairs | given))
+    if exclude_touching:
+        touching = _touching_pairs(world, model) - set(model.exclusions)
+        model.exclusions.update({pair: "touching at the initial configuration" for pair in touching})
+        world.disable_collisions(sorted(touching))
     return list(model.bodies)
+
+
+def _given_pairs(world, model, pairs, where):
+    """The body-name pairs (sorted tuples) of ``pairs``: ``[[a, b], ...]``, each name a link of the robot
+    (without its prefix; every body of that link) or a body of the world; refused by name."""
+    out = set()
+    of_link = {}
+    for b, link in zip(model.bodies, model.body_link):
+        of_link.setdefault(link, []).append(b)
+    for k, pair in enumerate(pairs or []):
+        if isinstance(pair, (str, bytes)) or not hasattr(pair, "__len__") or len(pair) != 2:
+            raise ContactSimError(f"{where}[{k}]: must be a pair [link or body, link or body], got {show(pair)}")
+        sides = []
+        for n in pair:
+            if n in of_link:
+                sides.append(of_link[n])
+            elif isinstance(n, str) and n in world._index:
+                sides.append([n])
+            else:
+                raise ContactSimError(f"{where}[{k}]: {n!r} is neither a link of robot {model.name!r} with geometry "
+                                      f"(links: {', '.join(sorted(of_link))}) nor a body of the world")
+        out |= {tuple(sorted((a, b))) for a in sides[0] for b in sides[1] if a != b}
+    return out
+
+
+def _touching_pairs(world, model):
+    """Body-name pairs in contact (within the contact margin) at the robot's initial configuration
+    between two of its links, or one of its links and a static body: what MoveIt's Setup Assistant
+    calls "Default" collisions, excluded so that a robot standing on a floor, or a zero pose with
+    touching links, starts quiet. A link touching a dynamic or kinematic body stays tested."""
+    from .collision import detect_world
+    from .kinds import STATIC
+
+    c, _ = detect_world(world)
+    mine = np.zeros(len(world), bool)
+    mine[[world.index(b) for b in model.bodies]] = True
+    a, b = c.body_a, c.body_b
+    keep = (mine[a] & mine[b]) | (mine[a] & (world.kind[b] == STATIC)) | (mine[b] & (world.kind[a] == STATIC))
+    names = world._names
+    return {tuple(sorted((names[i], names[j]))) for i, j in zip(a[keep], b[keep])}
 
 
 def set_joint_positions(world, names, positions, stamp=None):

@@ -9,7 +9,7 @@ from .world import World
 
 TOP_KEYS = {"name", "description", "gravity", "settings", "materials", "bodies", "robots"}
 ROBOT_KEYS = {"urdf", "prefix", "base_pose", "joint_positions", "package_paths", "convex_meshes", "material",
-              "disable_collisions", "srdf"}
+              "disable_collisions", "srdf", "exclude_touching"}
 BODY_KEYS = {"name", "kind", "model", "shape", "mass", "density", "position", "orientation", "velocity",
              "angular_velocity", "material", "collision"}
 SHAPE_KEYS = {
@@ -133,7 +133,9 @@ def _build(data, base_dir):
 def add_scene_robot(world, r, path, base_dir):
     """One ``robots:`` entry of a scene: ``{urdf: path (relative to the scene), prefix, base_pose:
     {position, orientation}, joint_positions: {joint: value}, package_paths: [folders] or {package:
-    folder}, convex_meshes, material, disable_collisions: [[link_a, link_b], ...]}``; returns the
+    folder}, convex_meshes, material, disable_collisions: [[link or body, link or body], ...] (links without
+    the prefix, scene bodies by name), exclude_touching (default true: pairs in contact at the initial
+    configuration between links, or a link and a static body, are never tested)}``; returns the
     body names. Errors name ``path`` and the key."""
     from . import robot
 
@@ -169,12 +171,16 @@ def add_scene_robot(world, r, path, base_dir):
     prefix = r.get("prefix", "")
     pairs = r.get("disable_collisions") or []
     if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) == 2 for p in pairs):
-        raise SceneError(f"{path}.disable_collisions", f"must be a list of [link_a, link_b] pairs, got {pairs!r}")
+        raise SceneError(f"{path}.disable_collisions",
+                         f"must be a list of [link or body, link or body] pairs, got {pairs!r}")
+    touching = r.get("exclude_touching", True)
+    if not isinstance(touching, bool):
+        raise SceneError(f"{path}.exclude_touching", f"must be true or false, got {touching!r}")
     saved = world._snapshot(), world.robots, world.disabled_pairs
     try:
         names = robot.add_urdf(world, urdf, prefix, pose, r.get("joint_positions"), pkg, r.get("convex_meshes", False),
-                               r.get("material"), where=path, srdf=srdf)
-        world.disable_collisions([[prefix + str(a), prefix + str(b)] for a, b in pairs])
+                               r.get("material"), where=path, srdf=srdf, disable_collisions=pairs,
+                               exclude_touching=touching)
     except SceneError:
         raise
     except ContactSimError as exc:

@@ -404,7 +404,7 @@ class World(BodyInput):
 
     # ------------------------------------------------------------------ robots and allowed collisions
     def add_urdf(self, urdf, prefix="", base_pose=None, joint_positions=None, package_paths=None,
-                 convex_meshes=False, material=None, srdf=None):
+                 convex_meshes=False, material=None, srdf=None, disable_collisions=None, exclude_touching=True):
         """Add a robot from a URDF (a file path, or the XML text) and return its body names.
 
         One kinematic body per ``<collision>`` element, named by its link with ``prefix`` prepended
@@ -413,17 +413,22 @@ class World(BodyInput):
         mesh (with ``scale``; STL, OBJ, DAE through trimesh; a convex mesh, or any when
         ``convex_meshes``, becomes its ``Convex`` hull, others a ``TriMesh``). Mesh URIs:
         ``package://`` (``package_paths``: a mapping package → folder or a list of folders holding
-        packages; ``$CONTACT_SIM_PACKAGE_PATH``; the ament index), ``file://``, relative to the URDF
-        file. ``base_pose``: ``(position (3,), orientation (4,))`` of the root link (default the
-        origin); ``joint_positions``: a mapping joint → position (others 0, or their nearest
-        limit). Links joined by a joint never collide with each other (``disabled_pairs``), nor the
-        pairs an ``srdf`` (MoveIt's semantic description: a path or the XML text) lists in its
-        ``disable_collisions``. All or
+        packages; ``$CONTACT_SIM_PACKAGE_PATH``; the ament index; then the URDF file's folder, as
+        pybullet and yourdfpy look there), ``file://``, relative to the URDF file. ``base_pose``:
+        ``(position (3,), orientation (4,))`` of the root link (default the origin);
+        ``joint_positions``: a mapping joint → position (others 0, or their nearest limit).
+        Never tested for contact (``disabled_pairs``; each robot's ``exclusions`` says why): links
+        joined by a joint, the pairs an ``srdf`` (MoveIt's semantic description: a path or the XML
+        text) lists in its ``disable_collisions``, the pairs ``disable_collisions`` gives (``[[a, b],
+        ...]``, each name a link without the prefix, or a body of the world), and with
+        ``exclude_touching`` (default) the pairs in contact at the initial configuration between two
+        links or a link and a static body (a robot standing on a floor; MoveIt's "Default"). All or
         nothing: a refused robot (an error naming the link, joint or URI) leaves the world unchanged."""
         from . import robot
 
         return robot.add_urdf(self, urdf, prefix, base_pose, joint_positions, package_paths, convex_meshes,
-                              material, srdf=srdf)
+                              material, srdf=srdf, disable_collisions=disable_collisions,
+                              exclude_touching=exclude_touching)
 
     def set_joint_positions(self, names, positions, stamp=None):
         """Move robots: ``names (M,)`` joints (with their robot's prefix), ``positions (M,)`` (rad or m)
@@ -615,6 +620,12 @@ class World(BodyInput):
         ]
         for r in self.robots:
             lines.append(f"robot {r.name}: {len(r.bodies)} link bodies, {len(r.q)} joints")
+            why = {}
+            for pair, reason in sorted(r.exclusions.items()):
+                why.setdefault(reason, []).append(pair)
+            for reason, pairs in why.items():
+                shown = ", ".join(f"{a}–{b}" for a, b in pairs[:8]) + (" ..." if len(pairs) > 8 else "")
+                lines.append(f"  {len(pairs)} pairs never tested ({reason}): {shown}")
         if self.disabled_pairs:
             lines.append(f"{len(self.disabled_pairs)} body pairs never tested (adjacent links, disable_collisions)")
         lines += stepper.describe_models(self)

@@ -230,7 +230,7 @@ def robot_pairs(w):
 
 
 def test_adjacent_links_never_report_contacts_but_other_robots_links_do(mesh):
-    w, names = arm_world(mesh)
+    w, names = arm_world(mesh, exclude_touching=False)
     # overlapping by construction: the upper arm lies in the base's top face and through its sphere,
     # the finger is inside the gripper; all adjacent (or one link's own bodies)
     assert {("base", "upper"), ("base#1", "upper"), ("base", "base#1"), ("gripper", "upper"),
@@ -242,7 +242,8 @@ def test_adjacent_links_never_report_contacts_but_other_robots_links_do(mesh):
     w.set_joint_positions(["slide"], [0.0], stamp=14.0)
     assert robot_pairs(w) == {("finger", "upper")}
     # a second arm overlapping the first: its links touch the first's (not adjacent)
-    w.add_urdf(arm_urdf(mesh), prefix="b_", base_pose=([0.2, 0.0, 0.0], ID), joint_positions={"slide": 0.05})
+    w.add_urdf(arm_urdf(mesh), prefix="b_", base_pose=([0.2, 0.0, 0.0], ID), joint_positions={"slide": 0.05},
+               exclude_touching=False)
     w.set_joint_positions(["shoulder", "slide"], [0.0, 0.05], stamp=20.0)
     pairs = robot_pairs(w)
     assert ("b_upper", "upper") in pairs and all(p[0].startswith("b_") != p[1].startswith("b_") for p in pairs)
@@ -365,3 +366,48 @@ def test_srdf_disable_collisions(mesh, tmp_path):
     (tmp_path / "arm.srdf").write_text(srdf.replace('link2="upper"', 'link2="elbow"'))
     with pytest.raises(cs.ContactSimError, match=r"add_urdf.srdf: disable_collisions 0 names an unknown link 'elbow'"):
         cs.World().add_urdf(arm_urdf(mesh), srdf=str(tmp_path / "arm.srdf"))
+
+
+@pytest.mark.exact
+def test_pairs_touching_at_the_initial_configuration_are_excluded_and_said_why(mesh):
+    """MoveIt's "Default": at the initial configuration (slide at 0) the finger touches the upper
+    arm, and the base stands on the floor: those pairs are never tested, and ``describe()`` and the
+    robot's ``exclusions`` say why; a dynamic ball resting on the base stays tested. Pairs given by
+    name (a link without the prefix, a scene body) are excluded too."""
+    w = cs.World(gravity=[0, 0, 0])
+    w.add_body("floor", cs.Plane(), kind="static")
+    w.add_body("table", cs.Box([1.0, 1.0, 0.1]), kind="static", position=[2.0, 0.0, 0.05])
+    w.add_body("ball", cs.Sphere(0.02), mass=0.1, position=[-0.07, -0.07, BASE_H + 0.02])
+    w.add_urdf(arm_urdf(mesh), prefix="r_", disable_collisions=[["gripper", "table"]])
+    r = w.robots[0]
+    assert r.exclusions[("r_finger", "r_upper")] == "touching at the initial configuration"
+    assert r.exclusions[("floor", "r_base")] == "touching at the initial configuration"
+    assert r.exclusions[("r_gripper", "table")] == "given"
+    assert r.exclusions[("r_gripper", "r_upper")] == "adjacent links"
+    assert not any("ball" in pair for pair in w.disabled_pairs)
+    c = w.detect()
+    touching = {tuple(sorted((w.body_names[a], w.body_names[b]))) for a, b in zip(c.body_a, c.body_b)}
+    assert touching == {("ball", "r_base")}
+    text = w.describe()
+    assert "pairs never tested (touching at the initial configuration): floor–r_base, r_finger–r_upper" in text
+    with pytest.raises(cs.ContactSimError, match=r"disable_collisions\[0\]: 'elbow' is neither a link"):
+        w.add_urdf(arm_urdf(mesh), prefix="s_", disable_collisions=[["elbow", "table"]])
+    assert len(w.robots) == 1 and "s_base" not in w.body_names
+
+
+def test_a_urdf_written_for_another_simulator_finds_its_meshes_beside_it(tmp_path):
+    """pybullet_data's Panda names its meshes ``package://meshes/collision/link0.obj``, ``meshes``
+    being a folder beside the URDF, no ROS package: with no package path it is found there (as
+    pybullet and yourdfpy look); a mesh found nowhere names every place looked and how to add one."""
+    (tmp_path / "meshes" / "collision").mkdir(parents=True)
+    write_gripper_mesh(tmp_path / "meshes" / "collision" / "grip.stl")
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(arm_urdf("package://meshes/collision/grip.stl"))
+    w = cs.World()
+    assert "gripper" in w.add_urdf(str(urdf))
+    urdf.write_text(arm_urdf("package://meshes/collision/missing.stl"))
+    with pytest.raises(cs.ContactSimError) as err:
+        cs.World().add_urdf(str(urdf))
+    text = str(err.value)
+    assert str(tmp_path / "meshes" / "collision" / "missing.stl") in text
+    assert "add the folder that holds the package 'meshes' to package_paths" in text
