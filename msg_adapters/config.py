@@ -92,6 +92,20 @@ PARAMETERS = {
         "tested. Empty: not read.", read_only=True)),
     "robot_prefix": ("", _d("Prefix of the robot's body and joint names (the URDF's link and joint names after it).",
                             read_only=True)),
+    "robot_base_pose": (Parameter.Type.DOUBLE_ARRAY, _d(
+        "Pose of the robot's root link in frame_id: [x, y, z, qx, qy, qz, qw] (m, quaternion). Unset or empty: the "
+        "origin.", read_only=True, ptype=ParameterType.PARAMETER_DOUBLE_ARRAY)),
+    "robot_disable_collisions": (Parameter.Type.STRING_ARRAY, _d(
+        "Pairs never tested for contact, each 'a:b': a robot link without robot_prefix, or a scene body by name "
+        "(a robot's base on a table, a gripper's own fixture).", read_only=True,
+        ptype=ParameterType.PARAMETER_STRING_ARRAY)),
+    "robot_exclude_touching": (True, _d(
+        "Never test the pairs in contact at the robot's initial configuration between two of its links, or a link "
+        "and a static body (a robot standing on a floor; MoveIt's 'Default'); /diagnostics lists them.",
+        read_only=True)),
+    "package_paths": (Parameter.Type.STRING_ARRAY, _d(
+        "Folders holding the packages the robot's package:// mesh URIs name (besides $CONTACT_SIM_PACKAGE_PATH, "
+        "$ROS_PACKAGE_PATH and the ament index).", read_only=True, ptype=ParameterType.PARAMETER_STRING_ARRAY)),
 }
 DOUBLES = {"rate_hz", "impulse_marker_scale", "pose_timeout", "velocity_decay", "diagnostics_period",
            "model.contact_margin"}
@@ -136,6 +150,26 @@ def validate_config(values):
     if len(set(tb)) != len(tb):
         raise ConfigError(f"parameter tracked_bodies: names must be unique, got {tb!r}")
     cfg["tracked_bodies"] = tb
+    for name in ("package_paths", "robot_disable_collisions"):
+        v = [] if cfg[name] is None else list(cfg[name])
+        if not all(isinstance(x, str) and x for x in v):
+            raise ConfigError(f"parameter {name}: must be a list of non-empty strings, got {v!r}")
+        cfg[name] = v
+    pairs = [p.split(":") for p in cfg["robot_disable_collisions"]]
+    bad = [p for p, parts in zip(cfg["robot_disable_collisions"], pairs) if len(parts) != 2 or not all(parts)]
+    if bad:
+        raise ConfigError(f"parameter robot_disable_collisions: each pair is 'a:b' (a link or a body on each side), "
+                          f"got {bad[0]!r}")
+    cfg["robot_disable_collisions"] = pairs
+    pose = [] if cfg["robot_base_pose"] is None else list(cfg["robot_base_pose"])
+    if pose and (len(pose) != 7 or not all(isinstance(x, (int, float)) and math.isfinite(x) for x in pose)
+                 or abs(np.linalg.norm(pose[3:]) - 1.0) > 1e-3):
+        raise ConfigError(f"parameter robot_base_pose: must be [x, y, z, qx, qy, qz, qw] (finite, a unit "
+                          f"quaternion), got {pose!r}")
+    cfg["robot_base_pose"] = (pose[:3], pose[3:]) if pose else None
+    if not isinstance(cfg["robot_exclude_touching"], bool):
+        raise ConfigError(f"parameter robot_exclude_touching: must be true or false, "
+                          f"got {cfg['robot_exclude_touching']!r}")
     overrides = {}
     for pname, key in MODEL_STRING.items():
         v = cfg[pname].strip().lower()

@@ -87,6 +87,10 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self._last_tick_start = None
         self._last_step_error = ""
         self._warned = {}
+        # why things were refused or warned about, per warning category: the last text ever, and every
+        # text (with its count) since the last /diagnostics report, so that none is lost to throttling
+        self._last_reason = {}
+        self._reasons = {}
         self._last_seq = None          # publication sequence number of the last pose (drop counting)
         self._pose_publishers = 0
 
@@ -195,7 +199,11 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         return self.get_clock().now().nanoseconds
 
     def _warn(self, key, text, period=1.0):
-        """A warning at most once per ``period`` per ``key``; says how many were suppressed."""
+        """A warning at most once per ``period`` per ``key``; says how many were suppressed. Every text
+        is kept for /diagnostics (``_last_reason``, ``_reasons``), throttled or not."""
+        self._last_reason[key] = text
+        window = self._reasons.setdefault(key, {})
+        window[text] = window.get(text, 0) + 1
         now = time.monotonic()
         last, suppressed = self._warned.get(key, (-math.inf, 0))
         if now - last >= period:

@@ -21,13 +21,14 @@ from visualization_msgs.msg import Marker, MarkerArray
 import contact_sim
 
 from .cdr_out import marker_array_cdr, point_fields_cdr, pointcloud2_cdr
-from .robot_input import JOINT_STATE_REASONS
+from .robot_input import JOINT_STATE_REASONS, robot_exclusions
 from .conversions import (CONTACT_DTYPE, contact_marker_specs, contacts_to_array, diagnostic_array, make_header,
                           multidof_rows_cdr, names_cdr, ns_to_stamp, point_fields, posearray_rows_cdr)
 from .state_rows import blocks, state_rows
 
 POSE_REJECT_REASONS = ("malformed", "length", "nonfinite", "zero_quaternion", "non_unit_quaternion", "stamp",
                        "frame_id", "out_of_bounds", "engine")
+MAX_REASONS = 20   # distinct refusal texts per category in one /diagnostics report (the rest counted)
 #: counters whose growth since the last /diagnostics message makes it a WARN
 WARN_COUNTERS = ("rejected_poses", "rejected_parameters", "overruns", "poses_dropped", "rejected_body_states",
                  "rejected_spawns", "rejected_deletes", "clock_jumps_back", "rejected_robot_descriptions",
@@ -167,6 +168,16 @@ class Outputs:
         for r in JOINT_STATE_REASONS:
             values["rejected_joint_state_" + r] = c["rejected_joint_state_" + r]
         values["last_step_error"] = self._last_step_error
+        robot = self._robot
+        if robot is not None and robot in self.world.robots:
+            values["robot_exclusions"] = robot_exclusions(robot)
+        for key in sorted(self._last_reason):
+            values["last_reason." + key] = self._last_reason[key]
+        for key in sorted(self._reasons):   # every reason since the last report, each with its count
+            texts = sorted(self._reasons[key].items(), key=lambda kv: -kv[1])
+            shown = " | ".join(f"{n}× {t}" for t, n in texts[:MAX_REASONS])
+            values["reasons." + key] = shown + (f" | and {len(texts) - MAX_REASONS} more distinct" if len(texts) >
+                                                 MAX_REASONS else "")
         return values
 
     def _maybe_diagnostics(self, now_ns):
@@ -178,6 +189,7 @@ class Outputs:
             return
         self._last_diag = now
         values = self.diagnostics_values()
+        self._reasons = {}   # reported: the next report says what came after
         new = {k: self.counts[k] - self._diag_snapshot[k] for k in ("step_errors",) + WARN_COUNTERS}
         self._diag_snapshot = collections.Counter(self.counts)
         if new["step_errors"]:

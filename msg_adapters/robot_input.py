@@ -37,6 +37,17 @@ import contact_sim
 JOINT_STATE_REASONS = ("out_of_order", "stale", "invalid", "malformed", "no_robot")
 
 
+def robot_exclusions(robot):
+    """The pairs of ``robot`` never tested, by reason: ``"12 adjacent links; 2 touching at the initial
+    configuration: floor–base, finger–upper"`` (the adjacent ones counted, the others named)."""
+    why = {}
+    for pair, reason in sorted(robot.exclusions.items()):
+        why.setdefault(reason, []).append(pair)
+    return "; ".join(f"{len(p)} {reason}" + ("" if reason == "adjacent links" else
+                                             ": " + ", ".join(f"{a}–{b}" for a, b in p))
+                     for reason, p in why.items()) or "none"
+
+
 class RobotInput:
     """``robot_description`` and ``joint_states`` of ``ContactSimNode``."""
 
@@ -100,7 +111,7 @@ class RobotInput:
     def _log_robot(self):
         self.get_logger().info(f"robot {self._robot.name!r}: {len(self._robot.bodies)} link bodies "
                                f"({', '.join(self._robot.bodies)}); {len(self.world.disabled_pairs)} body pairs "
-                               f"never tested")
+                               f"never tested: {robot_exclusions(self._robot)}")
 
     def _install_robot(self, urdf, srdf=None, strict=False, refreeze=True):
         """Replace the robot (if any) by the one ``urdf`` describes (with the SRDF's allowed
@@ -112,21 +123,24 @@ class RobotInput:
         prefix = self.cfg["robot_prefix"]
         # a description the engine refuses on its own is refused before the old robot goes; an SRDF
         # that does not fit a new robot is dropped (the robot comes without it), not the robot
+        place = dict(base_pose=self.cfg["robot_base_pose"], package_paths=self.cfg["package_paths"] or None)
         try:
-            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix, srdf=srdf)
+            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix, srdf=srdf, exclude_touching=False,
+                                                                **place)
         except contact_sim.ContactSimError as exc:
             if strict or srdf is None or ".srdf" not in str(exc):
                 raise
             self._warn("robot_description_semantic", f"the SRDF does not fit this robot ({exc}); ignored")
             srdf = self._robot_srdf = None
-            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix)
+            contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix, exclude_touching=False, **place)
         # the contact cache too: what the stepper carries between steps (renumbered by the removal)
         saved = (world._snapshot(), world.robots, world.disabled_pairs, world.contacts,
                  dataclasses.replace(world.contact_cache))
         try:
             if self._robot is not None and self._robot in world.robots:
                 world.remove_bodies(self._robot.bodies)
-            world.add_urdf(urdf, prefix=prefix, srdf=srdf)
+            world.add_urdf(urdf, prefix=prefix, srdf=srdf, disable_collisions=self.cfg["robot_disable_collisions"],
+                           exclude_touching=self.cfg["robot_exclude_touching"], **place)
         except BaseException:   # e.g. a link named like a scene body
             world._restore(saved[0])
             world.robots, world.disabled_pairs, world.contacts = saved[1:4]

@@ -388,6 +388,58 @@ def test_an_arm_driver_and_a_gripper_driver_each_move_their_own_joints(ros, tmp_
         node.destroy_node()
 
 
+def test_every_refusal_reason_is_in_the_next_diagnostics_report(ros):
+    """Three spawns refused within one period (a YAML error, a typo'd key, a clashing name): the log
+    warns once (throttled, saying how many were suppressed), and /diagnostics carries each reason
+    with its count since the last report, and the last one."""
+    node = make_node(ros)
+    try:
+        node.timer.cancel()
+        node._on_spawn(String(data="- {name: a, shape: {type: sphere, radius: 0.1}"))
+        node._on_spawn(String(data="- {name: b, shap: {type: sphere, radius: 0.1}}"))
+        node._on_spawn(String(data="- {name: paddle, shape: {type: sphere, radius: 0.1}}"))
+        d = node.diagnostics_values()
+        assert d["rejected_spawns"] == 3
+        reasons = d["reasons.spawns"].split(" | ")
+        assert len(reasons) == 3 and all(r.startswith("1× ") for r in reasons)
+        assert any("not valid YAML" in r for r in reasons) and any("shap" in r for r in reasons)
+        assert "paddle" in d["last_reason.spawns"]
+        node._maybe_diagnostics(node._now_ns())          # a report: the next one starts afresh
+        d = node.diagnostics_values()
+        assert "reasons.spawns" not in d and "paddle" in d["last_reason.spawns"]
+    finally:
+        node.destroy_node()
+
+
+def test_the_robot_stands_where_the_parameters_put_it_and_starts_quiet(ros, tmp_path):
+    """robot_base_pose places the root link; the base standing on the ground and the links touching
+    at the zero pose are never tested (robot_exclude_touching, the default), robot_disable_collisions
+    adds 'link:body' pairs, and /diagnostics says what is excluded and why."""
+    from robot_arm import arm_urdf, write_gripper_mesh
+
+    node = make_node(ros, robot_base_pose=[2.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+                     robot_disable_collisions=["gripper:paddle"], robot_prefix="arm_")
+    try:
+        node.timer.cancel()
+        mesh = write_gripper_mesh(tmp_path / "gripper.stl")
+        node._on_robot_description(String(data=arm_urdf("file://" + mesh)))
+        w = node.world
+        assert np.allclose(w.body("arm_base").position, [2.0, 1.0, 0.05])
+        ex = node._robot.exclusions
+        assert ex[("arm_base", "ground")] == "touching at the initial configuration"
+        assert ex[("arm_gripper", "paddle")] == "given"
+        c = w.detect()
+        assert not any("arm_" in w.body_names[i] for i in np.concatenate([c.body_a, c.body_b]))   # quiet
+        d = node.diagnostics_values()["robot_exclusions"]
+        assert "touching at the initial configuration: arm_base–ground" in d and "1 given: arm_gripper–paddle" in d
+    finally:
+        node.destroy_node()
+    with pytest.raises(ConfigError, match="robot_disable_collisions: each pair is 'a:b'"):
+        make_node(ros, robot_disable_collisions=["gripper"])
+    with pytest.raises(ConfigError, match="robot_base_pose"):
+        make_node(ros, robot_base_pose=[0.0, 0.0, 0.0])
+
+
 def _in_thread(fn):
     """fn() in a new thread (SCHED_FIFO set there stays there); its result, or its exception raised."""
     out = {}
