@@ -1,4 +1,5 @@
 """Coulomb friction and resting contact against closed forms: sliding block, incline."""
+import math
 import os
 
 import numpy as np
@@ -121,3 +122,18 @@ def test_the_resting_work_bound_holds_for_any_impulses():
     end = np.array([[-0.05, -0.2, 0], [0.0, 0, 0]])
     got = _work_bound(a, b, dirs, ang, ang, vel0, zero, end, zero, target, lam)
     assert got == pytest.approx(base + 0.5 * (2.0 * 0.05 + 0.5 * 0.2), rel=1e-15)
+
+
+@pytest.mark.parametrize("scale", [1e-162, 1e-100, 1.0, 1e100, 1e160])
+def test_the_kinetic_disc_projection_is_the_same_at_any_magnitude(scale):
+    """``pgs.disc`` is homogeneous: a sliding velocity and a disc radius both ``scale`` times larger
+    give an impulse ``scale`` times larger. At 1e-162 m/s the Newton step squared the impulse to 0
+    and divided 0 by 0 (a ZeroDivisionError from the compiled solver on valid input)."""
+    from contact_sim.response.pgs import disc
+
+    k = (0.5507439913131433, -0.07363547753712203, 0.5304387116145647)   # an anisotropic block
+    f, r = np.array([3.6026297847417245, -5.765601996530567]), 2.756698587907222
+    want = np.array(disc(*k, f[0], f[1], r, 12))
+    got = np.array(disc(*k, f[0] * scale, f[1] * scale, r * scale, 12))
+    assert np.isfinite(got).all() and math.hypot(*got) == pytest.approx(r * scale, rel=1e-12)
+    np.testing.assert_allclose(got / scale, want, rtol=1e-12)

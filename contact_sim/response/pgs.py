@@ -34,7 +34,7 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
     sliding velocity without this contact's friction), for a sticking impulse outside the disc:
     ``x = −(K + νI)⁻¹ f`` with ``ν ≥ 0`` such that ``|x| = radius`` (the secular equation of a trust
     region, Newton on ``1/|x(ν)| − 1/radius``, monotone from ``ν = 0``)."""
-    vmag = math.sqrt(f0 * f0 + f1 * f1)
+    vmag = math.hypot(f0, f1)   # no overflow of the squares for huge velocities
     if not (radius > 0.0) or not (vmag > 0.0):
         return 0.0, 0.0
     trace = k00 + k11
@@ -47,18 +47,21 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
         # a disc far smaller than the sticking impulse: ν is so large that x = −radius f/|f| to
         # round-off (and Newton would overflow on 1/radius)
         return -radius / vmag * f0, -radius / vmag * f1
+    # ν depends on f and the radius only through their ratio: Newton on the unit sliding velocity and
+    # radius / |f|, so that neither underflows (a sliding velocity of 1e-162 m/s squared to 0, then 0/0)
+    g0, g1, rad = f0 / vmag, f1 / vmag, radius / vmag
     nu = 0.0
     for _ in range(newton):
         p = k00 + nu
         q = k11 + nu
         det = p * q - k01 * k01
-        x0 = -(q * f0 - k01 * f1) / det
-        x1 = -(p * f1 - k01 * f0) / det
+        x0 = -(q * g0 - k01 * g1) / det
+        x1 = -(p * g1 - k01 * g0) / det
         y0 = (q * x0 - k01 * x1) / det
         y1 = (p * x1 - k01 * x0) / det
         n2 = x0 * x0 + x1 * x1
         norm = math.sqrt(n2)
-        step = (1.0 / norm - 1.0 / radius) * norm * n2 / (x0 * y0 + x1 * y1)
+        step = (1.0 / norm - 1.0 / rad) * norm * n2 / (x0 * y0 + x1 * y1)
         nu_next = max(nu - step, 0.0)
         # converged to round-off: further steps change ν by less than its last bits (Newton from
         # ν = 0 is monotone on this convex secular function: typically 3-5 steps, not 12)
@@ -69,8 +72,8 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
     p = k00 + nu
     q = k11 + nu
     det = p * q - k01 * k01
-    x0 = -(q * f0 - k01 * f1) / det
-    x1 = -(p * f1 - k01 * f0) / det
+    x0 = -(q * g0 - k01 * g1) / det
+    x1 = -(p * g1 - k01 * g0) / det
     # the last Newton step leaves |x| = radius to round-off; scale onto the disc exactly
     s = radius / max(math.sqrt(x0 * x0 + x1 * x1), _TINY)
     return x0 * s, x1 * s
