@@ -19,12 +19,14 @@ geometry in between is skipped, so its geometric neighbours are adjacent); nor d
 link. ``World.disable_collisions`` turns off further pairs.
 """
 import io
+import math
 import os
 from collections.abc import Mapping
 
 import numpy as np
 
 from .errors import ContactSimError
+from .jit import njit
 from .validate import show
 
 LIMIT_TOLERANCE = 1e-9      # a joint position may exceed its limits by this much (round-off of the sender)
@@ -177,7 +179,34 @@ class RobotModel:
         self.q_initial = dict(q)
         self.by_name = {j["name"]: j for j in joints}
         self.exclusions = {}   # body-name pair -> why it is never tested (adjacent links, SRDF, given, touching)
+        self._tree = None      # the kinematic tree as arrays for _forward (built on first use: ``tree``)
         self.reset()
+
+    def tree(self):
+        """The tree as ``_forward``'s arrays (built once): ``(joint names of q (Q,), parent (J,),
+        origin (J,4,4), axis (J,3), kind (J,) 0 fixed 1 revolute 2 prismatic, q index (J,) (-1: none),
+        leader index (J,) (-1: not a mimic), multiplier (J,), offset (J,), body link index (B,),
+        body origin (B,4,4))``. Link 0 is the root; joint ``j`` makes link ``j + 1``."""
+        if self._tree is None:
+            link_index = {self.root: 0}
+            for k, j in enumerate(self.joints):
+                link_index[j["child"]] = k + 1
+            names = [j["name"] for j in self.joints if j["type"] in MOVABLE and j["mimic"] is None]
+            qpos = {n: i for i, n in enumerate(names)}
+            J = len(self.joints)
+            parent, kind, qi, lead = (np.full(J, -1, np.int64) for _ in range(4))
+            origin, axis, mul, off = np.zeros((J, 4, 4)), np.zeros((J, 3)), np.ones(J), np.zeros(J)
+            for k, j in enumerate(self.joints):
+                parent[k], origin[k], axis[k] = link_index[j["parent"]], j["origin"], j["axis"]
+                kind[k] = 0 if j["type"] not in MOVABLE else (2 if j["type"] == "prismatic" else 1)
+                if j["mimic"] is not None:
+                    lead[k], mul[k], off[k] = qpos[j["mimic"][0]], j["mimic"][1], j["mimic"][2]
+                elif kind[k]:
+                    qi[k] = qpos[j["name"]]
+            body_link = np.array([link_index[n] for n in self.body_link], np.int64)
+            self._tree = (names, parent, origin, axis, kind, qi, lead, mul, off, body_link,
+                          np.ascontiguousarray(self.body_origin, dtype=float))
+        return self._tree
 
     def reset(self):
         """Back to ``q_initial``, at rest, with no stamp yet: each joint's next position places it."""
@@ -254,42 +283,119 @@ class RobotModel:
     def body_states(self, q, qd):
         """Positions ``(B, 3)``, quaternions ``(B, 4)``, velocities ``(B, 3)`` and angular velocities
         ``(B, 3)`` of the robot's bodies (world frame; each body's velocity is its origin's) for joint
-        positions ``q`` and velocities ``qd`` (mappings). Velocities down the tree from a base at rest:
-        a child's angular velocity is its parent's plus ``axis · q̇`` of a revolute joint, its origin's
-        velocity its parent's plus ``ω_parent × (o_child − o_parent)`` plus ``axis · q̇`` of a
-        prismatic one (the joint's axis in the world; a mimic joint moves at ``multiplier · q̇`` of
-        its leader)."""
-        T = {self.root: self.base}
-        V = {self.root: (np.zeros(3), np.zeros(3))}
-        for j in self.joints:
-            parent = T[j["parent"]]
-            M = parent @ j["origin"]
-            v, w = V[j["parent"]]
-            axis = M[:3, :3] @ j["axis"]
-            xd = 0.0
-            if j["type"] in MOVABLE:
-                m = j["mimic"]
-                x, xd = (q[j["name"]], qd[j["name"]]) if m is None else (m[1] * q[m[0]] + m[2], m[1] * qd[m[0]])
-                J = np.eye(4)
-                if j["type"] == "prismatic":
-                    J[:3, 3] = j["axis"] * x
-                else:
-                    J[:3, :3] = rotation_about(j["axis"], x)
-                M = M @ J
-            v = v + np.cross(w, M[:3, 3] - parent[:3, 3])   # the child's origin, where the joint put it
-            if j["type"] == "prismatic":
-                v = v + axis * xd
-            elif j["type"] in MOVABLE:
-                w = w + axis * xd
-            T[j["child"]], V[j["child"]] = M, (v, w)
-        W = np.array([T[link] for link in self.body_link]).reshape(-1, 4, 4) @ self.body_origin
-        pos = W[:, :3, 3].copy()
-        vel, omega = np.empty((len(pos), 3)), np.empty((len(pos), 3))
-        for i, link in enumerate(self.body_link):
-            v, w = V[link]
-            vel[i] = v + np.cross(w, pos[i] - T[link][:3, 3])
-            omega[i] = w
-        return pos, matrix_to_quat(W[:, :3, :3]), vel, omega
+        positions ``q`` and velocities ``qd`` (mappings), in one compiled pass (``_forward``):
+        forward kinematics, and the velocities down the tree from a base at rest (a child's angular
+        velocity its parent's plus ``axis · q̇`` of a revolute joint, its origin's velocity its
+        parent's plus ``ω_parent × (o_child − o_parent)`` plus ``axis · q̇`` of a prismatic one; a
+        mimic joint moves at ``multiplier · q̇`` of its leader)."""
+        names, *arrays = self.tree()
+        qa = np.array([q[n] for n in names], float)
+        qda = np.array([qd[n] for n in names], float)
+        B = len(self.bodies)
+        out = np.empty((B, 13))
+        _forward(*arrays[:8], qa, qda, np.ascontiguousarray(self.base, dtype=float), arrays[8], arrays[9], out)
+        return out[:, 0:3], out[:, 3:7], out[:, 7:10], out[:, 10:13]
+
+
+@njit
+def _forward(parent, origin, axis, kind, qi, lead, mul, off, q, qd, base, body_link, body_origin, out):
+    """``RobotModel.body_states`` in one pass: link transforms and velocities (link 0 the root at
+    ``base``, at rest; joint ``j`` makes link ``j + 1`` from link ``parent[j]``), then each body
+    ``b``'s frame (its link's ∘ ``body_origin[b]``) as ``out[b] = (position (3), quaternion x y z w
+    (4), velocity (3), angular velocity (3))``. Arrays as ``RobotModel.tree`` gives them."""
+    J = parent.shape[0]
+    T = np.empty((J + 1, 4, 4))
+    V = np.zeros((J + 1, 3))
+    W = np.zeros((J + 1, 3))
+    T[0] = base
+    M = np.empty((4, 4))
+    for j in range(J):
+        p = parent[j]
+        for r in range(4):
+            for c in range(4):
+                s = 0.0
+                for k in range(4):
+                    s += T[p, r, k] * origin[j, k, c]
+                M[r, c] = s
+        ax = np.empty(3)   # the axis in the world
+        for r in range(3):
+            ax[r] = M[r, 0] * axis[j, 0] + M[r, 1] * axis[j, 1] + M[r, 2] * axis[j, 2]
+        x, xd = 0.0, 0.0
+        if kind[j] != 0:
+            if lead[j] >= 0:
+                x, xd = mul[j] * q[lead[j]] + off[j], mul[j] * qd[lead[j]]
+            else:
+                x, xd = q[qi[j]], qd[qi[j]]
+        if kind[j] == 2:     # the child's origin slides along the axis
+            for r in range(3):
+                M[r, 3] += ax[r] * x
+        elif kind[j] == 1:   # the child's frame turns about the axis (Rodrigues), its origin stays
+            u0, u1, u2 = axis[j, 0], axis[j, 1], axis[j, 2]
+            cs, sn = math.cos(x), math.sin(x)
+            C = 1.0 - cs
+            Rj = np.array([[cs + u0 * u0 * C, u0 * u1 * C - u2 * sn, u0 * u2 * C + u1 * sn],
+                           [u1 * u0 * C + u2 * sn, cs + u1 * u1 * C, u1 * u2 * C - u0 * sn],
+                           [u2 * u0 * C - u1 * sn, u2 * u1 * C + u0 * sn, cs + u2 * u2 * C]])
+            Mr = M[:3, :3].copy()
+            for r in range(3):
+                for c in range(3):
+                    M[r, c] = Mr[r, 0] * Rj[0, c] + Mr[r, 1] * Rj[1, c] + Mr[r, 2] * Rj[2, c]
+        T[j + 1] = M
+        # the child's origin, where the joint put it: the parent's velocity there, plus the joint's
+        d0, d1, d2 = M[0, 3] - T[p, 0, 3], M[1, 3] - T[p, 1, 3], M[2, 3] - T[p, 2, 3]
+        w0, w1, w2 = W[p, 0], W[p, 1], W[p, 2]
+        V[j + 1, 0] = V[p, 0] + w1 * d2 - w2 * d1
+        V[j + 1, 1] = V[p, 1] + w2 * d0 - w0 * d2
+        V[j + 1, 2] = V[p, 2] + w0 * d1 - w1 * d0
+        for r in range(3):
+            W[j + 1, r] = W[p, r]
+            if kind[j] == 2:
+                V[j + 1, r] += ax[r] * xd
+            elif kind[j] == 1:
+                W[j + 1, r] += ax[r] * xd
+    for b in range(body_link.shape[0]):
+        L = body_link[b]
+        for r in range(4):
+            for c in range(4):
+                s = 0.0
+                for k in range(4):
+                    s += T[L, r, k] * body_origin[b, k, c]
+                M[r, c] = s
+        for r in range(3):
+            out[b, r] = M[r, 3]
+        _quat_of(M, out[b, 3:7])
+        d0, d1, d2 = M[0, 3] - T[L, 0, 3], M[1, 3] - T[L, 1, 3], M[2, 3] - T[L, 2, 3]
+        w0, w1, w2 = W[L, 0], W[L, 1], W[L, 2]
+        out[b, 7] = V[L, 0] + w1 * d2 - w2 * d1
+        out[b, 8] = V[L, 1] + w2 * d0 - w0 * d2
+        out[b, 9] = V[L, 2] + w0 * d1 - w1 * d0
+        out[b, 10], out[b, 11], out[b, 12] = w0, w1, w2
+
+
+@njit
+def _quat_of(M, q):
+    """``q (4,)`` x, y, z, w (w ≥ 0, unit) of the rotation ``M[:3, :3]``: ``matrix_to_quat``'s
+    Shepperd's method for one matrix."""
+    tr = M[0, 0] + M[1, 1] + M[2, 2]
+    k, best = 0, tr
+    for i in range(3):
+        if M[i, i] > best:
+            k, best = i + 1, M[i, i]
+    if k == 0:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        q[0], q[1], q[2], q[3] = (M[2, 1] - M[1, 2]) / s, (M[0, 2] - M[2, 0]) / s, (M[1, 0] - M[0, 1]) / s, 0.25 * s
+    else:
+        i = k - 1
+        j, m = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + M[i, i] - M[j, j] - M[m, m])
+        q[i] = 0.25 * s
+        q[j] = (M[j, i] + M[i, j]) / s
+        q[m] = (M[m, i] + M[i, m]) / s
+        q[3] = (M[m, j] - M[j, m]) / s
+    sign = -1.0 if q[3] < 0 else 1.0
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    for r in range(4):
+        q[r] = sign * q[r] / n
 
 
 def _joint_dict(j, prefix, where):

@@ -488,7 +488,9 @@ def _gravity_bound(s):
 POSITION = Vector(3, bound="max_position", unit="m")
 POSITIONS = Rows(3, bound="max_position", unit="m")
 VELOCITY = Vector(3, norm_bound="max_speed", unit="m/s")
+VELOCITIES = Rows(3, norm_bound="max_speed", unit="m/s")
 ANGULAR_VELOCITY = Vector(3, norm_bound="max_angular_speed", unit="rad/s")
+ANGULAR_VELOCITIES = Rows(3, norm_bound="max_angular_speed", unit="rad/s")
 ORIENTATION = Quaternion("quaternion_tolerance")
 ANY_ORIENTATION = Quaternion(math.inf)   # collide: any non-zero quaternion is normalised
 GRAVITY = Vector(3, norm_bound=_gravity_bound, unit="m/s²")

@@ -5,7 +5,8 @@ import numpy as np
 from . import quat
 from .errors import BoundsError, ContactSimError
 from .kinds import KINDS, KINEMATIC, STATIC
-from .validate import ANGULAR_VELOCITY, ORIENTATION, POSITION, POSITIONS, STAMP, VELOCITY, show
+from .validate import (ANGULAR_VELOCITIES, ANGULAR_VELOCITY, ORIENTATION, POSITION, POSITIONS, STAMP, VELOCITIES,
+                       VELOCITY, show)
 
 def _length(value):
     """``len(value)`` of a list, tuple or array with at least one dimension, else None."""
@@ -142,19 +143,21 @@ class BodyInput:
             raise ContactSimError(f"{label}({names[i]!r}): {names[i]!r} is static and never moves")
         st = self.settings
         parts = {}
-        for key, value, rule in (("position", positions, POSITION), ("orientation", orientations, ORIENTATION),
-                                 ("velocity", velocities, VELOCITY),
-                                 ("angular_velocity", angular_velocities, ANGULAR_VELOCITY)):
+        for key, value, batch, rule in (
+                ("position", positions, POSITIONS.check, POSITION),
+                ("orientation", orientations, ORIENTATION.check_rows, ORIENTATION),
+                ("velocity", velocities, VELOCITIES.check, VELOCITY),
+                ("angular_velocity", angular_velocities, ANGULAR_VELOCITIES.check, ANGULAR_VELOCITY)):
             if value is None:
                 continue
-            try:
-                rows = list(value)
-            except TypeError:
-                raise ContactSimError(f"{label}.{key}: must be one row per body, got {value!r}") from None
-            if len(rows) != m:
-                raise ContactSimError(f"{label}.{key}: {len(rows)} rows for {m} bodies")
-            parts[key] = np.array([rule.check(rows[i], f"{label}({names[i]!r}).{key}", st)
-                                   for i in range(m)]).reshape(m, -1)
+            n = _length(value)
+            if n is None:
+                raise ContactSimError(f"{label}.{key}: must be one row per body, got {value!r}")
+            if n != m:
+                raise ContactSimError(f"{label}.{key}: {n} rows for {m} bodies")
+            # the batch at once; refused, the first bad row is named as one row at a time names it
+            parts[key] = _rows(batch, value, m, f"{label}.{key}", lambda i, key=key: f"{label}({names[i]!r}).{key}",
+                               st, rule).reshape(m, -1)
         om = parts.get("angular_velocity")
         if om is not None:
             for i in np.flatnonzero(self.particle[idx] & om.any(axis=1)):
