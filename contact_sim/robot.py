@@ -158,9 +158,27 @@ def _mesh_shape(path, scale, convex, what):
     f = np.asarray(mesh.faces, np.int64)
     if np.linalg.det(np.diag(scale)) < 0:   # a mirroring scale turns the faces inside out
         f = f[:, ::-1]
-    if convex or mesh.is_convex:
+    if convex or mesh.is_convex or _on_its_hull(v):
         return Convex(v, name=what)
     return TriMesh(v, f, name=what)
+
+
+def _on_its_hull(v):
+    """Whether every vertex ``v (V, 3)`` lies on the surface of their convex hull (to 1e-9 of the
+    size): a convex surface, whether or not it is closed. Robots' collision meshes usually are their
+    links' hulls, but trimesh calls a hull with a seam or a duplicated vertex neither watertight nor
+    convex (every collision mesh of pybullet_data's Panda): made a concave, open ``TriMesh`` it took
+    the mesh kernels and a one-sided inside, where its ``Convex`` is the same shape, exactly."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        hull = ConvexHull(v)
+    except (QhullError, ValueError):   # flat or degenerate: not a solid's surface
+        return False
+    size = float(np.ptp(v, axis=0).max())
+    # qhull's equations: n·x + d ≤ 0 inside; a vertex on the surface is at 0 from its nearest plane
+    depth = -(v @ hull.equations[:, :3].T + hull.equations[:, 3])   # (V, F) ≥ 0 inside
+    return bool(np.all(depth.min(axis=1) <= 1e-9 * size))
 
 
 # ---------------------------------------------------------------- the model

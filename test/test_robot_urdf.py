@@ -411,3 +411,24 @@ def test_a_urdf_written_for_another_simulator_finds_its_meshes_beside_it(tmp_pat
     text = str(err.value)
     assert str(tmp_path / "meshes" / "collision" / "missing.stl") in text
     assert "add the folder that holds the package 'meshes' to package_paths" in text
+
+
+def test_a_collision_mesh_that_is_its_own_hull_becomes_a_convex_body(tmp_path):
+    """A robot's collision mesh is usually its link's hull; one with a seam (here: a box missing a
+    face, as pybullet_data's Panda meshes are to trimesh) is neither watertight nor convex to
+    trimesh, yet every vertex lies on its hull: it becomes that ``Convex``, the same shape, and not an
+    open ``TriMesh`` with a one-sided inside. A mesh with a vertex inside its hull stays a mesh."""
+    import trimesh
+
+    box = trimesh.creation.box([0.1, 0.2, 0.3])
+    trimesh.Trimesh(box.vertices, box.faces[1:], process=False).export(tmp_path / "seam.stl")
+    dent = trimesh.Trimesh(np.vstack([box.vertices, [[0.0, 0.0, 0.1]]]),
+                           np.vstack([box.faces[2:], [[8, 0, 1], [8, 1, 3]]]), process=False)
+    dent.export(tmp_path / "dent.stl")
+    w = cs.World()
+    w.add_urdf(arm_urdf("file://" + str(tmp_path / "seam.stl")))
+    assert w.user_shapes[w.index("gripper")].type == "convex"
+    np.testing.assert_allclose(np.ptp(w.user_shapes[w.index("gripper")].vertices, axis=0), [0.1, 0.2, 0.3])
+    w2 = cs.World()
+    w2.add_urdf(arm_urdf("file://" + str(tmp_path / "dent.stl")))
+    assert w2.user_shapes[w2.index("gripper")].type == "mesh"
