@@ -86,6 +86,23 @@ def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
 
 
 @njit
+def _face_separates(N, d, npl, X, nx):
+    """Whether a face plane of the convex polyhedron (``N[p]·x = d[p]``, the first ``npl``) has every
+    vertex ``X[:nx]`` strictly in front of it: the polyhedron behind it and the mesh's vertices (so
+    its hull, so the mesh) in front, nothing can cross. O(faces × vertices) where the edge–face test
+    is O(edges × faces) both ways: a robot link near another, apart, took it every step."""
+    for p in range(npl):
+        apart = True
+        for v in range(nx):
+            if N[p, 0] * X[v, 0] + N[p, 1] * X[v, 1] + N[p, 2] * X[v, 2] - d[p] <= 0.0:
+                apart = False
+                break
+        if apart:
+            return True
+    return False
+
+
+@njit
 def _crossings(VX, EX, NY, dY, npl, facesY, loops, VY, sgn, tag, P, Nn, D, F, I, c, eps=1e-12):
     """Every crossing of an edge of X through a face polygon of Y as a candidate (point, the face
     normal times ``sgn``, depth = the shallower endpoint's distance to the face plane)."""
@@ -242,6 +259,8 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             continue
         if c:
             counters[0] += 1
+        elif _face_separates(NP, dP, npp, VM, nvm):
+            continue               # a face plane of B with the whole mesh in front: apart, no crossing
         else:                      # (c) edge-face for the pairs no vertex settled
             counters[1] += 1
             fM = faces[si[sm, SI_P0]:si[sm, SI_P0] + npm]
