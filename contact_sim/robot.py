@@ -31,6 +31,7 @@ from .validate import show
 
 LIMIT_TOLERANCE = 1e-9      # a joint position may exceed its limits by this much (round-off of the sender)
 MIMIC_TOLERANCE = 1e-9      # a mimic joint's given position agreeing with its leader's this closely is accepted
+CONVEX_MESH_TOLERANCE = 2e-3   # × its size: a collision mesh this close to its convex hull is that hull
 MOVABLE = ("revolute", "continuous", "prismatic")
 PACKAGE_PATH_ENV = "CONTACT_SIM_PACKAGE_PATH"   # folders holding ROS packages, os.pathsep-separated
 
@@ -158,17 +159,19 @@ def _mesh_shape(path, scale, convex, what):
     f = np.asarray(mesh.faces, np.int64)
     if np.linalg.det(np.diag(scale)) < 0:   # a mirroring scale turns the faces inside out
         f = f[:, ::-1]
-    if convex or mesh.is_convex or _on_its_hull(v):
+    if convex or mesh.is_convex or _on_its_hull(v, f):
         return Convex(v, name=what)
     return TriMesh(v, f, name=what)
 
 
-def _on_its_hull(v):
-    """Whether every vertex ``v (V, 3)`` lies on the surface of their convex hull (to 1e-9 of the
-    size): a convex surface, whether or not it is closed. Robots' collision meshes usually are their
-    links' hulls, but trimesh calls a hull with a seam or a duplicated vertex neither watertight nor
-    convex (every collision mesh of pybullet_data's Panda): made a concave, open ``TriMesh`` it took
-    the mesh kernels and a one-sided inside, where its ``Convex`` is the same shape, exactly."""
+def _on_its_hull(v, f):
+    """Whether the mesh of vertices ``v (V, 3)`` and triangles ``f (F, 3)`` is its own convex hull, to
+    ``CONVEX_MESH_TOLERANCE`` of its size: no vertex and no triangle's centroid more than that inside
+    the hull (a concavity's faces cut into it: an L's inner corner by a third of its size). Robots'
+    collision meshes usually are their links' hulls, saved with seams and rounded coordinates:
+    pybullet_data's Panda's are within 0.23 mm (1.2e-3 of their size) of their hulls but trimesh
+    calls them neither watertight nor convex, so they became open ``TriMesh`` bodies (the mesh
+    kernels, a one-sided inside). Such a mesh becomes its hull, as pybullet makes every one."""
     from scipy.spatial import ConvexHull, QhullError
 
     try:
@@ -176,9 +179,10 @@ def _on_its_hull(v):
     except (QhullError, ValueError):   # flat or degenerate: not a solid's surface
         return False
     size = float(np.ptp(v, axis=0).max())
-    # qhull's equations: n·x + d ≤ 0 inside; a vertex on the surface is at 0 from its nearest plane
-    depth = -(v @ hull.equations[:, :3].T + hull.equations[:, 3])   # (V, F) ≥ 0 inside
-    return bool(np.all(depth.min(axis=1) <= 1e-9 * size))
+    pts = np.vstack([v, v[f].mean(axis=1)])
+    # qhull's equations: n·x + d ≤ 0 inside; a point's depth inside is its distance to the nearest plane
+    depth = -(pts @ hull.equations[:, :3].T + hull.equations[:, 3])
+    return bool(depth.min(axis=1).max() <= CONVEX_MESH_TOLERANCE * size)
 
 
 # ---------------------------------------------------------------- the model
