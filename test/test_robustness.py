@@ -426,3 +426,30 @@ def test_a_tilted_box_keeps_a_spring_at_every_corner_below_a_plane():
         assert len(below) == 4
         inside = np.sort(c.depth[c.depth > 0])
         np.testing.assert_allclose(inside, below, rtol=1e-12)
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("rotvec,dz", [
+    ([0.0, 0.0, 0.0], 0.0),
+    ([9.241339611395419e-10, -7.213379353501637e-10, -3.2936298844841966e-10], 2.256678568755003e-11),
+    ([-1.928110643745686e-09, 2.1316318692059466e-09, 6.769134230337094e-10], -1.1370520580323492e-10),
+    ([-1.1373226653371652e-09, 1.03987982277632e-09, 1.7431974752359069e-10], -6.818466031655257e-11),
+    ([3e-9, 0.0, 0.0], 0.0),
+    ([1e-7, -2e-7, 0.0], 1e-9),
+])
+def test_a_box_resting_half_over_another_keeps_the_corners_of_its_patch(rotvec, dz):
+    """A box resting on a box of a pyramid's layer below, offset by 0.105 m: the patch is the
+    0.095 m × 0.2 m overlap, and its four corners are the manifold at any tilt of round-off size.
+    Tilted by ~1e-9 rad, some corners are inside by more than the touching tolerance and others
+    outside by as much, and a corner is found twice (an incident vertex and an edge crossing, 2e-10 m
+    apart): the reduction kept the deep ones and then a copy of one in place of the fourth corner,
+    and a ten-layer pyramid of 55 boxes drifted 0.23 m in 10 s."""
+    from contact_sim import quat
+
+    q = quat.from_rotvec(np.array(rotvec))
+    c = cs.collide(cs.Box([0.2] * 3), ([0.105, 0, 0.2 + dz], q), cs.Box([0.2] * 3), ([0, 0, 0], [0, 0, 0, 1]),
+                   margin=2e-3)
+    assert len(c.depth) == 4
+    got = sorted(map(tuple, np.round(c.point[:, :2], 6)))
+    assert got == [(0.005, -0.1), (0.005, 0.1), (0.1, -0.1), (0.1, 0.1)]
+    assert np.abs(c.depth).max() < 1e-6 * 0.2

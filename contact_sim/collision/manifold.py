@@ -1,7 +1,7 @@
 """Contact manifolds: at most four points per pair, and the face–face patch of two polyhedra.
 
 ``reduce4`` keeps every candidate when there are at most four (one of two that coincide), puts the
-points inside the other body before those that touch or are apart, and of more than four keeps the
+points inside or touching the other body before those apart, and of more than four keeps the
 deepest point, the farthest from it, the one making the largest triangle with those two and the one
 farthest on the other side (a flat patch keeps its corners: among points equally deep to round-off
 the one farthest from the patch centre is the first pick).
@@ -22,6 +22,7 @@ from .vec3 import dot, dotr, set_row
 F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
 TOUCH_TOLERANCE = 1e-9   # × the smaller body's size: a distance this short is touching, its direction noise
+COINCIDE_FRACTION = 1e-6   # × a patch's size: two candidates this close are one place (one contact)
 # point codes of a face patch (the feature id's last field): what the point is on
 CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18, 3 << 18
 
@@ -29,20 +30,23 @@ CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18
 @njit
 def reduce4(pts, depth, valid, normal, keep):
     """``keep (C,)`` bool: at most 4 of the ``valid (C,)`` candidates ``pts (C, 3)`` with ``depth (C,)``;
-    returns how many. Points inside the other body (deeper than the touching tolerance) come first:
-    when at most four are, they all stay and the deepest of the others fill the four; when more are,
-    four of them span the patch (``_span4``); a patch that only touches (a face resting flat) spans
-    over all its points. With at most four candidates every one stays (of two that coincide, the
-    deeper). Spanning over all the points dropped a corner 15 cm deep for one 3 cm apart (a tumbling
-    box, its spring missing), and one of four corners below a plane. (Scalar arithmetic throughout: a
-    temporary array costs more than the math.)"""
+    returns how many. With at most four candidates every one stays (of two that coincide, within
+    ``COINCIDE_FRACTION`` of the patch's size, the deeper: a face's corner found both as a vertex
+    and as an edge crossing). Of more, the points inside or touching the other body (apart by less
+    than ``COINCIDE_FRACTION`` of the patch's size) come before those apart: when more than four
+    are, four of them span the patch (``_span4``); when at most four are, they all stay and the apart
+    points nearest to touching fill the four. Spanning over every point dropped a corner 15 cm deep
+    for one 3 cm apart (a tumbling box, its spring missing), and one of four corners below a plane.
+    Inside and touching are one class, and touching is wider than round-off here: a face resting on
+    a face, tilted by a few nanoradians, is inside at some corners and apart at others by 1e-10 m,
+    and keeping the few inside in place of the patch's corners tipped a resting pyramid of boxes.
+    (Scalar arithmetic throughout: a temporary array costs more than the math.)"""
     C = pts.shape[0]
-    dmax, cnt = -np.inf, 0
+    cnt = 0
     cx, cy, cz = 0.0, 0.0, 0.0
     for i in range(C):
         keep[i] = False
         if valid[i]:
-            dmax = max(dmax, depth[i])
             cnt += 1
             cx, cy, cz = cx + pts[i, 0], cy + pts[i, 1], cz + pts[i, 2]
     if cnt == 0:
@@ -52,27 +56,37 @@ def reduce4(pts, depth, valid, normal, keep):
     for i in range(C):
         if valid[i]:
             smax = max(smax, (pts[i, 0] - cx) ** 2 + (pts[i, 1] - cy) ** 2 + (pts[i, 2] - cz) ** 2)
-    tol = TOUCH_TOLERANCE * np.sqrt(smax) + 1e-300
+    same = COINCIDE_FRACTION * np.sqrt(smax)
     if cnt <= 4:
-        return _keep_all(pts, depth, valid, -np.inf, tol, keep)
-    deep = 0
-    for i in range(C):
-        deep += valid[i] and depth[i] > tol
-    if deep > 4:
-        return _span4(pts, depth, valid, tol, normal, keep, cx, cy, cz)
-    if deep == 0:
+        return _keep_all(pts, depth, valid, -np.inf, same, keep)
+    n = _keep_all(pts, depth, valid, -same, same, keep)   # the distinct points inside or touching
+    if n > 4:
+        for i in range(C):
+            keep[i] = False
+        return _span4(pts, depth, valid, -same, normal, keep, cx, cy, cz)
+    if n == 0:
         return _span4(pts, depth, valid, -np.inf, normal, keep, cx, cy, cz)
-    n = _keep_all(pts, depth, valid, tol, tol, keep)
-    while n < 4:   # the others nearest to touching, deepest first
+    while n < 4:   # the apart points nearest to touching, deepest first, one of each place
         best, bd = -1, -np.inf
         for i in range(C):
-            if valid[i] and not keep[i] and depth[i] <= tol and depth[i] > bd:
+            if valid[i] and not keep[i] and depth[i] <= -same and depth[i] > bd \
+                    and not _near_kept(pts, keep, i, same):
                 best, bd = i, depth[i]
         if best < 0:
             break
         keep[best] = True
         n += 1
     return n
+
+
+@njit
+def _near_kept(pts, keep, i, tol):
+    """Whether candidate ``i`` lies within ``tol`` of a kept one."""
+    for j in range(pts.shape[0]):
+        if keep[j] and (pts[i, 0] - pts[j, 0]) ** 2 + (pts[i, 1] - pts[j, 1]) ** 2 \
+                + (pts[i, 2] - pts[j, 2]) ** 2 <= tol * tol:
+            return True
+    return False
 
 
 @njit
