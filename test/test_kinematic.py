@@ -154,3 +154,30 @@ def test_the_work_of_a_turning_moving_kinematic_body_is_taken_where_it_touches(s
     w.step()
     assert w.last_solve.kinematic_work > 0
     assert abs((w.energy() - e0) - w.last_solve.kinematic_work) <= 1e-12 * w.last_solve.kinematic_work
+
+
+@pytest.mark.parametrize("theta_deg", [5.0, 10.0])
+def test_a_ball_squeezed_in_a_closing_wedge_ends_within_the_push_budget(theta_deg):
+    """A ball touching a static wall (normal −x) and a kinematic paddle tilted by θ from facing it
+    (normal (cos θ, sin θ, 0)) that moves at u = 0.5 m/s along +x: staying out of both needs
+    ``v_y = u cot θ`` (5.7 m/s at 5°, 2.8 m/s at 10°), beyond the push budget (``½m(|v₀| + 2u)² +
+    ½m(2u)²``: from rest, a speed of 2√2·u = 1.41 m/s), which caps it. Each impact round measured
+    the budget from its own start, so every round added to it (rounds follow while the capped
+    contacts still approach): the ball left at the full u cot θ, and in a pile a body squeezed
+    between a paddle and a wall went to 12 m/s in a step. The budget is the stage's: the ball ends
+    on it."""
+    u, r = 0.5, 0.1
+    th = np.radians(theta_deg)
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01),
+                 materials={"m": cs.Material(restitution=0.0, friction=0.0)})
+    w.add_body("wall", cs.Plane([-1.0, 0.0, 0.0], -r), kind="static", material="m")
+    n = np.array([np.cos(th), np.sin(th), 0.0])          # the paddle's face normal, towards the ball
+    half = 0.05
+    w.add_body("paddle", cs.Box([2 * half, 1.0, 1.0]), kind="kinematic", material="m",
+               position=-(r + half) * n, orientation=quat.from_rotvec([0.0, 0.0, th]))
+    w.set_state("paddle", velocity=[u, 0.0, 0.0])
+    w.add_body("ball", cs.Sphere(r), mass=1.0, material="m")
+    w.step()
+    v = w.body("ball").velocity
+    assert abs(np.linalg.norm(v) - 2.0 * np.sqrt(2.0) * u) < 1e-12
+    assert w.last_solve.contacts >= 2

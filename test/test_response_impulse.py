@@ -343,3 +343,18 @@ def test_a_light_ball_between_a_wall_and_a_heavy_one_takes_all_its_impacts_in_th
     assert abs(w.energy() - e0) <= 1e-12 * e0
     v = w.velocities()[0][:, 0]
     assert 0.0 <= v[1] <= v[2], v          # both leave the wall, the heavy one no slower: nothing approaches
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("max_speed, moved", [(3.0, 0.03), (100.0, 0.1)])
+def test_position_correction_moves_a_body_out_at_most_at_split_max_speed(max_speed, moved):
+    """A ball at rest 0.2 m deep in the ground (no gravity, dt 0.01): the correction removes
+    ``split_beta`` = 0.5 of the overlap in a step (0.1 m), but moves no body faster than
+    ``split_max_speed`` (3 m/s: 0.03 m in the step); the velocity is untouched."""
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(dt=0.01, split_max_speed=max_speed))
+    w.add_body("ground", cs.Plane(), kind="static")
+    w.add_body("ball", cs.Sphere(0.5), mass=1.0, position=[0, 0, 0.3])
+    w.step()
+    b = w.body("ball")
+    assert abs(b.position[2] - (0.3 + moved)) < 1e-12
+    np.testing.assert_array_equal(b.velocity, [0.0, 0.0, 0.0])

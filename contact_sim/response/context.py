@@ -59,6 +59,8 @@ class StepContext:
     counts: object = None          # prepare.Counts: how many touch, impact, close, bounce; the deepest depth
     impulse: np.ndarray = None     # (K,3) impulses of the sub-step (n, t1, t2), on A
     vn1: np.ndarray = None         # (K,) normal velocity after the impact solve
+    push_ref: tuple = None         # (vel, omega) (N,3) at the impact stage's start, with a kinematic
+                                   # body: what the push cap measures every solve of the sub-step from
     rest_impulse: np.ndarray = None  # (K,3) the resting solve's impulse over the rest of the step
     rest_mask: np.ndarray = None   # (K,) bool: the contacts that rest
     dv_rest: np.ndarray = None     # (N,3) velocity change of the resting force over the rest of the step

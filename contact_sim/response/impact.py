@@ -36,6 +36,8 @@ def impact_solve(ctx):
     vn0, touching, closing = ctx.vn0, ctx.touching, ctx.closing
     lam = np.zeros((len(c), 3))
     ctx.impulse = lam
+    s = world.s
+    ctx.push_ref = (s.vel.copy(), s.omega.copy()) if world.body_masks().any_kinematic else None
     n = ctx.counts
     if ctx.models.response == "kinematic" and n.impact and not n.closing:
         lam[:, 0], ctx.vn1 = _kinematic_impacts(world, c, ctx.rel_vel, ctx.restitution, touching & (vn0 <= 0.0))
@@ -91,13 +93,14 @@ def _round(ctx, ti, vn, e, bounced, lam):
     target = np.where(ctx.touching[ti], 0.0, ctx.spec_target[ti])
     fr = ctx.friction
     pushed = kinematic_push(world, c.body_a[ti], c.body_b[ti], c.point[ti])
-    if pushed is not None:
+    if pushed is not None:   # the cap is measured from the stage's start: each round within it
         v0, w0 = s.vel[pushed[0]].copy(), s.omega[pushed[0]].copy()
     res = ctx.solve(ctx.rows.select(ti), s.vel, s.omega, target_n=target, mu_s=ctx.mu_s[ti] if fr else None,
                     mu_d=ctx.mu_d[ti] if fr else None)
     ctx.note(res)
     # where kinematic bodies push, no body ends faster than a push can make it
-    scale = 1.0 if pushed is None else push_cap(world, *pushed, v0, w0, s.vel, s.omega)
+    scale = 1.0 if pushed is None else push_cap(world, *pushed, v0, w0, s.vel, s.omega,
+                                                ref=(ctx.push_ref[0][pushed[0]], ctx.push_ref[1][pushed[0]]))
     lam_r = np.zeros((len(c), 3))
     lam_r[ti] = res.impulse * scale
     if bounces:   # the velocities after compression

@@ -55,7 +55,9 @@ def resting_solve(ctx):
     pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
     if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
         bodies = pushed[0]
-        f = push_cap(world, *pushed, v_start_end[bodies], w_start_end[bodies], v_end, w_end)
+        ref = None if ctx.push_ref is None else (ctx.push_ref[0][bodies] + ctx.gravity[bodies] * t_left,
+                                                 ctx.push_ref[1][bodies])   # the impact stage's start
+        f = push_cap(world, *pushed, v_start_end[bodies], w_start_end[bodies], v_end, w_end, ref=ref)
         if f < 1.0:
             res.impulse = res.impulse * f
     lam2 = np.zeros((len(c), 3))
