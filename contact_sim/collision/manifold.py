@@ -70,7 +70,7 @@ def reduce4(pts, depth, valid, normal, keep):
         best, bd = -1, -np.inf
         for i in range(C):
             if valid[i] and not keep[i] and depth[i] <= -same and depth[i] > bd \
-                    and not _near_kept(pts, keep, i, same):
+                    and _kept_near(pts, keep, i, same) < 0:
                 best, bd = i, depth[i]
         if best < 0:
             break
@@ -80,13 +80,13 @@ def reduce4(pts, depth, valid, normal, keep):
 
 
 @njit
-def _near_kept(pts, keep, i, tol):
-    """Whether candidate ``i`` lies within ``tol`` of a kept one."""
+def _kept_near(pts, keep, i, tol):
+    """The first kept candidate within ``tol`` of candidate ``i`` (−1: none)."""
     for j in range(pts.shape[0]):
-        if keep[j] and (pts[i, 0] - pts[j, 0]) ** 2 + (pts[i, 1] - pts[j, 1]) ** 2 \
+        if j != i and keep[j] and (pts[i, 0] - pts[j, 0]) ** 2 + (pts[i, 1] - pts[j, 1]) ** 2 \
                 + (pts[i, 2] - pts[j, 2]) ** 2 <= tol * tol:
-            return True
-    return False
+            return j
+    return -1
 
 
 @njit
@@ -97,12 +97,7 @@ def _keep_all(pts, depth, valid, dmin, tol, keep):
     for i in range(pts.shape[0]):
         if not (valid[i] and depth[i] > dmin):
             continue
-        dup = -1
-        for j in range(i):
-            if keep[j] and (pts[i, 0] - pts[j, 0]) ** 2 + (pts[i, 1] - pts[j, 1]) ** 2 \
-                    + (pts[i, 2] - pts[j, 2]) ** 2 <= tol * tol:
-                dup = j
-                break
+        dup = _kept_near(pts, keep, i, tol)
         if dup < 0:
             keep[i] = True
             n += 1
