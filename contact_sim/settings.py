@@ -70,8 +70,8 @@ class Settings(Declared):
                                           "|‖q‖ − 1| accepted (and normalised) in given poses")
     split_beta: float = declare(0.5, Number(ge=0, le=1), "fraction of a penetration removed per step")
     split_max_speed: float = declare(3.0, Number(gt=0, le="max_speed", unit="m/s"),
-                                     "m/s: fastest a body is moved out of an overlap (the position correction's "
-                                     "displacement over dt; Box2D's maximum contact push speed)")
+                                     "m/s: fastest the position correction moves a body beyond what its own "
+                                     "overlap needs (split_beta of it a step); Box2D's maximum push-out speed")
     mass_ratio_limit: float = declare(100.0, Number(ge=1, le=_HUGE),
                                       "preflight warning above this mass ratio between touching bodies")
     penalty: Penalty = declare(Penalty, Nested(Penalty), "spring and damper of the penalty response")

@@ -346,15 +346,31 @@ def test_a_light_ball_between_a_wall_and_a_heavy_one_takes_all_its_impacts_in_th
 
 
 @pytest.mark.exact
-@pytest.mark.parametrize("max_speed, moved", [(3.0, 0.03), (100.0, 0.1)])
-def test_position_correction_moves_a_body_out_at_most_at_split_max_speed(max_speed, moved):
-    """A ball at rest 0.2 m deep in the ground (no gravity, dt 0.01): the correction removes
-    ``split_beta`` = 0.5 of the overlap in a step (0.1 m), but moves no body faster than
-    ``split_max_speed`` (3 m/s: 0.03 m in the step); the velocity is untouched."""
-    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(dt=0.01, split_max_speed=max_speed))
-    w.add_body("ground", cs.Plane(), kind="static")
-    w.add_body("ball", cs.Sphere(0.5), mass=1.0, position=[0, 0, 0.3])
+@pytest.mark.parametrize("max_speed", [3.0, 100.0])
+def test_position_correction_pushes_a_squeezed_body_out_at_most_at_split_max_speed(max_speed):
+    """No gravity, dt 0.01. A ball 1 m deep in a static block comes out by ``split_beta`` = 0.5 of its
+    own overlap (0.5 m) in a step, however fast that is. A ball 1 cm into each of two static walls
+    that close like a wedge (normals (±cos φ, sin φ, 0), φ = 0.01 rad) has no separation but along
+    the wedge: ``β d / sin φ`` = 0.5 m in the step, 50 times its overlap. That is kept up to
+    ``split_max_speed`` (100 m/s: 1 m in the step) and cut to it below (3 m/s: 0.03 m); the block's
+    1 m overlap no longer lets every body move 1 m (a body squeezed by a paddle in a pile went 2.4 m
+    up in a step). The velocities are untouched."""
+    from contact_sim import quat
+
+    dt, r, d, phi = 0.01, 0.1, 0.01, 0.01
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(dt=dt, split_max_speed=max_speed))
+    for name, sign in (("wall_1", 1.0), ("wall_2", -1.0)):
+        n = np.array([sign * np.cos(phi), np.sin(phi), 0.0])     # the face towards the ball
+        w.add_body(name, cs.Box([0.1, 1.0, 1.0]), kind="static", position=-(r - d + 0.05) * n,
+                   orientation=quat.from_rotvec([0.0, 0.0, sign * phi]))
+    w.add_body("ball", cs.Sphere(r), mass=1.0)
+    w.add_body("block", cs.Box([2.0, 2.0, 2.0]), kind="static", position=[0, 20, -2])
+    w.add_body("deep", cs.Sphere(2.0), mass=1.0, position=[0, 20, 0])
     w.step()
-    b = w.body("ball")
-    assert abs(b.position[2] - (0.3 + moved)) < 1e-12
-    np.testing.assert_array_equal(b.velocity, [0.0, 0.0, 0.0])
+    wedge = 0.5 * d / np.sin(phi)
+    moved = np.linalg.norm(w.body("ball").position)
+    assert abs(moved - min(wedge, max_speed * dt)) < 1e-12
+    assert abs(w.body("ball").position[1] - moved) < 1e-12            # along the wedge
+    np.testing.assert_allclose(w.body("deep").position, [0, 20, 0.5], rtol=0, atol=1e-12)
+    for b in ("ball", "deep"):
+        np.testing.assert_array_equal(w.body(b).velocity, [0.0, 0.0, 0.0])
