@@ -197,6 +197,21 @@ def step_checked(world, dt=None):
     return excess
 
 
+def _set_joints_or_refused(world, joints, stamp):
+    """``set_joint_positions``, or its refusal with nothing changed: a large arm turned far in one
+    step implies link speeds beyond ``settings.max_speed`` (a shoulder 6 rad in 1/240 s swings a
+    10 m link at 15 km/s), which the engine refuses by name (fresh draws, seed 20261205)."""
+    s = world.s
+    before = [a.copy() for a in (s.pos, s.quat, s.vel, s.omega)], world.joint_positions()
+    try:
+        world.set_joint_positions(list(joints), list(joints.values()), stamp)
+    except cs.BoundsError as exc:
+        assert "max_speed" in str(exc) or "max_angular_speed" in str(exc), exc
+        for a, b in zip(before[0], (s.pos, s.quat, s.vel, s.omega)):
+            np.testing.assert_array_equal(a, b)
+        assert world.joint_positions() == before[1]
+
+
 def run_calls(world, info, sequence):
     """Apply a generated call sequence, checking the invariants after every step."""
     t_pose = {k: 0.0 for k in info["kinematic"]}
@@ -219,7 +234,7 @@ def run_calls(world, info, sequence):
                 world.set_state(name, velocity=[0.0, 0.0, v * info["scale"]])
         elif kind == "joints":
             t_joints = max(world.time, t_joints) + world.settings.dt
-            world.set_joint_positions(list(call[1]), list(call[1].values()), t_joints)
+            _set_joints_or_refused(world, call[1], t_joints)
         elif kind == "reset":
             world.reset()
             t_pose = {k: 0.0 for k in info["kinematic"]}
