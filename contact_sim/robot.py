@@ -333,12 +333,7 @@ def _forward(parent, origin, axis, kind, qi, lead, mul, off, q, qd, base, body_l
     M = np.empty((4, 4))
     for j in range(J):
         p = parent[j]
-        for r in range(4):
-            for c in range(4):
-                s = 0.0
-                for k in range(4):
-                    s += T[p, r, k] * origin[j, k, c]
-                M[r, c] = s
+        _mul4(T[p], origin[j], M)
         ax = np.empty(3)   # the axis in the world
         for r in range(3):
             ax[r] = M[r, 0] * axis[j, 0] + M[r, 1] * axis[j, 1] + M[r, 2] * axis[j, 2]
@@ -377,12 +372,7 @@ def _forward(parent, origin, axis, kind, qi, lead, mul, off, q, qd, base, body_l
                 W[j + 1, r] += ax[r] * xd
     for b in range(body_link.shape[0]):
         L = body_link[b]
-        for r in range(4):
-            for c in range(4):
-                s = 0.0
-                for k in range(4):
-                    s += T[L, r, k] * body_origin[b, k, c]
-                M[r, c] = s
+        _mul4(T[L], body_origin[b], M)
         for r in range(3):
             out[b, r] = M[r, 3]
         _quat_of(M, out[b, 3:7])
@@ -392,6 +382,17 @@ def _forward(parent, origin, axis, kind, qi, lead, mul, off, q, qd, base, body_l
         out[b, 8] = V[L, 1] + w2 * d0 - w0 * d2
         out[b, 9] = V[L, 2] + w0 * d1 - w1 * d0
         out[b, 10], out[b, 11], out[b, 12] = w0, w1, w2
+
+
+@njit
+def _mul4(A, B, out):
+    """``out (4,4) = A @ B`` for homogeneous transforms, as scalar loops (no temporary)."""
+    for r in range(4):
+        for c in range(4):
+            s = 0.0
+            for k in range(4):
+                s += A[r, k] * B[k, c]
+            out[r, c] = s
 
 
 @njit
