@@ -240,6 +240,7 @@ def _penalty_step(world, dt, m):
     c = _detect(world, margin, reach=reach, floor=floor)
     k = len(c)
     max_pen = max(float(c.depth.max()), 0.0) if k else 0.0
+    sweeps = 0   # of the friction solve
     if k:
         rel_vel = prepare.relative_velocity(world, c, m)
         rows = prepare.rows(world, c, prepare.inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel, m)
@@ -258,8 +259,9 @@ def _penalty_step(world, dt, m):
                                 iterations=st.solver_iterations, tolerance=st.solver_tolerance,
                                 direct_max=st.direct_max_contacts)
         if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
-            penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
-                                                 prepare.coefficients(world, c, m)[2], st.penalty.friction_velocity)
+            sweeps = penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
+                                                          prepare.coefficients(world, c, m)[2],
+                                                          st.penalty.friction_velocity, st.solver_iterations)
         used = inside | (res.impulse[:, 0] > 0.0)   # a speculative contact that did nothing is none
         rec = record(c, rows, res.impulse, vn0)
         world.contacts = rec if used.all() else rec.select(used)
@@ -279,7 +281,8 @@ def _penalty_step(world, dt, m):
         world.contacts = Contacts.empty()
         drift = world._advance_free(dt)
         iters, residual, work = 0, 0.0, 0.0
-    unconverged = iters >= st.solver_iterations and residual > st.solver_tolerance
+    # the friction solve stopped by the sweep limit, not its tolerance, counts as unconverged too
+    unconverged = (iters >= st.solver_iterations and residual > st.solver_tolerance) or sweeps >= st.solver_iterations
     world.last_solve = StepStats(iterations=iters, residual=residual, unconverged=unconverged, max_penetration=max_pen,
                                  contacts=len(world.contacts), toi=m.toi, response=m.response,
                                  kinematic_work=work, rotation_drift=drift)

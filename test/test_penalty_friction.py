@@ -101,3 +101,22 @@ def test_friction_velocity_setting_is_checked_and_warned():
     w, _ = block_world(0.5, slope_deg=10.0, friction_velocity=0.01)
     with pytest.warns(PenaltyFrictionWarning, match="friction_velocity 0.01 m/s"):
         w.step()
+
+
+def test_a_friction_solve_stopped_at_the_sweep_limit_is_reported_unconverged():
+    """The penalty step's friction solve (Gauss–Seidel) runs to ``settings.solver_iterations`` and
+    counts as unconverged when that stops it, as the other solves do: a box sliding on the ground
+    (four coupled corner contacts) is unconverged after one sweep, converged with the default 100."""
+    import contact_sim as cs
+
+    def slide(iterations):
+        w = cs.World(settings=cs.Settings(response="penalty", dt=0.002, solver_iterations=iterations),
+                     materials={"m": cs.Material(friction=0.5)})
+        w.add_body("ground", cs.Plane(), kind="static", material="m")
+        w.add_body("box", cs.Box([0.2, 0.2, 0.2]), mass=1.0, position=[0, 0, 0.1 - 9.81 / w.settings.penalty.stiffness / 4],
+                   velocity=[1.0, 0.0, 0.0], material="m")
+        w.step()
+        return w.last_solve["unconverged"]
+
+    assert slide(1) is True
+    assert slide(100) is False

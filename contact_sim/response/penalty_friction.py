@@ -20,11 +20,10 @@ import numpy as np
 
 from . import pgs
 
-PGS_SWEEPS = 12        # sweeps at most: the stick/slip projection converges slowly near the cap, and
-PGS_TOLERANCE = 1e-6   # the stopping distance and hold are within 1e-3 of exact by then (tests)
+PGS_TOLERANCE = 1e-6   # relative: the stopping distance and hold are within 1e-3 of exact by then (tests)
 
 
-def solve_with_friction(rows, vel, omega, lam, target_n, compliance_n, mu, v_reg, iterations=PGS_SWEEPS,
+def solve_with_friction(rows, vel, omega, lam, target_n, compliance_n, mu, v_reg, iterations,
                         tolerance=PGS_TOLERANCE):
     """Add the regularised Coulomb friction to a penalty solve, in place.
 
@@ -36,7 +35,10 @@ def solve_with_friction(rows, vel, omega, lam, target_n, compliance_n, mu, v_reg
     below the centre of mass) is answered by the springs in the same solve: friction solved after
     the normal impulses alone rocked a block on an incline into a slow walk. Stops when a sweep
     changes no impulse by more than ``tolerance`` × the largest one, or after ``iterations``
-    sweeps. Returns the sweeps done."""
+    sweeps (the step passes ``settings.solver_iterations``). Returns the sweeps done. A fixed 12
+    sweeps left a light ball squeezed between the ground and a ball 866 times heavier (k dt²/m =
+    54) with normal impulses a quarter of its springs' forces: the spring compressed by work no
+    force did, +612 J in a step; 20 sweeps converge there."""
     k = len(rows.a)
     if k == 0 or not np.any(mu > 0):
         return 0
