@@ -61,6 +61,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_mesh_mesh.py
 	$(PY) bench/bench_robot.py
 	$(PY) bench/bench_panda.py
+	$(PY) bench/bench_node.py --panda
 	$(PY) bench/bench_collide.py
 	$(PY) -m pytest -q -m "hard or stability" -s -p no:cacheprovider | grep -o "HARD .*" | sed "s/^HARD //" > bench/results/hard_cases.txt
 	$(PY) bench/report.py

@@ -67,15 +67,18 @@ def grid_scene(n_bodies, path):
 
 
 class Node:
-    def __init__(self, dom, scene, log_path, rate_hz=100.0, window=500, defaults=False, thread_priority=0):
+    def __init__(self, dom, scene, log_path, rate_hz=100.0, window=500, defaults=False, thread_priority=0, extra=()):
         """The node on ``scene``; ``defaults``: the node's own defaults (markers on, the scene's
         tracked bodies), else the grid scenes' set-up (no markers, the paddle tracked);
-        ``thread_priority``: its parameter (SCHED_FIFO for the ticks' thread, 0 none)."""
+        ``thread_priority``: its parameter (SCHED_FIFO for the ticks' thread, 0 none); ``extra``:
+        more ``name:=value`` parameters."""
         self.log = open(log_path, "w")
         cmd = [sys.executable, "-m", "msg_adapters", "--ros-args", "-p", f"scene:={scene}",
                "-p", f"rate_hz:={rate_hz}", "-p", f"stats_window:={window}", "-p", f"thread_priority:={thread_priority}"]
         if not defaults:
             cmd += ["-p", "publish_markers:=false", "-p", "tracked_bodies:=[paddle]", "-p", "pose_timeout:=5.0"]
+        for p in extra:
+            cmd += ["-p", p]
         self.proc = subprocess.Popen(cmd, env=ros_env(dom), stdout=self.log, stderr=subprocess.STDOUT)
 
     def stop(self):
@@ -225,6 +228,103 @@ def pose_input(cl, spin, rate, seconds, n_bodies):
                 latency_p99_ms=np.percentile(lat, 99) if lat.size else np.nan)
 
 
+def panda_scene(path, n_objects=20):
+    """``bench_panda``'s cell without the robot (the node gets it on ``robot_description``): a
+    floor, a table 0.4 m high, ``n_objects`` boxes and spheres on it."""
+    bodies = [{"name": "floor", "kind": "static", "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 0.0}},
+              {"name": "table", "kind": "static", "shape": {"type": "box", "size": [0.6, 1.0, 0.4]},
+               "position": [0.75, 0.0, 0.2]}]
+    for i in range(n_objects):
+        box = i % 2 == 0
+        bodies.append({"name": f"obj{i}", "kind": "dynamic", "mass": 0.2,
+                       "shape": {"type": "box", "size": [0.05, 0.05, 0.05]} if box else {"type": "sphere", "radius": 0.03},
+                       "position": [0.55 + 0.1 * (i % 5), -0.35 + 0.2 * (i // 5), 0.4 + (0.025 if box else 0.03)]})
+    with open(path, "w") as fh:
+        yaml.safe_dump({"name": "panda_cell", "gravity": [0, 0, -9.81], "bodies": bodies}, fh)
+    return path
+
+
+def run_panda(seconds, tmp, rows, thread_priority=0, round_=1):
+    """The node at 1 kHz (one 1 ms step a tick) with ``bench_panda``'s cell: the Panda of
+    pybullet_data sent on ``robot_description`` as robot_state_publisher sends it (its meshes found
+    through the ``package_paths`` parameter: the text has no folder of its own), its seven joints
+    driven by ``joint_states`` at 1 kHz (``bench_panda``'s sinusoids, stamped now). The node's tick
+    statistics over ``seconds`` after a 2 s warm-up (the objects settle), and the joint states
+    sent, received, accepted and refused in the window (sent is counted here and received by the
+    node between two diagnostics messages, so their difference is not a count of drops: the node
+    applies the newest state each tick and needs no other)."""
+    import pybullet_data
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header, String
+
+    from bench_panda import JOINTS, angles, panda_urdf
+
+    scene = panda_scene(os.path.join(tmp, "panda_cell.yaml"))
+    folder = os.path.join(pybullet_data.getDataPath(), "franka_panda")
+    rate_hz, window = 1000, int(round(seconds * 1000))
+    with domain_id() as dom:
+        os.environ.update(ros_env(dom))
+        log = os.path.join(tmp, f"node_panda_p{thread_priority}_{round_}.log")
+        node = Node(dom, scene, log, rate_hz=rate_hz, window=window, defaults=True, thread_priority=thread_priority,
+                    extra=("publish_markers:=false", "pose_timeout:=5.0", f"package_paths:=[{folder}]"))
+        try:
+            with ros_context(dom) as ctx:
+                cl = Client(ctx)
+                latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+                desc = cl.node.create_publisher(String, "robot_description", latched)
+                joints = cl.node.create_publisher(JointState, "joint_states", 100)
+                with open(panda_urdf()) as fh:
+                    desc.publish(String(data=fh.read()))
+                spin = Spinner(ctx, cl.node)
+                spin.until(lambda: cl.diag is not None and int(cl.diag.get("robot_descriptions", 0)) == 1, 60,
+                           "the node with the Panda")
+                t0 = time.time_ns()
+                sent = [0]
+
+                def pump(pred, timeout, what):
+                    """Joint states at 1 kHz while waiting for ``pred``."""
+                    deadline = time.monotonic() + timeout
+                    while not pred():
+                        now = time.time_ns()
+                        while t0 + sent[0] * 1_000_000 <= now:
+                            t = (now - t0) * 1e-9
+                            joints.publish(JointState(header=Header(stamp=cv.ns_to_stamp(now)), name=JOINTS,
+                                                      position=[float(x) for x in angles(t)]))
+                            sent[0] += 1
+                        spin.executor.spin_once(timeout_sec=0.0002)
+                        if time.monotonic() > deadline:
+                            raise TimeoutError(f"waiting for {what}")
+
+                t_end = time.monotonic() + 2.0
+                pump(lambda: time.monotonic() > t_end, 10, "the warm-up")
+                seen = cl.diag_count
+                pump(lambda: cl.diag_count > seen, 5, "diagnostics after the warm-up")
+                d0, sent0 = dict(cl.diag), sent[0]
+                pump(lambda: int(cl.diag["ticks"]) >= int(d0["ticks"]) + window, seconds * 6 + 10, "the measured window")
+                d = cl.diag
+                delta = {k: int(d[k]) - int(d0[k]) for k in ("ticks", "tick_overruns", "tick_overruns_off_cpu",
+                                                             "skipped_ticks", "joint_states_received",
+                                                             "joint_states_accepted", "rejected_joint_states")}
+                rows.append(dict(test="tick_panda", round=round_, bodies=int(d["bodies"]), rate_hz=rate_hz,
+                                 samples=window, thread_priority=int(d["thread_priority"]),
+                                 p50_ms=float(d["tick_time_ms_p50"]), p99_ms=float(d["tick_time_ms_p99"]),
+                                 max_ms=float(d["tick_time_ms_max"]), ticks=delta["ticks"],
+                                 cpu_p99_ms=float(d["tick_cpu_ms_p99"]), cpu_max_ms=float(d["tick_cpu_ms_max"]),
+                                 overruns=delta["tick_overruns"], overruns_startup=int(d0["tick_overruns"]),
+                                 overruns_off_cpu=delta["tick_overruns_off_cpu"], skipped_ticks=delta["skipped_ticks"],
+                                 contacts=int(d["contacts"]), sent=sent[0] - sent0,
+                                 received=delta["joint_states_received"],
+                                 accepted=delta["joint_states_accepted"], refused=delta["rejected_joint_states"]))
+                spin.shutdown()
+                cl.node.destroy_node()
+        finally:
+            rc = node.stop()
+            if rc != 0:
+                print(f"node for the Panda exited with {rc}; log in {tmp}", file=sys.stderr)
+
+
 def platform_probe(tick_row, seconds):
     """``bench/platform_probe.py`` in its own process, as the node runs: a loop of constant work as
     long as the tick's p50 in ``tick_row``, at its rate and scheduler, over ``seconds``. Its overruns
@@ -264,7 +364,8 @@ def engine_timing(n_bodies, seconds, tmp):
 
 COLUMNS = ["test", "round", "bodies", "rate_hz", "thread_priority", "samples", "p50_ms", "p99_ms", "max_ms", "cpu_p99_ms", "cpu_max_ms", "ticks",
            "overruns", "overruns_off_cpu", "overruns_startup",
-           "skipped_ticks", "contacts", "sent", "received", "dropped", "latency_p50_ms", "latency_p99_ms"]
+           "skipped_ticks", "contacts", "sent", "received", "dropped", "accepted", "refused", "latency_p50_ms",
+           "latency_p99_ms"]
 
 
 def main():
@@ -277,9 +378,19 @@ def main():
                     help="the node's thread_priority for the second 1 kHz run (SCHED_FIFO; default 50)")
     ap.add_argument("--rounds", type=int, default=3,
                     help="rounds of the 1 kHz cases (node and probe, both schedulers, taking turns; default 3)")
+    ap.add_argument("--panda", action="store_true",
+                    help="only the Panda cell at 1 kHz (bench_panda's, through robot_description and joint_states; "
+                         "needs pybullet_data); writes bench/results/node_panda.csv")
     args = ap.parse_args()
     rows = []
     tmp = tempfile.mkdtemp(prefix="bench_node_")
+    if args.panda:
+        for k in range(args.rounds):
+            for prio in (0, args.thread_priority):
+                run_panda(args.seconds, tmp, rows, thread_priority=prio, round_=k + 1)
+                rows.append(dict(platform_probe(rows[-1], args.seconds), round=k + 1))
+        _write(rows, os.path.join(HERE, "results", "node_panda.csv"))
+        return
     if args.engine:
         rows = [engine_timing(n, args.seconds, tmp) for n in args.bodies]
         out = os.path.join(HERE, "results", "response.engine_step.csv")
@@ -310,23 +421,28 @@ def main():
     import contact_sim as cs
     run_scene(len(cs.load_scene(default_scene_path())), args.seconds, tmp, rows, scene=default_scene_path(),
               test="tick_default")
-    os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
-    with open(RESULTS, "w", newline="") as fh:
+    _write(rows, RESULTS)
+
+
+def _write(rows, path):
+    """``rows`` to the CSV ``path`` and as a table."""
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, COLUMNS)
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in r.items()})
     print(f"{'test':<14}{'bodies':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}{'cpu max':>9}{'overrun':>8}{'offcpu':>7}"
           f"{'start':>6}{'contacts':>9}"
-          f"{'sent':>7}{'dropped':>8}{'lat p50':>9}{'lat p99':>9}")
+          f"{'sent':>7}{'dropped':>8}{'refused':>8}{'lat p50':>9}{'lat p99':>9}")
     for r in rows:
         def f(k):
             v = r.get(k, "")
             return f"{v:.3g}" if isinstance(v, float) else str(v)
         print(f"{r['test']:<14}{r['bodies']:>7}{f('p50_ms'):>9}{f('p99_ms'):>9}{f('max_ms'):>9}{f('cpu_max_ms'):>9}"
               f"{f('overruns'):>8}{f('overruns_off_cpu'):>7}"
-              f"{f('overruns_startup'):>6}{f('contacts'):>9}{f('sent'):>7}{f('dropped'):>8}{f('latency_p50_ms'):>9}{f('latency_p99_ms'):>9}")
-    print(f"wrote {RESULTS}")
+              f"{f('overruns_startup'):>6}{f('contacts'):>9}{f('sent'):>7}{f('dropped'):>8}{f('refused'):>8}{f('latency_p50_ms'):>9}{f('latency_p99_ms'):>9}")
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
