@@ -3,8 +3,8 @@
 The world replaces (never edits in place) its per-body arrays when a body is added, so a value
 derived from them stays valid while the very same array objects are there. ``derived`` holds them
 and compares by identity (an ``id()`` alone could be reused by a later array); ``key`` adds
-plain values compared by equality (settings, a step size). Everything lives in one dict on the
-object, so it goes with the world.
+plain values compared by equality (settings, a step size). Everything lives in the object's own
+declared dict ``_derived`` (``World._derived``), so it goes with the world.
 """
 from operator import is_
 
@@ -12,9 +12,7 @@ from operator import is_
 def derived(obj, name, deps, build, key=None):
     """``build()``, cached on ``obj`` under ``name`` until one of ``deps`` (objects, compared by
     identity) is replaced or ``key`` (compared by equality) changes."""
-    memo = obj.__dict__.get("_cs_memo")
-    if memo is None:
-        memo = obj.__dict__["_cs_memo"] = {}
+    memo = obj._derived
     hit = memo.get(name)
     # a hit is the usual case, several times a step: ``map(is_)`` compares without a generator frame
     if (hit is None or hit[1] != key or len(hit[0]) != len(deps)

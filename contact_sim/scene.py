@@ -176,7 +176,7 @@ def add_scene_robot(world, r, path, base_dir):
     touching = r.get("exclude_touching", True)
     if not isinstance(touching, bool):
         raise SceneError(f"{path}.exclude_touching", f"must be true or false, got {touching!r}")
-    saved = world._snapshot(), world.robots, world.disabled_pairs
+    saved = world._save_bodies(), world.robots, world.disabled_pairs
     try:
         names = robot.add_urdf(world, urdf, prefix, pose, r.get("joint_positions"), pkg, r.get("convex_meshes", False),
                                r.get("material"), where=path, srdf=srdf, disable_collisions=pairs,
@@ -184,7 +184,7 @@ def add_scene_robot(world, r, path, base_dir):
     except SceneError:
         raise
     except ContactSimError as exc:
-        world._restore(saved[0])
+        world._restore_bodies(saved[0])
         world.robots, world.disabled_pairs = saved[1], saved[2]
         raise _as_scene_error(exc) from None
     return names

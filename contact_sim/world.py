@@ -6,7 +6,7 @@ gave (for primitives the two coincide).
 """
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,8 +52,30 @@ class Body:
     material: str
 
 
+@dataclass(frozen=True)
+class Snapshot:
+    """A world's state at ``World.snapshot()``, for ``World.restore``: what a step and the state
+    inputs (poses, velocities, joint positions) change, and nothing the scene fixes.
+
+    ``state``: the bodies' ``_State`` (motion and the poses given); ``time`` (s); ``contact_cache``:
+    what a step carries to the next (warm starts, the preflight record); the last step's outputs
+    ``contacts``, ``last_solve``, ``last_detection``; ``robots``: per robot its model and joint
+    record ``(model, q, qd, t, before)``; ``bodies``: the body set it belongs to (the world's
+    ``kind`` array, replaced whenever a body is added or removed)."""
+
+    state: "_State"
+    time: float
+    contact_cache: ContactCache
+    contacts: Contacts
+    last_solve: StepStats
+    last_detection: object
+    robots: tuple
+    bodies: np.ndarray
+
+
 class _State:
-    """Per-body motion arrays; copied whole for reset and for refusing bad input atomically."""
+    """Per-body state arrays (a row per body): the motion a step advances and the poses given to
+    kinematic bodies; copied whole by ``World.snapshot``, ``reset`` and input refused atomically."""
 
     NAMES = ("pos", "vel", "quat", "omega", "principal_q", "principal_moments", "stamp", "posed", "pose_pos",
              "pose_quat")
@@ -76,15 +98,6 @@ class _State:
     def copy(self):
         c = _State.__new__(_State)   # not __init__: its empty arrays would be replaced at once
         for n in self.NAMES:
-            setattr(c, n, getattr(self, n).copy())
-        return c
-
-    def motion_copy(self):
-        """A state that undoes a step: the ``MOTION`` arrays copied, the others shared (a step never
-        writes them; a test checks it)."""
-        c = _State.__new__(_State)
-        c.__dict__.update(self.__dict__)
-        for n in self.MOTION:
             setattr(c, n, getattr(self, n).copy())
         return c
 
@@ -147,6 +160,9 @@ class World(BodyInput):
         self._initial = None
         self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
         self.last_solve = StepStats()  # statistics of the last step (zeros before the first)
+        # tables derived from the model, rebuilt when what they derive from is replaced (``memo``)
+        self._derived = {}
+        self._body_masks = None
         # robots from URDF (contact_sim.robot.RobotModel): kinematic trees whose links are bodies here
         self.robots = []
         # body-name pairs (sorted tuples) never tested for contact (adjacent robot links, ...);
@@ -191,7 +207,7 @@ class World(BodyInput):
     def body_masks(self):
         """``kinds.BodyMasks`` of the current bodies and gravity, cached until a body is added or
         removed, a kind changes or gravity is assigned: what every step reads (never write into them)."""
-        hit = self.__dict__.get("_body_masks")   # read several times a step: identity checks only
+        hit = self._body_masks   # read several times a step: identity checks only
         if hit is None or hit[0] is not self.kind or hit[1] is not self.particle or hit[2] is not self._gravity:
             hit = self._body_masks = (self.kind, self.particle, self._gravity,
                                       body_masks(self.kind, self.particle, self._gravity))
@@ -340,7 +356,7 @@ class World(BodyInput):
         ``add_body`` arguments (``name``, ``shape`` and its keywords). All or nothing: when one is
         refused the world is exactly as before (same arrays, so its caches stay valid) and the error
         names that body."""
-        saved = self._snapshot()
+        saved = self._save_bodies()
         try:
             out = []
             for i, b in enumerate(bodies):
@@ -354,15 +370,16 @@ class World(BodyInput):
                     raise ContactSimError(f"add_bodies[{i}]: {exc}") from None
             return out
         except BaseException:
-            self._restore(saved)
+            self._restore_bodies(saved)
             raise
 
-    def _snapshot(self):
-        """The per-body data as it is now (add_body replaces arrays, never edits them in place)."""
+    def _save_bodies(self):
+        """The per-body data as it is now (add_body replaces arrays, never edits them in place), for
+        ``_restore_bodies`` to undo an edit of the body set that failed part-way."""
         return ({n: getattr(self, n) for n in BODY_ARRAYS}, {n: list(getattr(self, n)) for n in BODY_LISTS},
                 dict(self._index), {n: getattr(self.s, n) for n in _State.NAMES}, self._initial)
 
-    def _restore(self, saved):
+    def _restore_bodies(self, saved):
         arrays, lists, index, state, initial = saved
         for n, v in {**arrays, **lists}.items():
             setattr(self, n, v)
@@ -395,7 +412,7 @@ class World(BodyInput):
         c.body_a, c.body_b = new_index[c.body_a], new_index[c.body_b]
         self.contacts = c
         self.contact_cache.remap(new_index)
-        self.__dict__.pop("_cs_memo", None)       # every derived table is rebuilt for the new body set
+        self._derived = {}       # every derived table is rebuilt for the new body set
         gone = set(names)
         self.disabled_pairs = {p for p in self.disabled_pairs if not (p[0] in gone or p[1] in gone)}
         # a robot missing a link body can no longer be posed as a whole: it is dropped (its other
@@ -502,37 +519,53 @@ class World(BodyInput):
         non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
         is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
-        # the stepper edits the state arrays in place and replaces the other per-step attributes:
-        # a copy of the one and a shallow copy of the other undo any step
-        saved = self.s.motion_copy(), dict(self.__dict__)
+        saved = self.snapshot()
         try:
             stepper.step(self, dt)
         except ContactSimError as exc:
             # every input was checked before the step: a refusal from inside it is the engine's own
             # failure (an internal query handed a bad value), not the caller's bad input
-            self._undo(saved)
+            self.restore(saved)
             if isinstance(exc, EngineError):
                 raise
             raise EngineError(f"step: an internal query failed ({exc}); the world is as it was before this "
                               f"step (a failure on valid input, please report it)") from exc
         except BaseException:
-            self._undo(saved)
+            self.restore(saved)
             raise
         bad = self._nonfinite_bodies()
         if bad.size:
             # the invariant guard: the engine never leaves a non-finite state behind; the step is
             # undone and the bodies are named, so a caller (the node) can keep its last good world
-            self._undo(saved)
+            self.restore(saved)
             names = ", ".join(repr(self._names[i]) for i in bad[:10]) + (" ..." if bad.size > 10 else "")
             raise EngineError(f"step: the state of {bad.size} bod{'y' if bad.size == 1 else 'ies'} ({names}) "
                               f"would have become non-finite (a failure on valid input, please report it); "
                               f"the world is as it was before this step")
 
-    def _undo(self, saved):
-        state, attributes = saved
-        self.__dict__.clear()
-        self.__dict__.update(attributes)
-        self.s = state
+    def snapshot(self):
+        """What stepping and the state inputs change, as it is now (``Snapshot``, copies):
+        ``restore`` puts it back. ``step`` takes one to be all or nothing; the node takes one
+        around a tick's sub-steps. The model (bodies, shapes, materials, settings) is not in it."""
+        return Snapshot(self.s.copy(), self.time, replace(self.contact_cache), self.contacts, self.last_solve,
+                        self.last_detection, tuple((r, dict(r.q), dict(r.qd), dict(r.t), dict(r.before))
+                                                   for r in self.robots), self.kind)
+
+    def restore(self, snapshot):
+        """The state ``snapshot`` (from ``snapshot()`` on this world) holds, back in place; refused
+        (``ContactSimError``, the world unchanged) when bodies were added or removed since."""
+        if not isinstance(snapshot, Snapshot):
+            raise ContactSimError(f"restore: snapshot must be a World.snapshot(), got {type(snapshot).__name__}")
+        if snapshot.bodies is not self.kind or any(r not in self.robots for r, *_ in snapshot.robots):
+            raise ContactSimError(f"restore: the snapshot is of other bodies ({len(snapshot.bodies)} then, "
+                                  f"{len(self)} now): bodies or robots were added or removed since")
+        self.s = snapshot.state.copy()
+        self.time = snapshot.time
+        self.contact_cache = replace(snapshot.contact_cache)
+        self.contacts, self.last_solve, self.last_detection = snapshot.contacts, snapshot.last_solve, \
+            snapshot.last_detection
+        for r, q, qd, t, before in snapshot.robots:
+            r.q, r.qd, r.t, r.before = dict(q), dict(qd), dict(t), dict(before)
 
     def _nonfinite_bodies(self):
         """Indices ``(B,)`` of bodies with a non-finite position, velocity or orientation (one sum per

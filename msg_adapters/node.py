@@ -458,7 +458,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self._hold_timed_out(now_ns * 1e-9)
         self._hold_robot(now_ns * 1e-9)
         substeps = self.cfg["substeps"]
-        saved, t_saved = world.s.copy(), world.time
+        saved = world.snapshot()   # every sub-step or none: a failure puts the world back as it was
         dt = self.period / substeps
         parts = []
         t0 = time.perf_counter()
@@ -469,7 +469,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
                 if world.last_solve.unconverged:   # a solve stopped at its iteration limit (diagnostics)
                     self.counts["unconverged_steps"] += 1
         except Exception as exc:  # an engine failure (ContactSimError from its guard, or a bug) must not take the node down
-            world.s, world.time = saved, t_saved
+            world.restore(saved)   # the bodies, time, contact cache (warm starts) and joint records
             world.contacts = self.contacts
             self.counts["step_errors"] += 1
             self._last_step_error = f"{type(exc).__name__}: {exc}"

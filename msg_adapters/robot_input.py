@@ -134,7 +134,7 @@ class RobotInput:
             srdf = self._robot_srdf = None
             contact_sim.World(settings=world.settings).add_urdf(urdf, prefix=prefix, exclude_touching=False, **place)
         # the contact cache too: what the stepper carries between steps (renumbered by the removal)
-        saved = (world._snapshot(), world.robots, world.disabled_pairs, world.contacts,
+        saved = (world._save_bodies(), world.robots, world.disabled_pairs, world.contacts,
                  dataclasses.replace(world.contact_cache))
         try:
             if self._robot is not None and self._robot in world.robots:
@@ -142,10 +142,10 @@ class RobotInput:
             world.add_urdf(urdf, prefix=prefix, srdf=srdf, disable_collisions=self.cfg["robot_disable_collisions"],
                            exclude_touching=self.cfg["robot_exclude_touching"], **place)
         except BaseException:   # e.g. a link named like a scene body
-            world._restore(saved[0])
+            world._restore_bodies(saved[0])
             world.robots, world.disabled_pairs, world.contacts = saved[1:4]
             world.contact_cache = saved[4]
-            world.__dict__.pop("_cs_memo", None)
+            world._derived = {}
             raise
         self._robot = world.robots[-1]
         self._robot_urdf = urdf

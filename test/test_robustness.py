@@ -237,9 +237,9 @@ def test_a_step_that_would_leave_a_non_finite_state_is_undone_and_names_the_bodi
 
 @pytest.mark.parametrize("response, toi", [("impulse", "next_step"), ("impulse", "fractional"), ("penalty", "auto")])
 def test_a_step_writes_only_the_motion_arrays_its_undo_copies(response, toi):
-    """``World.step`` undoes a failed step from a copy of ``_State.MOTION`` only, sharing the
-    other state arrays: a step (impacts, resting, a kinematic body driven by poses, a tumbling
-    body) must never write those."""
+    """A step (impacts, resting, a kinematic body driven by poses, a tumbling body) writes the
+    ``_State.MOTION`` arrays and never the poses given (``stamp``, ``posed``, ``pose_pos``,
+    ``pose_quat``, the principal frames): those are the inputs' alone."""
     w = _ground_world()
     w.settings = cs.Settings(response=response, toi=toi)
     w.add_body("paddle", cs.Box([0.05, 0.4, 0.3]), kind="kinematic", position=[-0.3, 0, 0.15])

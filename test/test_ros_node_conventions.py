@@ -413,10 +413,12 @@ def test_engine_step_error_is_an_error_in_diagnostics_and_the_world_is_kept(manu
     node, client, spin = manual()
     tick(node, spin, client, "diag")
     world = node.world
-    before, t = world.s.copy(), world.time
+    before, t, warm = world.s.copy(), world.time, world.contact_cache.warm
+    assert warm is not None                # the node's scene rests: warm starts to keep
 
     def broken(dt=None):
         world.s.pos[2] = np.nan                  # what a half-done step could leave
+        world.contact_cache.warm = None
         raise contact_sim.ContactSimError("step: non-finite state of body 'ball' (velocity)")
 
     monkeypatch.setattr(world, "step", broken)
@@ -430,6 +432,8 @@ def test_engine_step_error_is_an_error_in_diagnostics_and_the_world_is_kept(manu
     assert d["step_errors"] == "1" and "non-finite" in d["last_step_error"]
     np.testing.assert_array_equal(world.s.pos, before.pos)
     assert world.time == t
+    for x, y in zip(world.contact_cache.warm, warm):   # warm starts as they were (World.restore)
+        np.testing.assert_array_equal(x, y)
     monkeypatch.undo()
     tick(node, spin, client, "diag")             # and the node goes on
     assert world.time > t and client.diag().level != DiagnosticStatus.ERROR

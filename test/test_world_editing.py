@@ -238,3 +238,102 @@ def test_gravity_is_assigned_not_edited_in_place():
     assert w.gravity_norm() == 1.62 and np.array_equal(w.body_masks().gravity[0], [0, 0, -1.62])
     w.step(0.1)
     assert w.body("ball").velocity[2] == pytest.approx(-0.162, rel=1e-12)
+
+
+# ---------------------------------------------------------------- snapshot / restore
+def _contact_state(w):
+    warm = w.contact_cache.warm
+    return (w.time, w.s.pos.copy(), w.s.vel.copy(), w.s.quat.copy(), w.s.omega.copy(),
+            None if warm is None else tuple(x.copy() for x in warm), w.contact_cache.preflight_dt)
+
+
+def _assert_same(x, y):
+    assert len(x) == len(y)
+    for u, v in zip(x, y):
+        if isinstance(u, tuple):
+            _assert_same(u, v)
+        elif isinstance(u, np.ndarray):
+            np.testing.assert_array_equal(u, v)
+        else:
+            assert u == v
+
+
+def test_restore_returns_the_state_a_step_changes_and_the_steps_after_repeat_bit_for_bit():
+    """``snapshot`` holds the motion, time, contact cache (warm starts) and the last step's outputs:
+    after ``restore`` the same steps give the same states and warm starts, bit for bit."""
+    w = scene()
+    for _ in range(30):
+        w.step()
+    assert w.contact_cache.warm is not None and len(w.contact_cache.warm[0])   # warm starts to restore
+    snap = w.snapshot()
+    before, contacts, solve = _contact_state(w), w.contacts, w.last_solve
+    run = []
+    for _ in range(20):
+        w.step()
+        run.append(_contact_state(w))
+    w.restore(snap)
+    _assert_same(_contact_state(w), before)
+    assert w.contacts is contacts and w.last_solve is solve
+    for k in range(20):
+        w.step()
+        _assert_same(_contact_state(w), run[k])
+    w.restore(snap)                          # a snapshot restores as often as asked
+    _assert_same(_contact_state(w), before)
+
+
+def test_restore_puts_back_the_poses_given_and_the_robots_joint_record(tmp_path):
+    from robot_arm import arm_urdf, write_gripper_mesh
+
+    w = cs.World()
+    w.add_body("ground", cs.Plane(), kind="static")
+    w.add_urdf(arm_urdf(write_gripper_mesh(tmp_path / "grip.stl")), prefix="arm_")
+    w.add_body("paddle", cs.Box([0.1] * 3), kind="kinematic", position=[1, 0, 0.5])
+    w.set_joint_positions(["arm_shoulder"], [0.1], stamp=0.01)
+    w.set_pose("paddle", [1, 0, 0.6], [0, 0, 0, 1], stamp=0.01)
+    w.step()
+    snap = w.snapshot()
+    q, s = dict(w.robots[0].q), w.s.copy()
+    w.set_joint_positions(["arm_shoulder"], [0.3], stamp=0.02)
+    w.set_pose("paddle", [1, 0, 0.9], [0, 0, 0, 1], stamp=0.02)
+    w.restore(snap)
+    assert w.robots[0].q == q
+    for n in s.NAMES:
+        np.testing.assert_array_equal(getattr(w.s, n), getattr(s, n))
+    # the joint's and the pose's last stamps are those of the snapshot: 0.02 is after them again
+    w.set_joint_positions(["arm_shoulder"], [0.3], stamp=0.02)
+    w.set_pose("paddle", [1, 0, 0.9], [0, 0, 0, 1], stamp=0.02)
+    assert w.robots[0].q["arm_shoulder"] == 0.3
+
+
+def test_restore_refuses_a_snapshot_of_another_body_set_and_changes_nothing():
+    w = scene()
+    snap = w.snapshot()
+    w.step()
+    w.add_body("late", cs.Sphere(0.1), mass=1.0, position=[5, 0, 1])
+    before = _contact_state(w)
+    with pytest.raises(cs.ContactSimError, match=r"restore: the snapshot is of other bodies \(6 then, 7 now\)"):
+        w.restore(snap)
+    _assert_same(_contact_state(w), before)
+    with pytest.raises(cs.ContactSimError, match="restore: snapshot must be a World.snapshot"):
+        w.restore(before)
+
+
+@pytest.mark.parametrize("settings", [dict(), dict(response="penalty"), dict(toi="fractional"),
+                                      dict(toi="swept"), dict(response="kinematic")])
+def test_stepping_adds_no_attribute_to_the_world(settings):
+    """What a step keeps between steps is declared in ``World.__init__`` (state, contact cache,
+    derived tables): no stage adds an attribute to the world at run time."""
+    import warnings
+
+    w = scene()
+    declared = set(vars(w))
+    assert declared == set(vars(cs.World()))
+    w.settings = cs.Settings(**settings)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for i in range(40):
+            w.set_pose("paddle", [2.0 - 0.02 * i, 0, 0.5], [0, 0, 0, 1], stamp=w.time + w.settings.dt)
+            w.step()
+    w.detect()
+    w.describe()
+    assert set(vars(w)) == declared

@@ -136,7 +136,7 @@ def _body_arrays(world):
     s = world.s
     raw = (s.principal_q, s.principal_moments, world.inertia_body, world.inv_mass, world.mass, world.particle,
            world.restitution, world.friction, world.static_friction, world.kind)
-    hit = world.__dict__.get("_step_bodies")
+    hit = world._derived.get("step_bodies")
     if hit is not None and all(map(is_, hit[0], raw)):
         return hit[1]
     cc = np.ascontiguousarray
@@ -144,7 +144,7 @@ def _body_arrays(world):
               cc(raw[4], dtype=float), cc(raw[5]), cc(raw[6], dtype=float), cc(raw[7], dtype=float),
               cc(raw[8], dtype=float), toi_mod._extents(world))
     if all(map(is_, arrays[:9], raw[:9])):   # world.kind: the shapes (the extents) changed with it
-        world.__dict__["_step_bodies"] = (raw, arrays)
+        world._derived["step_bodies"] = (raw, arrays)
     return arrays
 
 
