@@ -15,7 +15,8 @@ from .contacts import FEATURES, Contacts
 from .errors import BoundsError, ContactSimError, EngineError, SceneError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
 from .settings import Material, Settings
-from .shapes import Box, Convex, Cylinder, Plane, Sphere, TriMesh
+from .cylinder import Cylinder
+from .shapes import Box, Convex, Plane, Sphere, TriMesh
 from .stats import StepStats
 from .world import Body, World
 

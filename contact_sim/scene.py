@@ -3,7 +3,8 @@ import os
 
 from .errors import ContactSimError, SceneError
 from .settings import parse_material, parse_settings
-from .shapes import Box, Convex, Cylinder, Plane, Sphere, TriMesh
+from .cylinder import Cylinder
+from .shapes import Box, Convex, Plane, Sphere, TriMesh
 from .validate import POINTS, SCALE, check_keys
 from .world import World
 

@@ -330,7 +330,7 @@ class TriMesh(Polyhedron):
 
     def thinnest(self):
         # an open mesh (terrain, a floor tile) is a one-sided surface: everything behind it is inside
-        # (see collision.narrow), so, like a plane, it has no far side for a body to pass out of
+        # (see collision.meshes), so, like a plane, it has no far side for a body to pass out of
         return super().thinnest() if self.watertight else np.inf
 
     def mass_properties(self, density):
@@ -346,8 +346,3 @@ class TriMesh(Polyhedron):
 
     def __repr__(self):
         return f"TriMesh({len(self.vertices)} vertices, {len(self.faces)} faces)"
-
-
-from .cylinder import Cylinder  # noqa: E402  (a Convex subclass: defined after Convex)
-
-SHAPE_TYPES = {"plane": Plane, "sphere": Sphere, "box": Box, "convex": Convex, "mesh": TriMesh, "cylinder": Cylinder}

@@ -45,7 +45,7 @@ from .collision import detect_world
 from .collision.vec3 import rotations
 from .response import solver
 from .response import toi as toi_mod
-from .response import compiled_step, correction, impact, penalty_friction, prepare, resting
+from .response import compiled_step, correction, impact, penalty_friction, prepare, resting, swept
 from .response.cache import merge_records, record
 from .response.context import StepContext
 from .response.energy import kinematic_work
@@ -121,7 +121,7 @@ def _detect_stage(ctx):
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
     # the speculative margin finds the pairs; each pair's narrow phase takes only what its bodies can close
-    c = toi_mod.mark_swept(_detect(world, det_margin, ctx.R, reach, floor), ctx.swept_pair)   # the sweep's hit: feature swept
+    c = swept.mark_swept(_detect(world, det_margin, ctx.R, reach, floor), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
     ctx.look_ahead = (ctx.t_left, margin) if ctx.speculative and det_margin > margin else None
     ctx.contacts, ctx.rel_vel = c, None

@@ -11,7 +11,6 @@ import collections
 import gc
 import math
 import os
-import sys
 import time
 
 import numpy as np
@@ -34,7 +33,6 @@ from .robot_input import RobotInput
 from .config import (PARAMETERS, ConfigError, apply_model, build_world, resolve_tracked,  # noqa: F401
                      validate_config)
 from .conversions import CdrError, PoseError, engine_reject_reason, parse_posearray_cdr, validate_poses
-from .launch import main  # noqa: F401 (the console script's entry point, kept importable from here)
 from .publishing import POSE_REJECT_REASONS, Outputs, diag_name  # noqa: F401 (POSE_REJECT_REASONS: for users)
 
 NODE_NAME = "contact_sim"
@@ -502,7 +500,3 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
     def body_poses(self):
         """Body-frame origins (N, 3) and orientations (N, 4) of all bodies, vectorised."""
         return self.world.poses()
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -7,7 +7,7 @@ import contact_sim as cs
 from contact_sim import quat as Q
 from contact_sim.collision import collide, collide_pairs, detect_world
 from contact_sim.collision import bounding
-from contact_sim.collision.narrow import points_in_meshes
+from contact_sim.collision.meshes import points_in_meshes
 from contact_sim.contacts import FEATURES
 
 I = (0.0, 0.0, 0.0, 1.0)
@@ -100,7 +100,7 @@ def test_parity_robust_on_edges_and_vertices():
     # a unit box mesh: rays from points on the x axis in the direction of the first ray hit edges
     box = box_mesh((2, 2, 2))
     T = box.vertices[box.faces][None]
-    from contact_sim.collision.narrow import _RAYS
+    from contact_sim.collision.inside import RAYS as _RAYS
     for p in [np.zeros(3), -_RAYS[0] * 0.3, np.array([0.999, 0.999, 0.999])]:
         assert points_in_meshes(p[None], T, np.ones((1, len(box.faces)), bool))[0]
     assert not points_in_meshes(np.array([[1.5, 0, 0]]), T, np.ones((1, len(box.faces)), bool))[0]

@@ -21,7 +21,8 @@ from std_srvs.srv import SetBool, Trigger  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 from msg_adapters import conversions as cv  # noqa: E402
-from msg_adapters.node import DIAG_NAME, ConfigError, ContactSimNode, main  # noqa: E402
+from msg_adapters.launch import main  # noqa: E402
+from msg_adapters.node import DIAG_NAME, ConfigError, ContactSimNode  # noqa: E402
 from msg_adapters.testing import Spinner, ros_context, ros_env  # noqa: E402
 
 IDENTITY = np.array([[0.0, 0.0, 0.0, 1.0]])

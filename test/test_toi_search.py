@@ -2,6 +2,7 @@
 ``quat`` module's, its poses are the integrator's, its distances and times are the formulas'."""
 import numpy as np
 import pytest
+import trimesh
 
 import contact_sim as cs
 from contact_sim import dynamics, quat
@@ -106,19 +107,49 @@ def test_search_refines_a_spinning_approach_to_the_touching_instant():
 
 
 def test_the_compiled_table_is_the_narrow_phase_table():
-    # pair_kernels.call branches over a list of kernels: exactly dispatch.TABLE's, each type pair
-    # numbered to its own kernel
-    from contact_sim.collision import dispatch, pair_kernels
-    from contact_sim.collision.geometry import NRANK
+    """``pair_kernels.call`` branches on numbers: each type pair's number must reach the kernel
+    ``COLLIDERS`` gives it. Every type pair's scene is detected through ``call`` (a detection) and
+    by the table's own kernel called directly; the rows must be the same."""
+    from contact_sim.collision import _bodies_of, pair_kernels
+    from contact_sim.collision.geometry import RANK
 
-    dispatch._load()
-    assert set(pair_kernels.KERNELS) == set(dispatch.TABLE.values())
-    assert len(set(pair_kernels.KERNELS)) == len(pair_kernels.KERNELS)
-    for ra in range(NRANK):
-        for rb in range(ra + 1):
-            kernel = dispatch.TABLE.get((ra, rb))
+    cube = trimesh.creation.box(extents=[0.5, 0.5, 0.5])
+    tilt = np.array([0.1, 0.05, 0.0, 0.99]) / np.linalg.norm([0.1, 0.05, 0.0, 0.99])
+    shapes = {"plane": cs.Plane(), "sphere": cs.Sphere(0.3), "box": cs.Box([0.5, 0.4, 0.6]),
+              "convex": cs.Convex([[0, 0, 0], [0.6, 0, 0], [0, 0.6, 0], [0, 0, 0.6], [0.4, 0.4, 0.4]]),
+              "cylinder": cs.Cylinder(0.25, 0.6),
+              "mesh": cs.TriMesh(cube.vertices, cube.faces)}
+    assert pair_kernels.KERNELS == tuple(dict.fromkeys(pair_kernels.COLLIDERS.values()))
+    seen = set()
+    for ta, ra in RANK.items():
+        for tb, rb in RANK.items():
+            if rb > ra:
+                continue
             which = pair_kernels.index(ra, rb)
-            assert (which == -1) if kernel is None else pair_kernels.KERNELS[which] is kernel
+            if (ra, rb) == (0, 0):
+                assert which == -1
+                continue
+            w = cs.World(gravity=[0, 0, 0])
+            w.add_body("a", shapes[ta], kind="dynamic" if ta != "plane" else "static", mass=1.0,
+                       position=[0.0, 0.0, 0.0], orientation=tilt)
+            w.add_body("b", shapes[tb], kind="dynamic" if tb != "plane" else "static", mass=1.0,
+                       position={"plane": [0, 0, 0], "convex": [-0.1, -0.1, 0.0]}.get(tb, [0.05, 0.02, 0.3]))
+            if ta == tb == "plane":
+                continue
+            b = _bodies_of(w)
+            pos, R = w.s.pos.copy(), np.array([quat.to_matrix(q) for q in w.s.quat])
+            args = (*b.geom.arrays(), b.shape_of, np.array([0]), np.array([1]), pos, R, np.array([0.01]),
+                    np.zeros(3, np.int64), np.empty((4, 3), np.int64), np.empty((4, 7)))
+            got_i, got_f = np.empty((4, 3), np.int64), np.empty((4, 7))
+            n_call = pair_kernels.call(which, *args[:-2], got_i, got_f, pair_kernels.trees(b.geom))
+            kernel = pair_kernels.COLLIDERS[(ra, rb)]
+            extra = tuple(pair_kernels.trees(b.geom)) if kernel is pair_kernels.KERNELS[pair_kernels.MESH_MESH] else ()
+            n_direct = kernel(*args, *extra)
+            assert n_call == n_direct and n_call > 0, (ta, tb)
+            np.testing.assert_array_equal(got_i[:n_call], args[-2][:n_direct])
+            np.testing.assert_array_equal(got_f[:n_call], args[-1][:n_direct])
+            seen.add(kernel)
+    assert seen == set(pair_kernels.KERNELS)   # every kernel reached through its number
 
 
 @pytest.mark.parametrize("pair", ["box-box", "hull-sphere", "cylinder-box", "mesh-sphere", "mesh-hull", "mesh-mesh"])

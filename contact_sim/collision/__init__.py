@@ -18,7 +18,11 @@ Pipeline (cheapest test first, no Python loop over bodies, pairs or contacts):
    ``hull`` (face planes of the convex hull against the other's vertices / centre).
    ``auto`` = bounding sphere, then OBB: both are O(1) per pair and the OBB is exact for boxes,
    so together they reject most broad-phase survivors before any per-vertex work;
-3. narrow phase: one batch kernel per shape-type pair (``narrow.py``), polyhedra in the
+3. narrow phase: one batch kernel per shape-type pair (the table ``pair_kernels.COLLIDERS``;
+   ``primitives``: pairs with a sphere or a plane, exact closest points; ``polyhedra``: convex
+   pairs, SAT with Gauss-map pruning; ``manifold``: the face–face patch and its reduction to 4
+   points; ``meshes``, ``mesh_mesh``: triangle meshes, ray-parity inside-ness and AABB trees;
+   ``cylinders``; ``inside``: the lecture's vertex-inside tests by name), polyhedra in the
    lecture's order (vertex inside → edge–face) with the separating axis test for depth/normal.
 
 Margin semantics: a pair whose separation is ≤ ``margin`` is reported, with ``depth =

@@ -3,22 +3,18 @@
 Same signature as every kernel (``dispatch.KERNEL_ARGS``). The cylinder is A (its rank is above
 plane and sphere); its radius is ``sf[s, SF_RADIUS]``, its half length ``sf[s, SF_HALF + 2]``, its
 axis the body's local z. Every other pair with a cylinder goes through the generic convex kernels
-on its prism hull (registered at the end of this module), with the error bound of
+on its prism hull (``pair_kernels.COLLIDERS``), with the error bound of
 ``contact_sim.cylinder``.
 """
 import numpy as np
 
 from ..jit import njit
-from .dispatch import collider
-from .geometry import BOX, CONVEX, CYLINDER, MESH, PLANE, SF_HALF, SF_RADIUS, SPHERE
+from .geometry import SF_HALF, SF_RADIUS
 from .manifold import TOUCH_TOLERANCE
-from .meshes import mesh_poly
-from .polyhedra import poly_poly
 from .primitives import plane_contacts, plane_world, sphere_row
 from .vec3 import mv
 
 
-@collider((CYLINDER, PLANE))
 @njit
 def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                    out_i, out_f):
@@ -56,7 +52,6 @@ def cylinder_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a
     return k
 
 
-@collider((CYLINDER, SPHERE))
 @njit
 def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                     out_i, out_f):
@@ -99,8 +94,3 @@ def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, 
                 normal = -mv(Ra, nl / np.sqrt(nl[0] * nl[0] + nl[1] * nl[1] + nl[2] * nl[2]))
         k = sphere_row(out_i, out_f, k, i, sep, normal, cb, rb, margin)
     return k
-
-
-# every other pair: the prism hull through the generic convex and mesh kernels
-collider((CYLINDER, BOX), (CYLINDER, CONVEX), (CYLINDER, CYLINDER))(poly_poly)
-collider((MESH, CYLINDER))(mesh_poly)

@@ -1,9 +1,9 @@
-"""The narrow phase's table: one compiled kernel per shape-type pair, one signature for all.
+"""The narrow phase's kernels' one signature, and the batch's grouping by type pair around them.
 
-As MJX's ``_COLLISION_FUNC`` and its ``collider`` decorator: ``@collider((BOX, SPHERE), ...)``
-registers a kernel under the (A rank, B rank) pairs it handles (A of the higher rank, see
-``geometry.RANK``). Every kernel is a compiled loop over its pairs with the arguments
-``KERNEL_ARGS`` and returns the number of contact rows written (at most 4 per pair):
+Each shape-type pair (A of the higher rank, see ``geometry.RANK``) has one kernel, in the literal
+table ``pair_kernels.COLLIDERS`` (as MJX's ``_COLLISION_FUNC``). Every kernel is a compiled loop
+over its pairs with the arguments ``KERNEL_ARGS`` and returns the number of contact rows written
+(at most 4 per pair):
 
     kernel(sf, si, verts, planes, faces, loops, edges, tris,   # geometry.GeomTable.arrays()
            shape_of (N,), a (K,), b (K,),                       # body -> table row; the pairs' bodies
@@ -19,38 +19,6 @@ from ..jit import njit
 
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
                "margins", "counters", "out_i", "out_f")
-TABLE = {}   # (rank A, rank B) -> kernel
-
-
-def collider(*keys):
-    """Register the decorated kernel for the shape-type pairs ``keys`` ((rank A, rank B) tuples).
-    A kernel that needs more than the table's arrays (mesh–mesh: its bounding-volume trees,
-    ``mesh_mesh.table_bvh``) gets them from ``pair_kernels.call``, after ``out_f``."""
-    def register(kernel):
-        for key in keys:
-            TABLE[key] = kernel
-        return kernel
-    return register
-
-
-_LOADED = []
-
-
-def _load():
-    # the modules that register kernels (imported here, not above: they import ``collider``). A
-    # flag, not an empty TABLE, says whether they are in: importing one of them elsewhere first
-    # (``narrow`` imports ``meshes``) fills part of the table
-    from . import cylinders, mesh_mesh, meshes, polyhedra, primitives  # noqa: F401
-    _LOADED.append(True)
-
-
-def kernel_for(ra, rb):
-    """The kernel of ranks ``ra >= rb``, or None (plane–plane: no kernel)."""
-    if not _LOADED:
-        _load()
-    return TABLE.get((ra, rb))
-
-
 @njit
 def group_by_type(a, b, ranks, nrank):
     """Pairs ``a, b (K,)`` in the stable order of their type-pair key ``rank A · nrank + rank B``:

@@ -29,7 +29,6 @@ import numpy as np
 
 from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POLY_VERTEX, fid
 from ..jit import njit
-from .dispatch import collider
 from .geometry import MESH, SF_BOX, SF_SCALE, SI_CLOSED, SI_NV, SI_P0, SI_T0, SI_V0
 from .inside import RAYS, ray_triangle
 from .manifold import F_EDGE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4
@@ -405,7 +404,6 @@ def _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, roo
     return c
 
 
-@collider((MESH, MESH))
 @njit
 def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
               out_i, out_f, nodes, boxes, perm, root, border):

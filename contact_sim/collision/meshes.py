@@ -16,10 +16,9 @@ import numpy as np
 
 from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POINT, FID_POLY_VERTEX, fid
 from ..jit import njit
-from .dispatch import collider
-from .geometry import BOX, CONVEX, MESH, SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
-    SI_T0, SPHERE
-from .inside import RAYS, parity_inside, plane_excess  # noqa: F401 (RAYS: older imports)
+from .geometry import SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
+    SI_T0
+from .inside import parity_inside, plane_excess
 from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4, put
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
@@ -54,7 +53,6 @@ def points_in_meshes(p, T, valid_t, eps=1e-9):
     return out
 
 
-@collider((MESH, SPHERE))
 @njit
 def mesh_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                 out_i, out_f):
@@ -202,7 +200,6 @@ def _crossing_sat(VP, nvp, NP, npp, EP, VM, NM, dM, npm, fM, loops, lo, hi):
     return depth, b0, b1, b2
 
 
-@collider((MESH, BOX), (MESH, CONVEX))
 @njit
 def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
               out_i, out_f):

@@ -1,10 +1,11 @@
-"""The narrow-phase table (``dispatch.TABLE``) callable from compiled code: ``call(which, ...)``.
+"""The narrow phase's table, ``COLLIDERS``: shape-type pair → kernel, and ``call(which, ...)``,
+the table callable from compiled code.
 
 Compiled code cannot look a kernel up in a dict, and a kernel handed to a compiled function as an
 argument breaks numba's on-disk cache (its index pickles the argument's type, a reference to the
-kernel that a later process cannot restore). So the table's distinct kernels are listed here in a
-fixed order, ``index(ra, rb)`` maps a type pair to its place through ``dispatch.TABLE`` itself,
-and ``call`` branches on that place. A test checks that the list is exactly the table's kernels.
+kernel that a later process cannot restore). So ``KERNELS`` numbers the table's distinct kernels
+in the order they first appear in it, ``index(ra, rb)`` maps a type pair to its number, and
+``call`` branches on that number (a test calls every type pair both ways).
 Used by the compiled time-of-impact search (``response.advancement``) for the distance of a pair,
 and by ``pair_contacts``, the whole narrow phase of a detection in one compiled call.
 """
@@ -13,26 +14,41 @@ import functools
 import numpy as np
 
 from ..jit import njit
-from . import dispatch
 from .dispatch import contact_columns, group_by_type
-from .geometry import NRANK
+from .geometry import BOX, CONVEX, CYLINDER, MESH, NRANK, PLANE, SPHERE
 from .cylinders import cylinder_plane, cylinder_sphere
 from .mesh_mesh import mesh_mesh, table_bvh
 from .meshes import mesh_poly, mesh_sphere
 from .polyhedra import poly_poly
 from .primitives import box_sphere, poly_plane, poly_sphere, sphere_plane, sphere_sphere
 
-#: the table's kernels, in the order ``call`` branches on
-KERNELS = (sphere_plane, sphere_sphere, poly_plane, box_sphere, poly_poly, poly_sphere, cylinder_plane,
-           cylinder_sphere, mesh_sphere, mesh_poly, mesh_mesh)
+#: the narrow phase: (rank A, rank B) → kernel, A of the higher rank (``geometry.RANK``); plane–plane
+#: has none (two planes are no contact). Every pair with a cylinder but plane and sphere goes through
+#: the generic convex and mesh kernels on its prism hull (``contact_sim.cylinder``'s error bound).
+COLLIDERS = {
+    (SPHERE, PLANE): sphere_plane,
+    (SPHERE, SPHERE): sphere_sphere,
+    (BOX, PLANE): poly_plane, (CONVEX, PLANE): poly_plane, (MESH, PLANE): poly_plane,
+    (BOX, SPHERE): box_sphere,
+    (BOX, BOX): poly_poly, (CONVEX, BOX): poly_poly, (CONVEX, CONVEX): poly_poly,
+    (CYLINDER, BOX): poly_poly, (CYLINDER, CONVEX): poly_poly, (CYLINDER, CYLINDER): poly_poly,
+    (CONVEX, SPHERE): poly_sphere,
+    (CYLINDER, PLANE): cylinder_plane,
+    (CYLINDER, SPHERE): cylinder_sphere,
+    (MESH, SPHERE): mesh_sphere,
+    (MESH, BOX): mesh_poly, (MESH, CONVEX): mesh_poly, (MESH, CYLINDER): mesh_poly,
+    (MESH, MESH): mesh_mesh,
+}
+#: the table's distinct kernels in the order of their first entry: ``call``'s branch numbers
+KERNELS = tuple(dict.fromkeys(COLLIDERS.values()))
 #: the place of the one kernel that reads ``trees``
 MESH_MESH = KERNELS.index(mesh_mesh)
 
 
 def index(ra, rb):
-    """The place in ``KERNELS`` of the kernel of ranks ``ra >= rb`` (``dispatch.kernel_for``), −1
-    when no kernel takes the pair (plane–plane)."""
-    kernel = dispatch.kernel_for(ra, rb)
+    """The place in ``KERNELS`` of the kernel of ranks ``ra >= rb`` (``COLLIDERS``), −1 when no
+    kernel takes the pair (plane–plane)."""
+    kernel = COLLIDERS.get((ra, rb))
     return -1 if kernel is None else KERNELS.index(kernel)
 
 

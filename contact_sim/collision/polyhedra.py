@@ -25,9 +25,8 @@ import numpy as np
 
 from ..contacts import FID_EDGE, fid
 from ..jit import njit
-from .dispatch import collider
 from .inside import outside_plane
-from .geometry import BOX, CONVEX, SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
+from .geometry import SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
 from .vec3 import col_max, cross, dot, dotr, edge_through_face, mv, norm, transform_rows
 
@@ -236,7 +235,6 @@ def _probes(V, nv, toward, out, use):
     return out[:8]
 
 
-@collider((BOX, BOX), (CONVEX, BOX), (CONVEX, CONVEX))
 @njit
 def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
               out_i, out_f):

@@ -11,9 +11,8 @@ import numpy as np
 
 from ..contacts import FID_PLANE, FID_POINT, fid
 from ..jit import njit
-from .dispatch import collider
-from .geometry import BOX, CONVEX, MESH, PLANE, SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
-    SI_V0, SPHERE
+from .geometry import SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
+    SI_V0
 from .manifold import F_PLANE, F_SPHERE, put, reduce4
 from .vec3 import col_max, closest_on_triangle, dot, mtv, mv, transform_rows
 
@@ -34,7 +33,6 @@ def sphere_row(out_i, out_f, k, pair, sep, normal, cb, rb, margin):
     return put(out_i, out_f, k, pair, cb + normal * (rb - 0.5 * depth), normal, depth, F_SPHERE, fid(FID_POINT, 0, 0, 0))
 
 
-@collider((SPHERE, PLANE))
 @njit
 def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                  out_i, out_f):
@@ -53,7 +51,6 @@ def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, 
     return k
 
 
-@collider((SPHERE, SPHERE))
 @njit
 def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                   out_i, out_f):
@@ -69,7 +66,6 @@ def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a,
     return k
 
 
-@collider((BOX, SPHERE))
 @njit
 def box_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                out_i, out_f):
@@ -120,7 +116,6 @@ def nearest_triangle(V, tris, t0, nt, c):
     return j, np.array([bx, by, bz]), best
 
 
-@collider((BOX, PLANE), (CONVEX, PLANE), (MESH, PLANE))
 @njit
 def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                out_i, out_f):
@@ -162,7 +157,6 @@ def plane_contacts(pts, dep, val, keep, nb, db, margin, out_i, out_f, k, i):
     return k
 
 
-@collider((CONVEX, SPHERE))
 @njit
 def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
                 out_i, out_f):

@@ -137,7 +137,7 @@ def distance(which, geo, bvh, rows, code, facts, verts, vrange, i, j, p, q, R, s
 
 @njit
 def max_spin(k, motion, flags):
-    """The largest ``|ω|`` body ``k`` reaches in torque-free motion (``toi.max_spin`` says why the
+    """The largest ``|ω|`` body ``k`` reaches in torque-free motion (``bounds.max_spin`` says why the
     vertices of the conserved set bound it); kinematic bodies and particles spin as told."""
     pos, vel, acc, quat, omega, principal_q, moments = motion
     wx, wy, wz = omega[k, 0], omega[k, 1], omega[k, 2]

@@ -37,6 +37,7 @@ import numpy as np
 
 from .. import quat
 from ..shapes import Plane, Sphere
+from .bounds import TOI_TOLERANCE, _extents, _first_quadratic_root, max_spin
 
 COUNTS = {"sweeps": 0}
 
@@ -70,8 +71,6 @@ def _first_entry(c0, c1, c2, T, tol):
     """First ``τ`` in ``[0, T]`` with ``c0 + c1 τ + c2 τ² ≤ 0`` per row (``0`` where already so),
     ``inf`` where never. A gap within ``tol`` of touching that only opens over the interval (a pair
     leaving a contact: ``c1 ≥ 0`` and ``c1 + 2 c2 T ≥ 0``) never closes: ``inf``."""
-    from .toi import _first_quadratic_root
-
     out = np.zeros(len(c0))
     apart = c0 > 0
     if apart.any():
@@ -86,8 +85,6 @@ def swept_toi(world, motion, i, j, T):
     (or the reverse) can reach the other: conservative (never later than the true time of impact);
     ``inf`` when a separating plane clears the whole sweep; ``nan`` when the method does not apply
     (a rotating body, a spinning plane, a pair already overlapping along every direction)."""
-    from .toi import TOI_TOLERANCE, _extents, max_spin
-
     m = motion
     ext = _extents(world)
     tol = TOI_TOLERANCE * float(min(ext[i], ext[j]))

@@ -29,12 +29,12 @@ import numpy as np
 from .. import dynamics, quat
 from ..kinds import DYNAMIC
 from ..memo import derived
-from ..shapes import Box, Plane, Polyhedron, Sphere
+from ..shapes import Box, Plane, Sphere
 from . import advancement
-from .swept import mark_swept, swept_toi  # noqa: F401 (mark_swept: the stepper marks the sweep's contacts)
+from .bounds import TOI_TOLERANCE, _extent, _extents, _first_quadratic_root  # noqa: F401 (_extent: tests)
+from .swept import swept_toi
 
 XTOL = 1e-15
-TOI_TOLERANCE = 1e-9   # × the smaller body's size: a pair this close counts as touching at its impact time
 MAX_ADVANCES = 16      # conservative-advancement evaluations per pair and search, then bounded sampling
 MAX_SAMPLES = 32       # samples of the rest of the interval when advancement is slow (its bound is loose)
 RTOL = 4 * np.finfo(float).eps   # Brent's relative tolerance on the root
@@ -46,26 +46,6 @@ def plane_world(shape, pos, q):
     """World normal ``(3,)`` and offset of a plane shape posed at centre ``pos``, orientation ``q``."""
     n = quat.rotate(q, shape.normal)
     return n, shape.offset + float(n @ pos)
-
-
-def _first_quadratic_root(c0, c1, c2, T):
-    """Smallest τ in (0, T] with ``c0 + c1 τ + c2 τ² = 0`` crossing downward, for ``c0 > 0``;
-    ``inf`` when there is none. Arrays ``(P,)``; stable (no cancellation) formula."""
-    c0, c1, c2 = np.broadcast_arrays(np.asarray(c0, float), np.asarray(c1, float), np.asarray(c2, float))
-    out = np.full(c0.shape, np.inf)
-    disc = c1 * c1 - 4 * c2 * c0
-    ok = disc >= 0
-    sq = np.sqrt(np.where(ok, disc, 0.0))
-    qq = -0.5 * (c1 + np.where(c1 >= 0, sq, -sq))
-    with np.errstate(all="ignore"):   # non-finite quotients (a denormal qq) are dropped below
-        r1 = np.where(c2 != 0, qq / c2, np.inf)
-        r2 = np.where(qq != 0, c0 / qq, np.inf)
-    r1 = np.where(np.isfinite(r1), r1, np.inf)
-    r2 = np.where(np.isfinite(r2), r2, np.inf)
-    lo = np.minimum(np.where(r1 > 0, r1, np.inf), np.where(r2 > 0, r2, np.inf))
-    hit = ok & (c0 > 0) & (lo <= T)
-    out[hit] = lo[hit]
-    return out
 
 
 class Motion:
@@ -111,14 +91,6 @@ def signed_distance(world, i, j, pi, qi, pj, qj):
     return float(advancement.distance(which, b.geom.arrays(), bvh, rows, code, facts, verts, vrange,
                                       int(i), int(j), p, q, np.empty((2, 3, 3)), np.empty((4, 3), np.int64),
                                       np.empty((4, 7))))
-
-
-def _extent(shape):
-    if isinstance(shape, Sphere):
-        return shape.radius
-    if isinstance(shape, Polyhedron):
-        return float(np.linalg.norm(shape.vertices, axis=1).max())
-    return np.inf
 
 
 def pair_toi(world, motion, i, j, T):
@@ -204,21 +176,6 @@ def _shape_facts(world):
         return code, facts, verts, vrange
 
     return derived(world, "shape_facts", (), build, key=len(world))
-
-
-def max_spin(m, k):
-    """The largest ``|ω|`` (rad/s) body ``k`` reaches in torque-free motion from its current spin:
-    with ``pᵢ = Πᵢ²`` (principal-frame angular momentum), ``|ω|² = Σ pᵢ/Iᵢ²`` is largest at a vertex
-    of ``{p ≥ 0: Σ pᵢ = |L|², Σ pᵢ/Iᵢ = 2E}`` (both conserved). A body spinning about a principal
-    axis keeps its ``|ω|`` exactly (the set is that one point); kinematic bodies and particles spin
-    as told (``advancement.max_spin``)."""
-    motion, flags = m.arrays()
-    return float(advancement.max_spin(int(k), motion, flags))
-
-
-def _extents(world):
-    """Bounding radius per body ``(N,)`` (inf for planes), cached on the world."""
-    return derived(world, "extents", (), lambda: np.array([_extent(sh) for sh in world.shapes]), key=len(world))
 
 
 def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
