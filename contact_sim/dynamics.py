@@ -15,6 +15,7 @@ cubes and any body with two equal moments one split term vanishes, so the rotati
 import numpy as np
 
 from . import free_motion, quat
+from .constants import MAX_SPLIT_ANGLE, MAX_SUBSTEPS
 
 
 def principal_frame(inertia):
@@ -38,11 +39,6 @@ def rotate_inertia(R, inertia_body):
     """``R I Rᵀ (N, 3, 3)``: body-frame (inverse) inertia tensors ``(N, 3, 3)`` in the world frame of
     rotation matrices ``R (N, 3, 3)``."""
     return R @ inertia_body @ np.swapaxes(R, -1, -2)
-
-
-ISOTROPIC_TOLERANCE = 1e-12  # relative spread of principal moments below which a body spins as a sphere
-MAX_SPLIT_ANGLE = 0.25  # rad: largest non-commuting sub-rotation per sub-step (accuracy knob)
-MAX_SUBSTEPS = 64  # beyond this, spin stays stable and L exact but accuracy degrades gracefully
 
 
 def rotate_free(q, omega, principal_q, moments, dt):

@@ -28,10 +28,8 @@ import numpy as np
 from .errors import ContactSimError
 from .jit import njit
 from .validate import show
+from .constants import LIMIT_TOLERANCE, MIMIC_TOLERANCE, CONVEX_MESH_TOLERANCE
 
-LIMIT_TOLERANCE = 1e-9      # a joint position may exceed its limits by this much (round-off of the sender)
-MIMIC_TOLERANCE = 1e-9      # a mimic joint's given position agreeing with its leader's this closely is accepted
-CONVEX_MESH_TOLERANCE = 2e-3   # × its size: a collision mesh this close to its convex hull is that hull
 MOVABLE = ("revolute", "continuous", "prismatic")
 PACKAGE_PATH_ENV = "CONTACT_SIM_PACKAGE_PATH"   # folders holding ROS packages, os.pathsep-separated
 

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .validate import LENGTH_LIMIT, Choice, Declared, Flag, Nested, Number, Tristate, build, declare
+from .constants import LENGTH_LIMIT
+from .validate import Choice, Declared, Flag, Nested, Number, Tristate, build, declare
 
 TOI_MODES = ("auto", "next_step", "fractional", "swept")
 RESPONSES = ("auto", "kinematic", "penalty", "impulse")

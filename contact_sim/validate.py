@@ -26,12 +26,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from .errors import BoundsError, ContactSimError
+from .constants import LENGTH_LIMIT, STAMP_LIMIT
 
-#: m: no length anywhere (a world bound, a shape, a plane offset) may exceed this, so products of
-#: a few lengths, speeds and masses stay far from overflow whatever the settings say
-LENGTH_LIMIT = 1e12
-#: s: stamps beyond ±2³² s (year 2106 as Unix time) no longer resolve a microsecond in float64
-STAMP_LIMIT = 2.0 ** 32
 _SYMBOL = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
 
 

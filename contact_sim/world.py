@@ -20,6 +20,7 @@ from .stats import StepStats
 from .shapes import Plane, Shape
 from .validate import ANGULAR_VELOCITY, DENSITY, GRAVITY, GROUP, MASS, ORIENTATION, POSITION, VELOCITY, Choice, Nested, show
 from .world_input import BodyInput
+from .constants import DEFAULT_DENSITY, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS
 
 # Per-body attributes of a World, rows in body order (arrays) or items (lists). remove_bodies and the
 # rollback of add_bodies treat them together: a new per-body attribute belongs here (an engine test
@@ -29,7 +30,6 @@ BODY_ARRAYS = ("kind", "particle", "mass", "inv_mass", "inertia_body", "inv_iner
 BODY_LISTS = ("_names", "shapes", "user_shapes", "material_names")
 MODELS = ("rigid", "particle")
 _KIND, _MODEL = Choice(KINDS), Choice(MODELS)
-DEFAULT_DENSITY = 1000.0  # kg/m³ (water), when neither mass nor density is given
 ALL_GROUPS = 0xFFFFFFFF
 
 
@@ -611,7 +611,7 @@ class World(BodyInput):
             s.pos, s.vel, s.quat, s.omega, c(s.principal_q), c(s.principal_moments), c(self.inertia_body),
             self._gravity, bm.dynamic, bm.rotating, bm.kinematic,
             c(half_dv, dtype=float) if kick else z, c(half_dw, dtype=float) if kick else z, kick, float(dt),
-            dynamics.ISOTROPIC_TOLERANCE, dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
+            ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
         return (drift, kick_error) if kick else drift
 
     # ------------------------------------------------------------------ reporting

@@ -97,3 +97,15 @@ def test_a_cycle_is_found():
 @pytest.mark.parametrize("pkg", PACKAGES)
 def test_every_module_is_in_the_graph(pkg):
     assert any(m.startswith(pkg + ".") for m in import_graph())
+
+
+def test_the_constants_module_is_the_bottom_of_the_graph_and_says_what_each_constant_is():
+    """``contact_sim.constants`` (Box2D's ``constants.h``) imports nothing from the package, and each
+    constant comes with a comment saying what it bounds."""
+    import re
+
+    assert import_graph()["contact_sim.constants"] == set()
+    with open(os.path.join(ROOT, "contact_sim", "constants.py"), encoding="utf-8") as fh:
+        lines = [l for l in fh.read().splitlines() if re.match(r"[A-Z_0-9]+ = ", l)]
+    assert len(lines) > 30
+    assert [l.split(" =")[0] for l in lines if "#" not in l] == []

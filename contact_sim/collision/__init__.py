@@ -41,7 +41,8 @@ from ..errors import ContactSimError
 from ..memo import derived
 from ..settings import Settings
 from ..shapes import Shape
-from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, LENGTH_LIMIT, POINTS, POSITION, POSITIONS, Flag,
+from ..constants import LENGTH_LIMIT
+from ..validate import (ANY_ORIENTATION, COORDINATES, DISTANCE, POINTS, POSITION, POSITIONS, Flag,
                         Nested, Rows, show)
 from . import bounding, broadphase, pair_kernels, single
 from .geometry import RANK, SF_BOX, SF_PLANE, SI_RANK, GeomTable
@@ -343,7 +344,7 @@ def collide(shape_a, pose_a, shape_b, pose_b, margin=0.0, bounding_volume="auto"
     points from B to A; ``depth (K,)`` > 0 penetrating, ``-separation`` within ``margin``.
     Stateless; runs the same bounding-volume and kernel stages as ``detect_world``. With
     ``stats=True`` returns ``(Contacts, DetectionStats)``. Arguments are checked (finite, lengths
-    within ``validate.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
+    within ``constants.LENGTH_LIMIT``); with ``settings`` (a ``Settings`` or a mapping) also against
     its world bounds (positions, shape sizes, margin), as a world would check them.
     """
     # the fast path (``single``) for plainly valid input; a margin that is plainly one is a float or

@@ -5,10 +5,8 @@ directly. Every method returns exactly the pairs whose AABBs overlap within the 
 import numpy as np
 
 from ..jit import njit
+from ..constants import BRUTE_MAX, SAP_BUDGET, FAT_FRACTION
 
-BRUTE_MAX = 32      # up to this many boxes, testing all N(N-1)/2 pairs at once is fastest
-SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64), else the grid (measured
-                    # crossover: ~20 candidates per box)
 _TRIU = {}          # n -> cached np.triu_indices(n, 1)
 
 
@@ -30,9 +28,6 @@ def candidate_pairs(c, h, margin):
         return all_pairs(c, h, margin)
     out = sweep_and_prune(c, h, margin, budget=SAP_BUDGET * n + 64)
     return grid_pairs(c, h, margin) if out is None else out
-
-
-FAT_FRACTION = 0.2  # a fat box is the tight AABB grown by this × its largest half size
 
 
 class PairCache:

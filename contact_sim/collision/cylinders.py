@@ -10,7 +10,7 @@ import numpy as np
 
 from ..jit import njit
 from .geometry import SF_HALF, SF_RADIUS
-from .manifold import TOUCH_TOLERANCE
+from ..constants import TOUCH_TOLERANCE
 from .primitives import plane_contacts, plane_world, sphere_row
 from .vec3 import mv
 

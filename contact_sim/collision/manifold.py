@@ -18,11 +18,10 @@ import numpy as np
 from ..contacts import FEATURES, FID_FACE_A, fid
 from ..jit import njit
 from .vec3 import dot, dotr, set_row
+from ..constants import TOUCH_TOLERANCE, COINCIDE_FRACTION
 
 F_VERTEX, F_EDGE, F_FACE, F_SWEPT, F_SPHERE, F_PLANE = (FEATURES.index(n) for n in (
     "vertex_face", "edge_face", "face_face", "swept", "sphere", "plane"))
-TOUCH_TOLERANCE = 1e-9   # × the smaller body's size: a distance this short is touching, its direction noise
-COINCIDE_FRACTION = 1e-6   # × a patch's size: two candidates this close are one place (one contact)
 # point codes of a face patch (the feature id's last field): what the point is on
 CODE_INCIDENT, CODE_CROSSING, CODE_REFERENCE, CODE_SUPPORT = 0, 1 << 18, 2 << 18, 3 << 18
 
@@ -304,7 +303,6 @@ def face_patch(VR, NR, dR, fr, loopR, VI, NI, dI, facesI, loopsI, scale, margin,
         if keep[i]:
             k = put(out_i, out_f, k, pair, pts[i], normal, DEP[i], feat, fid(kind, fr, fi, CODE[i]))
     return k
-
 
 
 @njit

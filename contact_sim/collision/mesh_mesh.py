@@ -31,11 +31,9 @@ from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POLY_VERTEX, fid
 from ..jit import njit
 from .geometry import MESH, SF_BOX, SF_SCALE, SI_CLOSED, SI_NV, SI_P0, SI_T0, SI_V0
 from .inside import RAYS, ray_triangle
-from .manifold import F_EDGE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4
+from .manifold import F_EDGE, F_VERTEX, emit_deepest4
 from .vec3 import closest_on_triangle, col_max
-
-LEAF_SIZE = 4
-STACK = 256      # tree depth is log2(T / LEAF_SIZE) + 1: 256 covers any mesh that fits in memory
+from ..constants import LEAF_SIZE, STACK, TOUCH_TOLERANCE
 
 
 def build_bvh(verts, tris):

@@ -19,7 +19,8 @@ from ..jit import njit
 from .geometry import SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
     SI_T0
 from .inside import parity_inside, plane_excess
-from .manifold import F_EDGE, F_SPHERE, F_VERTEX, TOUCH_TOLERANCE, emit_deepest4, put
+from ..constants import TOUCH_TOLERANCE
+from .manifold import F_EDGE, F_SPHERE, F_VERTEX, emit_deepest4, put
 from .polyhedra import world_poly
 from .primitives import nearest_triangle, world_verts
 from .vec3 import col_max, cross, dot, edge_through_face, norm

@@ -29,6 +29,7 @@ from .inside import outside_plane
 from .geometry import SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
 from .vec3 import col_max, cross, dot, dotr, edge_through_face, mv, norm, transform_rows
+from ..constants import PROBE_WORK
 
 
 @njit
@@ -200,10 +201,6 @@ def segment_closest(p1, q1, p2, q2):
     t = min(max(t, 0.0), 1.0)
     s = min(max((b * t - c) / (a if a > 0 else 1.0), 0.0), 1.0)
     return p1 + d1 * s, p2 + d2 * t
-
-
-PROBE_WORK = 20000   # edge pairs × normals above which the edge query bounds each edge first (measured:
-                     # the bound costs about what it saves on 32-point hulls, 30× less work on 1000-point ones)
 
 
 @njit

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..contacts import Contacts
 from ..jit import njit
-from ..validate import LENGTH_LIMIT
+from ..constants import LENGTH_LIMIT
 from . import pair_kernels
 from .vec3 import unit_rotations
 

@@ -22,11 +22,10 @@ from ..collision.pair_kernels import call
 from ..collision.vec3 import unit_rotations
 from ..free_motion import _qrot, _rotate_body, _rotvec_quat  # quat.rotate's and from_rotvec's arithmetic
 from ..jit import njit
+from ..constants import WIDE, MAX_BRENT
 
 D_PLANE, D_SPHERE, D_BOX, D_POLY = range(4)
 F_NORMAL, F_OFFSET, F_RADIUS, F_HALF, F_EXTENT, F_THIN = 0, 3, 4, 5, 8, 9
-WIDE = 1e3     # the narrow phase's margin for a distance (m): pairs farther apart count as this far
-MAX_BRENT = 100
 
 
 @njit

@@ -1,14 +1,11 @@
 """What bounds a body's motion over an interval, for the time-of-impact searches (``toi``) and the
 swept-volume test (``swept``): each body's extent, the largest spin its torque-free motion
-reaches, the first root of a gap that is quadratic in time, and the distance that counts as
-touching."""
+reaches, and the first root of a gap that is quadratic in time."""
 import numpy as np
 
 from ..memo import derived
 from ..shapes import Polyhedron, Sphere
 from . import advancement
-
-TOI_TOLERANCE = 1e-9   # × the smaller body's size: a pair this close counts as touching at its impact time
 
 
 def _first_quadratic_root(c0, c1, c2, T):

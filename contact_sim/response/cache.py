@@ -9,8 +9,7 @@ import numpy as np
 from ..contacts import Contacts
 from ..jit import njit
 from . import toi as toi_mod
-
-MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
+from ..constants import MATCH_FRACTION
 
 
 @dataclass

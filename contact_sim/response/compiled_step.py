@@ -25,17 +25,16 @@ from operator import is_
 
 import numpy as np
 
-from .. import dynamics
 from ..free_motion import advance
 from ..jit import njit
 from ..settings import COMBINE_RULES
 from . import correction, prepare
 from . import toi as toi_mod
 from .active_set import SOLVED, TOO_LARGE, islands, solve_islands
-from .cache import MATCH_FRACTION, _local_points, _warm_record, _warm_start
-from .context import IMPACT_ROUNDS, REST_REBOUND_FRACTION
-from .direct import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
-                     DIRECT_REGULARISATION)
+from .cache import _local_points, _warm_record, _warm_start
+from ..constants import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
+                         DIRECT_REGULARISATION, IMPACT_ROUNDS, ISOTROPIC_TOLERANCE, MATCH_FRACTION, MAX_SPLIT_ANGLE,
+                         MAX_SUBSTEPS, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
 from .energy import kinetic as kinetic_energy
 from .energy import restitution_cap
 from .impact import next_round
@@ -85,8 +84,8 @@ def run(ctx):
         COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, bodies[9],
-        float(ctx.dt), float(st.contact_margin), ctx.speculative, toi_mod.TOI_TOLERANCE,
-        prepare.SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
+        float(ctx.dt), float(st.contact_margin), ctx.speculative, TOI_TOLERANCE,
+        SIMULTANEOUS_FRACTION * ctx.dt, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed,
         float(st.split_slop), float(st.split_beta),
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance))
@@ -344,8 +343,8 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     vel[:] = vel_s
     omega[:] = omega_s
     drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
-                                kinematic, half_dv, half_dw, rested, dt, dynamics.ISOTROPIC_TOLERANCE,
-                                dynamics.MAX_SPLIT_ANGLE, dynamics.MAX_SUBSTEPS)
+                                kinematic, half_dv, half_dw, rested, dt, ISOTROPIC_TOLERANCE,
+                                MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
     out[0], out[1], out[2], out[3] = max(residual_i, residual_r), counts.deepest, rest_bound, drift
     out[4] = kick_error if rested else 0.0
     out[5], out[6], out[7], out[8], out[9] = max(it_i, it_r), kept, planned, rested, kr

@@ -13,13 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import solver
-
-IMPACT_SPEED_FRACTION = 0.25  # approach slower than this × |g|·dt: no bounce, the resting solve holds it
-REST_REBOUND_FRACTION = 0.5  # rebound slower than this × |g|·dt (airborne less than a step): it rests
-IMPACT_ROUNDS = 128  # impact rounds per sub-step: contacts an impact's impulses turn into an approach get their own
-                     # (compression, restitution), up to this many; what still approaches then rests. A light
-                     # body between a heavy one and a wall takes about π√(M/m) impacts (Galperin's billiard):
-                     # 43 at a mass ratio of 184, 99 at 1000
+from ..constants import IMPACT_SPEED_FRACTION
 
 
 @dataclass(eq=False, init=False)

@@ -5,13 +5,7 @@ import numpy as np
 
 from . import active_set
 from .rows import _TINY, SolveResult, apply, row_velocity
-
-DIRECT_MAX_CONTACTS = 500       # default of settings.direct_max_contacts: the active set up to this many contacts
-DIRECT_FIRST = 200              # above this many contacts in an island larger than DIRECT_ISLAND_MAX: Gauss–Seidel first
-DIRECT_MAX_ROUNDS = 12          # active-set rounds before handing over to Gauss–Seidel
-DIRECT_CONSISTENCY = 1e-7       # active rows must hold to this × the largest right-hand side, else the set is inconsistent
-DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4 points on a face) get the least-norm split
-DIRECT_ISLAND_MAX = 128         # islands up to this many contacts: the compiled dense kernel (active_set); above, sparse
+from ..constants import DIRECT_CONSISTENCY, DIRECT_ISLAND_MAX, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
 
 
 def _regularised_solve_sparse(sub, r, eps, refine=2):

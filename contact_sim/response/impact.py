@@ -15,7 +15,7 @@ from ..jit import njit
 from ..kinds import DYNAMIC
 from . import kinematic as kinematic_mod
 from . import pgs
-from .context import IMPACT_ROUNDS, REST_REBOUND_FRACTION
+from ..constants import IMPACT_ROUNDS, REST_REBOUND_FRACTION
 from .energy import energetic_cap, impact_frame, kinematic_push, kinetic_energy, push_cap
 
 

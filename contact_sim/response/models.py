@@ -14,10 +14,7 @@ from ..jit import njit
 from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Sphere
-
-PENALTY_OMEGA_DT_LIMIT = 1.0  # sqrt(k/m)·dt above this: the step cannot resolve the spring's oscillation
-FRACTIONAL_AUTO_MAX_BODIES = 16
-FRICTION_CREEP_LIMIT = 1e-3   # m/s: penalty friction's regulariser above this lets held bodies creep visibly
+from ..constants import PENALTY_OMEGA_DT_LIMIT, FRACTIONAL_AUTO_MAX_BODIES, FRICTION_CREEP_LIMIT
 
 
 class ContactModelWarning(UserWarning):

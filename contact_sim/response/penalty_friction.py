@@ -19,8 +19,7 @@ the damper balances the pull: ``v_r · tan θ / μ`` on an incline of angle ``θ
 import numpy as np
 
 from . import pgs
-
-PGS_TOLERANCE = 1e-6   # relative: the stopping distance and hold are within 1e-3 of exact by then (tests)
+from ..constants import PGS_TOLERANCE
 
 
 def solve_with_friction(rows, vel, omega, lam, target_n, compliance_n, mu, v_reg, iterations,

@@ -23,10 +23,7 @@ from . import models as _models
 from . import solver
 from . import toi as toi_mod
 from .cache import local_points
-from .context import REST_REBOUND_FRACTION
-
-SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
-SPECULATIVE_MAX_FRACTION = 0.5  # a body's look-ahead is at most this × its thinnest size (beyond: swept's job)
+from ..constants import REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, SPECULATIVE_MAX_FRACTION
 
 
 def prepare_contacts(ctx):

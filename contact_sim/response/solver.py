@@ -25,8 +25,9 @@ Three uses of the same machinery:
 """
 import numpy as np
 
-from . import active_set, pgs
-from .direct import DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, delassus, solve_direct, solve_exact
+from . import pgs
+from ..constants import DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS
+from .direct import delassus, solve_direct, solve_exact
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",

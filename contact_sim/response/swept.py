@@ -37,7 +37,8 @@ import numpy as np
 
 from .. import quat
 from ..shapes import Plane, Sphere
-from .bounds import TOI_TOLERANCE, _extents, _first_quadratic_root, max_spin
+from ..constants import TOI_TOLERANCE
+from .bounds import _extents, _first_quadratic_root, max_spin
 
 COUNTS = {"sweeps": 0}
 

@@ -26,19 +26,16 @@ against every body of the world.
 """
 import numpy as np
 
-from .. import dynamics, quat
+from .. import quat
 from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Box, Plane, Sphere
 from . import advancement
-from .bounds import TOI_TOLERANCE, _extent, _extents, _first_quadratic_root  # noqa: F401 (_extent: tests)
+from .bounds import _extent, _extents, _first_quadratic_root  # noqa: F401 (_extent: tests)
 from .swept import swept_toi
+from ..constants import MAX_ADVANCES, MAX_SAMPLES, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, RTOL, TOI_TOLERANCE, XTOL
 
-XTOL = 1e-15
-MAX_ADVANCES = 16      # conservative-advancement evaluations per pair and search, then bounded sampling
-MAX_SAMPLES = 32       # samples of the rest of the interval when advancement is slow (its bound is loose)
-RTOL = 4 * np.finfo(float).eps   # Brent's relative tolerance on the root
-_SPLIT = (dynamics.MAX_SPLIT_ANGLE, float(dynamics.MAX_SUBSTEPS))   # the free rotation's sub-step rule
+_SPLIT = (MAX_SPLIT_ANGLE, float(MAX_SUBSTEPS))   # the free rotation's sub-step rule
 COUNTS = {"distance_evaluations": 0}   # the searches' distance evaluations (for tests and benchmarks)
 
 
