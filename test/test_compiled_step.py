@@ -223,24 +223,35 @@ def test_an_island_too_large_for_the_dense_solve_is_left_to_the_python_stages(mo
     assert len(w.contacts) == 144
 
 
-def test_a_kinematic_push_is_left_to_the_python_stages(monkeypatch, answers):
-    """A kinematic paddle moving at 0.5 m/s into a ball resting beside a box: while it is apart the
-    step is compiled (a kinematic body in the world is no reason to decline), while it pushes the
-    Python stages cap the push (``PUSHED``); bit-identical both ways."""
+def test_a_kinematic_push_steps_bit_for_bit_as_the_python_stages(monkeypatch, answers):
+    """A kinematic paddle at 0.5 m/s, pressed 1 cm into the static ground (a contact nothing can
+    move: no impulse), pushes a ball into a box standing at a wall: the ball is squeezed, and the
+    push cap (``energy.push_cap``) scales the solves back. Every step is compiled, bit-identical to
+    the Python stages."""
+    from contact_sim.response import impact, resting
+
     def paddle():
         w = cs.World(settings=cs.Settings(toi="next_step"),
                      materials={"m": cs.Material(restitution=0.2, friction=0.4)})
         w.add_body("ground", cs.Plane(), kind="static", material="m")
-        w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.16),
+        w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.14),
                    velocity=(0.5, 0, 0), material="m")
         w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0, 0, 0.1), material="m")
-        w.add_body("box", cs.Box((0.2, 0.2, 0.2)), mass=1.0, position=(1.5, 0, 0.1), material="m")
+        w.add_body("box", cs.Box((0.2, 0.2, 0.2)), mass=1.0, position=(0.35, 0, 0.1), material="m")
+        w.add_body("wall", cs.Box((0.1, 1.0, 1.0)), kind="static", position=(0.5, 0, 0.5), material="m")
         return w
 
-    w, _ = _both_ways(paddle, 150, monkeypatch, answers, dt=0.01)
-    assert answers[:40].count(compiled_step.DONE) > 30
-    assert compiled_step.PUSHED in answers
-    assert w.s.pos[2, 0] > 0.2   # the ball was pushed
+    scales = []
+    for mod in (impact, resting):
+        real = mod.push_cap
+        monkeypatch.setattr(mod, "push_cap", lambda *a, _real=real, **k: scales.append(_real(*a, **k)) or scales[-1])
+    w, solves = _both_ways(paddle, 100, monkeypatch, answers, dt=0.01)
+    assert answers == [compiled_step.DONE] * 100
+    assert min(scales) < 1.0                          # the cap acted (on the Python stages' side)
+    pairs = {frozenset((int(x), int(y))) for x, y in zip(w.contacts.body_a, w.contacts.body_b)}
+    assert frozenset((0, 1)) in pairs                 # the paddle in the ground: a contact with no impulse
+    assert w.s.pos[2, 0] > 0.05                       # the ball was pushed
+    assert np.abs(w.s.vel[2:4]).max() < 3.0           # within the push budget of a 0.5 m/s paddle
 
 
 @pytest.mark.parametrize("seed", [0, 2])

@@ -12,10 +12,11 @@ order as the Python stages (``prepare.classify``, ``pgs.build_rows``, ``cache._l
 ``pgs.normal_velocities``, ``cache._warm_start``, ``resting._work_bound``, ``cache._warm_record``,
 ``free_motion.advance``), so the step is the same bit for bit; a test steps scenes both ways.
 
-The kernel answers why not when a Python stage would branch elsewhere (a contact between two
-immovable bodies, a contact with a kinematic body, whose push the Python stages cap, a solve that
+The kernel answers why not when a Python stage would branch elsewhere (a solve that
 ``solver.solve_auto`` would not give to the dense active set), having changed nothing: the Python
-stages then run the step as before. It moves the bodies only once everything has succeeded. The
+stages then run the step as before. Contacts between two bodies nothing moves carry no impulse, and
+where a kinematic body pushes, every solve is held to the push budget (``energy.push_cap``, the
+same kernels as the Python stages'). It moves the bodies only once everything has succeeded. The
 correction's cap and its displacement after the step stay in Python (``correction.cap``,
 ``correction.apply``).
 
@@ -35,15 +36,16 @@ from .cache import _local_points, _warm_record, _warm_start
 from ..constants import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
                          DIRECT_REGULARISATION, IMPACT_ROUNDS, ISOTROPIC_TOLERANCE, MATCH_FRACTION, MAX_SPLIT_ANGLE,
                          MAX_SUBSTEPS, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
-from .energy import kinetic as kinetic_energy
-from .energy import restitution_cap
+from .energy import (FRAME, NO_FRAME, dynamic_bodies, kinematic_work, frame_of, kinetic_in, push_cap_kernel, push_speed,
+                     restitution_cap_in)
 from .impact import next_round
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
 from .resting import _work_bound
 
-#: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it (``NONE_NEAR``:
-#: no speculative contact can close, the step has no contact left)
-DONE, IMMOVABLE, LARGE, PUSHED, NONE_NEAR = range(5)
+#: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it (``LARGE``: a
+#: solve ``solver.solve_auto`` gives to another method; ``NONE_NEAR``: no speculative contact can
+#: close, the step has no contact left)
+DONE, LARGE, NONE_NEAR = range(3)
 
 
 def applies(ctx):
@@ -75,6 +77,9 @@ def run(ctx):
         old = _NO_OLD
     look = ctx.look_ahead
     bodies = _body_arrays(world)
+    # the kinematic bodies' work is taken where the contact points are, at the sub-step's start
+    # (stepper._store_impulses): their centres before the step moves them
+    pos0 = s.pos.copy() if bm.any_kinematic else None
     status, near, f3, f1, flags, wv, pw, out = _step(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
@@ -122,6 +127,8 @@ def run(ctx):
     if kept < k:   # speculative contacts that did nothing are not contacts of this step
         c, local = c.select(used), local[used]
     ctx.records.append((c, local))
+    if pos0 is not None:
+        ctx.kinematic_work += kinematic_work(world, c, pos0)
     ctx.first = False
     return True
 
@@ -172,7 +179,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     friction, static_friction (N,)`` combined by ``rule`` (``prepare.coefficient_rows``); the contact
     cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), f3 (3,K,3), f1 (2,K), flags
     (2,K), wv (K,4), pw (2,N,3), out (10,))``: ``status`` ``DONE``, or with the world untouched why
-    not (``IMMOVABLE``, ``LARGE``, ``PUSHED``, ``NONE_NEAR``); the contacts kept by the filter when
+    not (``LARGE``, ``NONE_NEAR``); the contacts kept by the filter when
     it dropped some (the other outputs are of those); ``f3`` the points in A's frame, the friction
     impulses and the impulses; ``f1`` the normal impulses and the approach speeds; ``flags`` the
     contacts that count and those the resting solve took; ``wv`` the cache's values of those (its
@@ -203,7 +210,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     out = np.zeros(11)
     e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
-    status = _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments,
+    status = _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments,
                         inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic,
                         mass, particle, e, mu_s, mu_d, kinetic, a0, b0, p0, values, has_old, ext, dt, margin,
                         speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop,
@@ -213,7 +220,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
 
 
 @njit
-def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, principal_q, moments, inertia_body,
+def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments, inertia_body,
                inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s,
                mu_d, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous,
                rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local,
@@ -236,25 +243,23 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, np.zeros(0), False, toi_tolerance,
                               simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, e, vn0,
                               touching, imp, closing, spec_target, bounced)
-    # ---- what takes the Python stages: a contact nothing can move, a kinematic push (below: a solve
-    # solver.solve_auto gives to another method)
-    for c in range(k):
-        if not (dynamic[a[c]] or dynamic[b[c]]):
-            return IMMOVABLE
-        if kinematic[a[c]] or kinematic[b[c]]:
-            return PUSHED   # a kinematic body pushes: the solves' push cap (energy.push_cap) is Python's
-    # the step's velocities: the world's only once nothing can decline any more
+    # the step's velocities: the world's only once nothing can decline any more (below: a solve
+    # solver.solve_auto gives to another method); with a kinematic body, those the push cap's budget
+    # is measured from in every solve of the sub-step (impact.impact_solve's ``push_ref``)
     vel_s, omega_s = vel.copy(), omega.copy()
+    vel_ref, omega_ref = vel_s.copy(), omega_s.copy()
     # ---- impact (impact.impact_solve): compression with friction, then restitution, capped
     lam_i = np.zeros((k, 3))
     vn1 = vn0
     it_i, residual_i, unconverged = 0, 0.0, False
     if counts.impact or counts.closing:
         vn1 = np.empty(k)
-        status, it_i, residual_i, unconverged = _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing,
-                                           bounced, spec_target, e, e_material, vn0, rebound_speed, impact_speed,
-                                           mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body,
-                                           direct_max, max_iterations, tolerance, vel_s, omega_s, lam_i, vn1)
+        status, it_i, residual_i, unconverged = _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
+                                                        touching, closing, bounced, spec_target, e, e_material, vn0,
+                                                        rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind,
+                                                        dynamic, kinematic, mass, particle, pos, quat, inertia_body,
+                                                        direct_max, max_iterations, tolerance, vel_s, omega_s,
+                                                        vel_ref, omega_ref, lam_i, vn1)
         if status != DONE:
             return status
     # ---- position correction's plan (correction.plan): split-impulse pseudo-velocities ``vp, wp``
@@ -312,6 +317,20 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
                                           tolerance, v_end, w_end, lam)
         if solved != DONE:
             return solved
+        # where kinematic bodies push, no body ends faster than a push can make it (resting.resting_solve)
+        u = push_speed(sa, sb, point if whole else point[ri], kinematic, pos, vel_s, omega_s)
+        if u >= 0.0:
+            pb = dynamic_bodies(sa, sb, dynamic)
+            vref = vel_ref[pb]
+            for j in range(pb.shape[0]):
+                for x in range(3):
+                    vref[j, x] = vref[j, x] + gravity_rows[pb[j], x] * dt
+            f = push_cap_kernel(pb, u, mass, particle, quat, inertia_body, v_start_end[pb], w_start_end[pb], vref,
+                                omega_ref[pb], v_end, w_end)
+            if f < 1.0:
+                for j in range(kr):
+                    for x in range(3):
+                        lam[j, x] = lam[j, x] * f
         rest_bound = _work_bound(sa, sb, sdirs, sang_a, sang_b, vel_s, omega_s, v_end, w_end, target, lam)
         _warm_record(lam, sdirs, wv[:kr])
         for j in range(kr):
@@ -353,9 +372,10 @@ def _step_into(a, b, point, normal, depth, rel_vel, pos, vel, quat, omega, princ
 
 
 @njit
-def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, e,
-            e_material, vn0, rebound_speed, impact_speed, mu_s, mu_d, kinetic, dynamic, mass, particle, quat,
-            inertia_body, direct_max, max_iterations, tolerance, vel, omega, lam, vn1):
+def _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, e,
+            e_material, vn0, rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, mass,
+            particle, pos, quat, inertia_body, direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref,
+            lam, vn1):
     """``impact.impact_solve`` (the impulse response) on the rows of ``_step``, round by round
     (``impact.next_round``; ``bounced (K,)`` gains every contact that bounced in a later round).
     Updates ``vel, omega (N,3)``, writes the impulses ``lam (K,3)`` and the normal velocities after
@@ -368,10 +388,12 @@ def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, clo
     e_next, hit_next = np.empty(k), np.empty(k, np.bool_)
     it, residual, unconverged = 0, 0.0, False
     for _ in range(IMPACT_ROUNDS):
-        status, it_r, residual_r, stopped = _impact_round(np.flatnonzero(take), a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima,
-                                                 imb, K, touching, hit, spec_target, er, vn, mu_s, mu_d, kinetic,
-                                                 dynamic, mass, particle, quat, inertia_body, direct_max,
-                                                 max_iterations, tolerance, vel, omega, lam)
+        status, it_r, residual_r, stopped = _impact_round(np.flatnonzero(take), a, b, point, dirs, ang_a, ang_b,
+                                                          iang_a, iang_b, ima, imb, K, touching, hit, spec_target, er,
+                                                          vn, mu_s, mu_d, kinetic, kind, dynamic, kinematic, mass,
+                                                          particle, pos, quat, inertia_body, direct_max,
+                                                          max_iterations, tolerance, vel, omega, vel_ref, omega_ref,
+                                                          lam)
         if status != DONE:
             return status, 0, 0.0, False
         it, residual, unconverged = max(it, it_r), max(residual, residual_r), unconverged or stopped
@@ -386,9 +408,9 @@ def _impact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, clo
 
 
 @njit
-def _impact_round(ti, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, bounced, spec_target, e, vn,
-                  mu_s, mu_d, kinetic, dynamic, mass, particle, quat, inertia_body, direct_max, max_iterations,
-                  tolerance, vel, omega, lam):
+def _impact_round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, bounced, spec_target, e,
+                  vn, mu_s, mu_d, kinetic, kind, dynamic, kinematic, mass, particle, pos, quat, inertia_body,
+                  direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam):
     """``impact._round``: compression on the contacts ``ti`` (touching ones stopped, the others
     slowed to ``spec_target``), then restitution up to ``−e·vn`` where ``bounced`` (the other pressed
     touching contacts held), scaled by the energetic cap (``energy.restitution_cap``); the round's
@@ -399,13 +421,19 @@ def _impact_round(ti, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     bounces = False
     for c in ti:
         bounces = bounces or e[c] * bounced[c] > 0.0
-    # the kinetic energy the round starts from, for the restitution stage's cap
-    mark = np.zeros(vel.shape[0], np.bool_)
-    for c in ti:
-        mark[a[c]] = True
-        mark[b[c]] = True
-    bodies0 = np.flatnonzero(mark & dynamic)   # np.unique's order: ascending
-    kinetic0 = kinetic_energy(bodies0, mass, particle, quat, inertia_body, vel, omega) if bounces else 0.0
+    # the kinetic energy the round starts from, for the restitution stage's cap, in the frame of the
+    # kinematic body the impact is against (energy.impact_frame)
+    ta, tb = a[ti], b[ti]
+    bodies0 = dynamic_bodies(ta, tb, dynamic)
+    frame = np.zeros((3, 3))
+    code = frame_of(kind, ta, tb, vel, omega, pos, frame) if bounces else NO_FRAME
+    kinetic0 = kinetic_in(bodies0, mass, particle, quat, inertia_body, vel, omega, pos, frame, code == FRAME) \
+        if bounces and code != NO_FRAME else 0.0
+    # where kinematic bodies push, no body ends faster than a push can make it (energy.push_cap)
+    u = push_speed(ta, tb, point[ti], kinematic, pos, vel, omega)
+    if u >= 0.0:
+        pb = bodies0
+        v0, w0 = vel[pb], omega[pb]
     target = np.empty(nt)
     for j in range(nt):
         target[j] = 0.0 if touching[ti[j]] else spec_target[ti[j]]
@@ -416,10 +444,14 @@ def _impact_round(ti, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     if status != DONE:
         return status, 0, 0.0, False
     unconverged = it >= max_iterations and residual > tolerance
+    scale = 1.0
+    if u >= 0.0:
+        scale = push_cap_kernel(pb, u, mass, particle, quat, inertia_body, v0, w0, vel_ref[pb], omega_ref[pb], vel,
+                                omega)
     lam_r = np.zeros((k, 3))
     for j in range(nt):
         for x in range(3):
-            lam_r[ti[j], x] = lam_t[j, x] * 1.0
+            lam_r[ti[j], x] = lam_t[j, x] * scale
     vel_c, omega_c = vel[bodies0], omega[bodies0]   # copies: the velocities after compression
     pressed = lam_r[:, 0] > 0.0
     hit = bounced & pressed & (e > 0.0)   # e = 0: the compression was the whole impact
@@ -440,7 +472,11 @@ def _impact_round(ti, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
         if status != DONE:
             return status, 0, 0.0, False
         unconverged = unconverged or (it_h >= max_iterations and residual_h > tolerance)
-        f = restitution_cap(bodies0, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega)
+        f = 1.0 if code == NO_FRAME else restitution_cap_in(bodies0, mass, particle, quat, inertia_body, kinetic0,
+                                                            vel_c, omega_c, vel, omega, pos, frame, code == FRAME)
+        if u >= 0.0:   # the rebound within the push budget too (with a static body: no frame)
+            f *= push_cap_kernel(pb, u, mass, particle, quat, inertia_body, vel_c, omega_c, vel_ref[pb],
+                                 omega_ref[pb], vel, omega)
         for j in range(nh):
             lam_r[hi[j], 0] += lam_h[j, 0] * f
         it = max(it, it_h)
@@ -487,6 +523,29 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
     the sparse active set for an island the dense kernel does not take): ``vel, omega`` may then
     hold part of a solve, and the caller discards them."""
     k = a.shape[0]
+    # contacts between two bodies that cannot move (a kinematic link pressed into a static floor)
+    # carry no impulse: their rows have no effective mass (solver.solve_auto)
+    n_live = 0
+    for c in range(k):
+        n_live += dynamic[a[c]] or dynamic[b[c]]
+    if n_live < k:
+        li = np.empty(n_live, np.int64)
+        j = 0
+        for c in range(k):
+            if dynamic[a[c]] or dynamic[b[c]]:
+                li[j] = c
+                j += 1
+        if n_live == 0:
+            return DONE, 0, 0.0
+        lam_l = np.zeros((n_live, 3))
+        status, it, residual = _exact(a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li], iang_b[li], ima[li],
+                                      imb[li], K[li], target[li], mu_s[li], mu_d[li], kinetic, warm[li]
+                                      , use_warm, dynamic, direct_max, max_iterations, tolerance, vel,
+                                      omega, lam_l)
+        for j in range(n_live):
+            for x in range(3):
+                lam[li[j], x] = lam_l[j, x]
+        return status, it, residual
     if k > direct_max:
         return LARGE, 0, 0.0
     order, start = islands(a, b, dynamic, vel.shape[0])

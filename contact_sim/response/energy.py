@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 
-from .. import dynamics, quat
 from ..free_motion import _qrot
 from ..jit import njit
 from ..kinds import DYNAMIC, KINEMATIC, STATIC
@@ -19,19 +18,21 @@ def potential_change(world, dx):
     return float(-np.sum(world.mass[dyn] * (dx[dyn] @ world.gravity)))
 
 
-def kinematic_work(world, c):
+def kinematic_work(world, c, pos=None):
     """Work (J) done on the dynamic bodies by kinematic ones through the contacts ``c`` of a
-    step: impulse on the dynamic side · velocity of the kinematic body's material point. A
-    kinematic body is driven from outside, so this is energy the world may gain."""
+    step: impulse on the dynamic side · velocity of the kinematic body's material point (its
+    centre at ``pos (N,3)``, default where the bodies are now). A kinematic body is driven from
+    outside, so this is energy the world may gain."""
     if len(c) == 0 or not world.body_masks().any_kinematic or not _touches(world.kind, c.body_a, c.body_b, KINEMATIC):
         return 0.0
     s = world.s
+    pos = s.pos if pos is None else pos
     total = 0.0
     for side, sign in ((c.body_a, -1.0), (c.body_b, 1.0)):   # A gets +impulse, B its negative
         k = world.kind[side] == KINEMATIC
         if k.any():
             i = side[k]
-            u = s.vel[i] + cross(s.omega[i], c.point[k] - s.pos[i])
+            u = s.vel[i] + cross(s.omega[i], c.point[k] - pos[i])
             total += float(np.sum(sign * c.impulse[k] * u))
     return total
 
@@ -49,6 +50,7 @@ def impact_frame(world, a, b):
     """The frame an impact's kinetic energy is measured in, for the contacts ``a, b (K,)``: ``None``
     (the world's) when no kinematic body takes part; the rigid motion ``(v, ω, x) (3,)`` of the one
     kinematic body that does, with no static body in the impact; ``False`` otherwise (no frame).
+    The kernel, ``frame_of``, is the one the compiled step calls.
 
     Against a moving kinematic body a rebound gains kinetic energy in the world frame (a paddle at
     v sends a resting ball off at 2v with e = 1): capped there, the rebound was lost. In the frame
@@ -56,23 +58,102 @@ def impact_frame(world, a, b):
     centre, its spin less ω) every contact velocity is what it was, so the impulses are the same and
     Stronge's bound holds there; a static body or a second kinematic one moves differently, and no
     frame serves (the push cap, ``push_cap``, bounds the impact then)."""
-    kind = world.kind
-    kin = np.unique(np.concatenate([a[kind[a] == KINEMATIC], b[kind[b] == KINEMATIC]]))
-    if kin.size == 0:
-        return None
-    if kin.size > 1 or np.any(kind[a] == STATIC) or np.any(kind[b] == STATIC):
-        return False
-    k = int(kin[0])
     s = world.s
-    return s.vel[k].copy(), s.omega[k].copy(), s.pos[k].copy()
+    out = np.empty((3, 3))
+    code = frame_of(world.kind, np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64),
+                    s.vel, s.omega, s.pos, out)
+    if code == NO_KINEMATIC:
+        return None
+    if code == NO_FRAME:
+        return False
+    return out[0], out[1], out[2]
 
 
-def _in_frame(world, idx, frame, vel, omega):
-    """``vel, omega (k,3)`` of the bodies ``idx (k,)`` in ``frame`` (``impact_frame``; None: as they are)."""
-    if frame is None:
-        return vel, omega
-    v, w, x = frame
-    return vel - (v + cross(w, world.s.pos[idx] - x)), omega - w
+#: ``frame_of``'s answers: no kinematic body in the impact (the world's frame), one kinematic body's
+#: frame, or no frame (a static body or a second kinematic one)
+NO_KINEMATIC, FRAME, NO_FRAME = range(3)
+
+
+@njit
+def frame_of(kind, a, b, vel, omega, pos, out):
+    """``impact_frame``'s kernel: ``NO_KINEMATIC``, ``NO_FRAME``, or ``FRAME`` with ``out (3,3)`` the
+    kinematic body's ``v, ω, x`` (rows)."""
+    k = -1
+    static = False
+    for c in range(a.shape[0]):
+        for i in (a[c], b[c]):
+            if kind[i] == KINEMATIC:
+                if k >= 0 and i != k:
+                    return NO_FRAME
+                k = i
+            elif kind[i] == STATIC:
+                static = True
+    if k < 0:
+        return NO_KINEMATIC
+    if static:
+        return NO_FRAME
+    for x in range(3):
+        out[0, x], out[1, x], out[2, x] = vel[k, x], omega[k, x], pos[k, x]
+    return FRAME
+
+
+@njit
+def _frame_velocity(pos, frame, i, vx, vy, vz, wx, wy, wz, out):
+    """``out[0:3]``, ``out[3:6]``: the velocity ``(vx, vy, vz)`` and spin ``(wx, wy, wz)`` of body ``i``
+    (centre ``pos[i]``) in ``frame (3,3)`` (``v, ω, x``): less the frame's velocity field at the
+    centre, ``v + ω × (pos − x)``, and less ``ω``."""
+    rx, ry, rz = pos[i, 0] - frame[2, 0], pos[i, 1] - frame[2, 1], pos[i, 2] - frame[2, 2]
+    fw0, fw1, fw2 = frame[1, 0], frame[1, 1], frame[1, 2]
+    out[0] = vx - (frame[0, 0] + (fw1 * rz - fw2 * ry))
+    out[1] = vy - (frame[0, 1] + (fw2 * rx - fw0 * rz))
+    out[2] = vz - (frame[0, 2] + (fw0 * ry - fw1 * rx))
+    out[3], out[4], out[5] = wx - fw0, wy - fw1, wz - fw2
+
+
+@njit
+def _in_frame(idx, pos, frame, vel_rows, omega_rows, vel, omega):
+    """Rows ``j`` of ``vel_rows, omega_rows (k,3)`` (bodies ``idx (k,)``) in ``frame`` into
+    ``vel[idx[j]], omega[idx[j]]`` (``(N,3)``)."""
+    t = np.empty(6)
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        _frame_velocity(pos, frame, i, vel_rows[j, 0], vel_rows[j, 1], vel_rows[j, 2], omega_rows[j, 0],
+                        omega_rows[j, 1], omega_rows[j, 2], t)
+        for x in range(3):
+            vel[i, x], omega[i, x] = t[x], t[3 + x]
+
+
+@njit
+def kinetic_in(idx, mass, particle, quat, inertia_body, vel, omega, pos, frame, has_frame):
+    """``kinetic`` of the bodies ``idx (k,)``, in ``frame (3,3)`` (``frame_of``'s) when ``has_frame``."""
+    if not has_frame:
+        return kinetic(idx, mass, particle, quat, inertia_body, vel, omega)
+    vf, wf = vel.copy(), omega.copy()
+    _in_frame(idx, pos, frame, vel[idx], omega[idx], vf, wf)
+    return kinetic(idx, mass, particle, quat, inertia_body, vf, wf)
+
+
+@njit
+def restitution_cap_in(idx, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega, pos, frame,
+                       has_frame):
+    """``restitution_cap``, in ``frame (3,3)`` when ``has_frame``: the factor is found there and the
+    velocities ``vel, omega (N,3)`` rescaled about those after compression, ``vel_c, omega_c (k,3)``."""
+    if not has_frame:
+        return restitution_cap(idx, mass, particle, quat, inertia_body, kinetic0, vel_c, omega_c, vel, omega)
+    k = idx.shape[0]
+    vf, wf = vel.copy(), omega.copy()
+    _in_frame(idx, pos, frame, vel[idx], omega[idx], vf, wf)
+    vcf, wcf = np.empty((vel.shape[0], 3)), np.empty((vel.shape[0], 3))
+    _in_frame(idx, pos, frame, vel_c, omega_c, vcf, wcf)
+    vc, wc = vcf[idx], wcf[idx]
+    f = restitution_cap(idx, mass, particle, quat, inertia_body, kinetic0, vc, wc, vf, wf)
+    if f < 1.0:   # back from the frame
+        for j in range(k):
+            i = idx[j]
+            for x in range(3):
+                vel[i, x] = vel_c[j, x] + f * (vel[i, x] - vel_c[j, x])
+                omega[i, x] = omega_c[j, x] + f * (omega[i, x] - omega_c[j, x])
+    return f
 
 
 def kinetic_energy(world, idx, frame=None):
@@ -80,13 +161,8 @@ def kinetic_energy(world, idx, frame=None):
     (``impact_frame``; default the world's)."""
     s = world.s
     c = np.ascontiguousarray
-    idx = c(idx, dtype=np.int64)
-    vel, omega = s.vel, s.omega
-    if frame is not None:
-        vel, omega = vel.copy(), omega.copy()
-        vel[idx], omega[idx] = _in_frame(world, idx, frame, s.vel[idx], s.omega[idx])
-    return float(kinetic(idx, c(world.mass, dtype=float), c(world.particle), s.quat, c(world.inertia_body), vel,
-                         omega))
+    return float(kinetic_in(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
+                            c(world.inertia_body), s.vel, s.omega, s.pos, _frame_array(frame), frame is not None))
 
 
 def energetic_cap(world, idx, kinetic0, vel_c, omega_c, frame=None):
@@ -94,23 +170,18 @@ def energetic_cap(world, idx, kinetic0, vel_c, omega_c, frame=None):
     kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx (k,)``, in ``frame``:
     ``impact_frame``, default the world's); ``vel_c, omega_c (k,3)`` their velocities after
     compression; returns the factor applied (1 when nothing was needed). The kernel,
-    ``restitution_cap``, is the one the compiled step calls."""
+    ``restitution_cap_in``, is the one the compiled step calls."""
     s = world.s
     c = np.ascontiguousarray
-    idx = c(idx, dtype=np.int64)
-    if frame is None:
-        return float(restitution_cap(idx, c(world.mass, dtype=float), c(world.particle), s.quat,
-                                     c(world.inertia_body), float(kinetic0), c(vel_c, dtype=float),
-                                     c(omega_c, dtype=float), s.vel, s.omega))
-    vel, omega = s.vel.copy(), s.omega.copy()
-    vel[idx], omega[idx] = _in_frame(world, idx, frame, s.vel[idx], s.omega[idx])
-    vc, wc = _in_frame(world, idx, frame, vel_c, omega_c)
-    f = float(restitution_cap(idx, c(world.mass, dtype=float), c(world.particle), s.quat, c(world.inertia_body),
-                              float(kinetic0), c(vc, dtype=float), c(wc, dtype=float), vel, omega))
-    if f < 1.0:   # back from the frame
-        s.vel[idx] = vel_c + f * (s.vel[idx] - vel_c)
-        s.omega[idx] = omega_c + f * (s.omega[idx] - omega_c)
-    return f
+    return float(restitution_cap_in(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
+                                    c(world.inertia_body), float(kinetic0), c(vel_c, dtype=float),
+                                    c(omega_c, dtype=float), s.vel, s.omega, s.pos, _frame_array(frame),
+                                    frame is not None))
+
+
+def _frame_array(frame):
+    """``impact_frame``'s ``(v, ω, x)`` as the kernels' ``(3,3)`` (zeros for none)."""
+    return np.zeros((3, 3)) if frame is None else np.array(frame, dtype=float)
 
 
 @njit
@@ -189,19 +260,49 @@ def kinematic_push(world, a, b, point):
     """What a solve over the contacts ``a, b (K,)`` at ``point (K,3)`` may give where kinematic bodies
     push: ``(dynamic bodies (k,), speed u of the fastest kinematic contact point)``, or ``None``
     when no contact has a kinematic body (between dynamic and static bodies the compression and
-    the resting force only take energy away)."""
+    the resting force only take energy away). The kernels, ``push_speed`` and ``dynamic_bodies``,
+    are the ones the compiled step calls."""
     bm = world.body_masks()
     if not bm.any_kinematic:
         return None
-    ka, kb = bm.kinematic[a], bm.kinematic[b]
-    if not (ka.any() or kb.any()):
-        return None
     s = world.s
-    k = np.where(ka, a, b)[ka | kb]
-    p = point[ka | kb]
-    u = float(np.sqrt(np.max(np.sum((s.vel[k] + cross(s.omega[k], p - s.pos[k])) ** 2, axis=1))))
-    bodies = np.unique(np.concatenate([a, b]))
-    return bodies[(world.kind == DYNAMIC)[bodies]], u
+    c = np.ascontiguousarray
+    a, b = c(a, dtype=np.int64), c(b, dtype=np.int64)
+    u = push_speed(a, b, c(point, dtype=float), bm.kinematic, s.pos, s.vel, s.omega)
+    if u < 0.0:
+        return None
+    return dynamic_bodies(a, b, bm.dynamic), u
+
+
+@njit
+def push_speed(a, b, point, kinematic, pos, vel, omega):
+    """The speed (m/s) of the fastest kinematic contact point among the contacts ``a, b (K,)`` at
+    ``point (K,3)`` (the body's velocity field ``v + ω × (p − x)`` there; A's when both are
+    kinematic), −1 when no contact has a kinematic body."""
+    best = -1.0
+    for c in range(a.shape[0]):
+        if kinematic[a[c]]:
+            k = a[c]
+        elif kinematic[b[c]]:
+            k = b[c]
+        else:
+            continue
+        rx, ry, rz = point[c, 0] - pos[k, 0], point[c, 1] - pos[k, 1], point[c, 2] - pos[k, 2]
+        ux = vel[k, 0] + (omega[k, 1] * rz - omega[k, 2] * ry)
+        uy = vel[k, 1] + (omega[k, 2] * rx - omega[k, 0] * rz)
+        uz = vel[k, 2] + (omega[k, 0] * ry - omega[k, 1] * rx)
+        best = max(best, ux * ux + uy * uy + uz * uz)
+    return math.sqrt(best) if best >= 0.0 else -1.0
+
+
+@njit
+def dynamic_bodies(a, b, dynamic):
+    """The dynamic bodies of the contacts ``a, b (K,)``, ascending (``np.unique``'s order)."""
+    mark = np.zeros(dynamic.shape[0], np.bool_)
+    for c in range(a.shape[0]):
+        mark[a[c]] = True
+        mark[b[c]] = True
+    return np.flatnonzero(mark & dynamic)
 
 
 def push_cap(world, bodies, u, vel0, omega0, vel, omega, ref=None):
@@ -214,7 +315,8 @@ def push_cap(world, bodies, u, vel0, omega0, vel, omega, ref=None):
     ``(vel (k,3), omega (k,3))``: the velocities the budget is measured from, when the solve is one
     of several in a stage (default ``vel0, omega0``): each of an impact's rounds measured from its
     own start let a body gain up to ``2u`` a round, and 128 rounds threw a body squeezed between a
-    paddle at 0.5 m/s and a wall out at 12 m/s in one step.
+    paddle at 0.5 m/s and a wall out at 12 m/s in one step. The kernel, ``push_cap_kernel``, is the
+    one the compiled step calls.
 
     A body squeezed between a kinematic paddle and a wall (or a chain of bodies ending at one) has
     no impulse that holds every contact: Gauss–Seidel's impulses then grow with every sweep, and a
@@ -222,25 +324,46 @@ def push_cap(world, bodies, u, vel0, omega0, vel, omega, ref=None):
     moves on at about the paddle's speed and the position correction resolves the overlap."""
     if len(bodies) == 0:
         return 1.0
-    m = world.mass[bodies]
-    iw = dynamics.rotate_inertia(quat.to_matrix(world.s.quat[bodies]), world.inertia_body[bodies])
-    iw[world.particle[bodies]] = 0.0
-    dv, dw = vel[bodies] - vel0, omega[bodies] - omega0
+    c = np.ascontiguousarray
     vr, wr = (vel0, omega0) if ref is None else ref
-    speed_r = np.sqrt(np.einsum("ij,ij->i", vr, vr))
-    budget = 0.5 * m * (speed_r + 2.0 * u) ** 2 + 0.5 * m * (2.0 * u) ** 2 \
-        + 0.5 * np.einsum("ni,nij,nj->n", wr, iw, wr)
-    # K_i(f) = K0_i + b_i f + a_i f²
-    k0 = 0.5 * (m * np.einsum("ij,ij->i", vel0, vel0) + np.einsum("ni,nij,nj->n", omega0, iw, omega0))
-    qa = 0.5 * (m * np.einsum("ij,ij->i", dv, dv) + np.einsum("ni,nij,nj->n", dw, iw, dw))
-    qb = m * np.einsum("ij,ij->i", vel0, dv) + np.einsum("ni,nij,nj->n", omega0, iw, dw)
-    over = (k0 + qb + qa > budget) & (qa > 0.0)
-    if not over.any():
-        return 1.0
-    qa, qb, room = qa[over], qb[over], np.maximum(budget[over] - k0[over], 0.0)
-    roots = (-qb + np.sqrt(np.maximum(qb * qb + 4.0 * qa * room, 0.0))) / (2.0 * qa)
-    f = float(np.clip(roots.min(), 0.0, 1.0))
+    return float(push_cap_kernel(c(bodies, dtype=np.int64), float(u), c(world.mass, dtype=float),
+                                 c(world.particle), world.s.quat, c(world.inertia_body), c(vel0, dtype=float),
+                                 c(omega0, dtype=float), c(vr, dtype=float), c(wr, dtype=float), vel, omega))
+
+
+@njit
+def push_cap_kernel(bodies, u, mass, particle, quat, inertia_body, vel0, omega0, vref, wref, vel, omega):
+    """``push_cap`` on arrays: ``bodies (k,)``, their velocities before the solve ``vel0, omega0
+    (k,3)`` and those the budget is measured from ``vref, wref (k,3)``; ``vel, omega (N,3)`` after
+    the solve, rescaled in place. The kinetic energy of body ``i`` along the scale ``f`` is
+    ``K0 + b f + a f²``; the factor is the smallest root that meets a budget, within ``[0, 1]``."""
+    f = 1.0
+    for j in range(bodies.shape[0]):
+        i = bodies[j]
+        m = mass[i]
+        dv0, dv1, dv2 = vel[i, 0] - vel0[j, 0], vel[i, 1] - vel0[j, 1], vel[i, 2] - vel0[j, 2]
+        dw0, dw1, dw2 = omega[i, 0] - omega0[j, 0], omega[i, 1] - omega0[j, 1], omega[i, 2] - omega0[j, 2]
+        speed_r = math.sqrt(vref[j, 0] * vref[j, 0] + vref[j, 1] * vref[j, 1] + vref[j, 2] * vref[j, 2])
+        rot_r, rot0, rot_a, rot_b = 0.0, 0.0, 0.0, 0.0
+        if not particle[i]:
+            rot_r = _spin_product(quat, inertia_body, i, wref[j, 0], wref[j, 1], wref[j, 2], wref[j, 0], wref[j, 1],
+                                  wref[j, 2])
+            rot0 = _spin_product(quat, inertia_body, i, omega0[j, 0], omega0[j, 1], omega0[j, 2], omega0[j, 0],
+                                 omega0[j, 1], omega0[j, 2])
+            rot_a = _spin_product(quat, inertia_body, i, dw0, dw1, dw2, dw0, dw1, dw2)
+            rot_b = _spin_product(quat, inertia_body, i, omega0[j, 0], omega0[j, 1], omega0[j, 2], dw0, dw1, dw2)
+        budget = 0.5 * m * (speed_r + 2.0 * u) ** 2 + 0.5 * m * (2.0 * u) ** 2 + 0.5 * rot_r
+        k0 = 0.5 * (m * (vel0[j, 0] * vel0[j, 0] + vel0[j, 1] * vel0[j, 1] + vel0[j, 2] * vel0[j, 2]) + rot0)
+        qa = 0.5 * (m * (dv0 * dv0 + dv1 * dv1 + dv2 * dv2) + rot_a)
+        qb = m * (vel0[j, 0] * dv0 + vel0[j, 1] * dv1 + vel0[j, 2] * dv2) + rot_b
+        if k0 + qb + qa > budget and qa > 0.0:
+            room = max(budget - k0, 0.0)
+            f = min(f, (-qb + math.sqrt(max(qb * qb + 4.0 * qa * room, 0.0))) / (2.0 * qa))
+    f = min(max(f, 0.0), 1.0)
     if f < 1.0:
-        vel[bodies] = vel0 + f * dv
-        omega[bodies] = omega0 + f * dw
+        for j in range(bodies.shape[0]):
+            i = bodies[j]
+            for x in range(3):
+                vel[i, x] = vel0[j, x] + f * (vel[i, x] - vel0[j, x])
+                omega[i, x] = omega0[j, x] + f * (omega[i, x] - omega0[j, x])
     return f

@@ -114,6 +114,9 @@ def _round(ctx, ti, vn, e, bounced, lam):
         hi = np.flatnonzero(hit | (pressed & ctx.touching & ~bounced))
         res = ctx.solve(ctx.rows.select(hi), s.vel, s.omega, target_n=np.where(hit[hi], -e[hi] * vn[hi], 0.0))
         f = 1.0 if frame is False else energetic_cap(world, bodies0, kinetic0, vel_c, omega_c, frame)
+        if pushed is not None:   # the rebound within the push budget too (with a static body: no frame)
+            f *= push_cap(world, *pushed, vel_c, omega_c, s.vel, s.omega,
+                          ref=(ctx.push_ref[0][pushed[0]], ctx.push_ref[1][pushed[0]]))
         lam_r[hi, 0] += res.impulse[:, 0] * f
         ctx.note(res, residual=False)
     lam += lam_r
