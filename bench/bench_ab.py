@@ -60,7 +60,27 @@ def scenes(cs):
     return {"resting_10": engine(lambda: br.resting_scene(10)), "resting_100": engine(lambda: br.resting_scene(100)),
             "stack_10": engine(br.stack_scene), "rod": engine(lambda: br.rotation_scene((1.0, 0.05, 0.05))),
             "default_scene": cs.load_scene(os.path.join(ROOT, "config", "scenes", "default.yaml")),
-            "pile_fractional": bv.tumbling_pile(cs, "fractional")}
+            "pile_fractional": bv.tumbling_pile(cs, "fractional"), "sweeper_30": sweeper(cs)}
+
+
+def sweeper(cs, n=30):
+    """A kinematic arm turning at 2 rad/s about the vertical through the middle of a walled pen of
+    ``n`` balls and boxes (a push every step, for as long as it is stepped)."""
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    w = cs.World(settings=cs.Settings(dt=0.004, toi="next_step"),
+                 materials={"m": cs.Material(restitution=0.2, friction=0.5)})
+    w.add_body("ground", cs.Plane(), kind="static", material="m")
+    for i, (x, y, sx, sy) in enumerate([(1.1, 0, 0.2, 2.4), (-1.1, 0, 0.2, 2.4), (0, 1.1, 2.4, 0.2), (0, -1.1, 2.4, 0.2)]):
+        w.add_body(f"wall{i}", cs.Box((sx, sy, 0.4)), kind="static", position=(x, y, 0.2), material="m")
+    w.add_body("arm", cs.Box((1.6, 0.06, 0.2)), kind="kinematic", position=(0, 0, 0.1), angular_velocity=(0, 0, 2.0),
+               material="m")
+    for i in range(n):
+        r, a = rng.uniform(0.2, 0.9), rng.uniform(0, 2 * np.pi)
+        shape = cs.Sphere(0.06) if i % 2 else cs.Box((0.1, 0.1, 0.1))
+        w.add_body(f"b{i}", shape, mass=0.3, position=(r * np.cos(a), r * np.sin(a), 0.06), material="m")
+    return w
 
 
 def main():
