@@ -43,14 +43,14 @@ setup(
     name=PACKAGE,
     cmdclass={"install": InstallAndCompile},
     version="0.1.0",
-    description="Collision detection and contact response for rigid bodies in pure Python, with a ROS 2 node",
+    description="Collision detection and contact response for rigid bodies in Python (numpy, numba), with a ROS 2 node",
     packages=find_packages(include=["contact_sim", "contact_sim.*", "msg_adapters", "msg_adapters.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
     ] + tree("config", "share/" + PACKAGE),
     python_requires=">=3.10",
-    # yourdfpy: the URDF parser of World.add_urdf (issue 16)
+    # yourdfpy: the URDF parser of World.add_urdf
     install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60", "numba>=0.60",
                       "yourdfpy>=0.0.56"],
     extras_require={
