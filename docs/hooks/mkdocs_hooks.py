@@ -52,7 +52,7 @@ def parameter_table():
             r = desc.integer_range[0]
             span = f"{r.from_value} to {r.to_value}"
         elif desc.additional_constraints:
-            span = f"`{desc.additional_constraints}`"
+            span = ", ".join(f"`{x.strip()}`" for x in desc.additional_constraints.split("|"))
         else:
             span = ""
         rows.append(f"| `{name}` | {_cell(shown)} | {kind} | {_cell(span)} | {'yes' if desc.read_only else ''} | "
