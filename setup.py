@@ -57,6 +57,8 @@ setup(
         # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
         "plot": ["matplotlib>=3.6"],
         "test": ["pytest>=7", "pytest-timeout>=2.1", "hypothesis>=6.100", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
+        # make docs: the documentation site (mkdocs.yml; docs/)
+        "docs": ["mkdocs>=1.6", "mkdocs-material>=9.5", "mkdocstrings[python]>=0.26"],
         "bench": ["matplotlib>=3.6", "python-fcl>=0.7", "pybullet>=3.2", "mujoco>=3.0"],
     },
     zip_safe=True,
