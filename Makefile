@@ -12,7 +12,7 @@ SHELL  := /bin/bash
 # this machine's pip config names local indexes that may not exist: drop that noise, keep errors
 QUIET  := 2>&1 | { grep -v "is ignored: it is neither" || true; }
 
-.PHONY: run test fuzz fuzz-random stability bench clean venv
+.PHONY: run test fuzz fuzz-random stability bench docs clean venv
 
 venv: $(STAMP)
 
@@ -50,7 +50,7 @@ fuzz-random: $(STAMP)
 	$(PY) test/fuzz_random.py --examples $(N) $(if $(SEED),--seed $(SEED)) $(if $(JOBS),--jobs $(JOBS)) $(ARGS)
 
 # every benchmark in bench/ (tables on stdout, CSV/PNG in bench/results/; pybullet and MuJoCo are
-# the references), the hard cases' measured figures, then the README's "Measured results" block
+# the references), the hard cases' measured figures, then the measured results in docs/benchmarks.md
 bench: $(STAMP)
 	$(PY) -m pip install --quiet pybullet mujoco $(QUIET)
 	$(PY) bench/bench_detect.py
@@ -66,5 +66,12 @@ bench: $(STAMP)
 	$(PY) -m pytest -q -m "hard or stability" -s -p no:cacheprovider | grep -o "HARD .*" | sed "s/^HARD //" > bench/results/hard_cases.txt
 	$(PY) bench/report.py
 
+# the documentation site (mkdocs.yml, docs/): the docs tooling (setup.py's "docs" extra) into the venv,
+# then a strict build into site/: a broken link or anchor, a missing page or any warning fails; the API
+# reference and the node's parameter table are generated from the code (docs/hooks/)
+docs: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[docs]' $(QUIET)
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --site-dir site
+
 clean:
-	rm -rf $(VENV) build install log .pytest_cache
+	rm -rf $(VENV) build install log .pytest_cache site

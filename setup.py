@@ -43,20 +43,22 @@ setup(
     name=PACKAGE,
     cmdclass={"install": InstallAndCompile},
     version="0.1.0",
-    description="Collision detection and contact response for rigid bodies in pure Python, with a ROS 2 node",
+    description="Collision detection and contact response for rigid bodies in Python (numpy, numba), with a ROS 2 node",
     packages=find_packages(include=["contact_sim", "contact_sim.*", "msg_adapters", "msg_adapters.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
     ] + tree("config", "share/" + PACKAGE),
     python_requires=">=3.10",
-    # yourdfpy: the URDF parser of World.add_urdf (issue 16)
+    # yourdfpy: the URDF parser of World.add_urdf
     install_requires=["numpy>=1.24", "scipy>=1.10", "trimesh>=4.0", "PyYAML>=6.0", "tqdm>=4.60", "numba>=0.60",
                       "yourdfpy>=0.0.56"],
     extras_require={
         # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
         "plot": ["matplotlib>=3.6"],
         "test": ["pytest>=7", "pytest-timeout>=2.1", "hypothesis>=6.100", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
+        # make docs: the documentation site (mkdocs.yml; docs/)
+        "docs": ["mkdocs>=1.6", "mkdocs-material>=9.5", "mkdocstrings[python]>=0.26"],
         "bench": ["matplotlib>=3.6", "python-fcl>=0.7", "pybullet>=3.2", "mujoco>=3.0"],
     },
     zip_safe=True,

@@ -12,7 +12,7 @@ contact report.
 
 Prints a table, writes ``response_peers.csv`` and ``response_peers.png`` (bar chart of the
 ratios) to bench/results/ (``--quick``: ``response_peers_quick.*``; ``--out`` another folder).
-``make bench`` runs it; ``bench/report.py`` puts the table in the README.
+``make bench`` runs it; ``bench/report.py`` puts the table in docs/benchmarks.md.
 
 The scenes (issue 12), exactly:
 

@@ -1,4 +1,4 @@
-"""Rewrite the README's "Measured results" block from the benchmark results in bench/results/.
+"""Rewrite the "Measured results" block of docs/benchmarks.md from the benchmark results in bench/results/.
 
     python bench/report.py        # after `make bench`; also prints the block
 
@@ -13,7 +13,10 @@ import re
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = os.path.join(HERE, "results")
-README = os.path.join(os.path.dirname(HERE), "README.md")
+# the documentation page that holds the block; charts are linked from it as ../bench/results/NAME.png
+# (the docs site serves them through docs/hooks/mkdocs_hooks.py)
+PAGE = os.path.join(os.path.dirname(HERE), "docs", "benchmarks.md")
+CHARTS = "../bench/results/"
 BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
 
 
@@ -101,7 +104,7 @@ def response():
         scenes.setdefault((x["engine"], x["settings"]), []).append(x["scene"])
     out += [f"- {e} ({', '.join(dict.fromkeys(sc))}): {st}" for (e, st), sc in scenes.items()]
     if os.path.isfile(os.path.join(RESULTS, "response_peers.png")):
-        out += ["", "![response ratios](bench/results/response_peers.png)"]
+        out += ["", f"![response ratios]({CHARTS}response_peers.png)"]
     return out + [""]
 
 
@@ -115,7 +118,7 @@ def accuracy():
     out = ["### Speed against error (`bench/bench_accuracy.py`)", "",
            "Relative error against the exact answer, cost in wall seconds per simulated second, step sizes "
            "1/30 to 1/2000 s. The cheapest run within each error level:", "", table, ""]
-    out += [f"![{c[9:-4]}](bench/results/{c})" for c in charts]
+    out += [f"![{c[9:-4]}]({CHARTS}{c})" for c in charts]
     return out + [""]
 
 
@@ -153,7 +156,7 @@ def default_scene():
     out = ["### The default scene (`bench/bench_default.py`)", "",
            f"The shipped scene (`config/scenes/default.yaml`, dt {x0['dt']} s) stepped from a fresh load for "
            f"{x0['seconds']} simulated s, kernels loaded beforehand; medians of {x0['repeats']} repeats. "
-           "Target (issue 13): ≤ 0.1 wall s per simulated s over the run, step p99 < 1 ms.", ""]
+           "Target: ≤ 0.1 wall s per simulated s over the run, step p99 < 1 ms.", ""]
     out += table(["phase", "wall s per simulated s", "step p50 ms", "step p99 ms", "step max ms"],
                  [[x["phase"], f(x["wall_s_per_sim_s"], ".3f"), f(x["p50_ms"], ".3f"), f(x["p99_ms"], ".3f"),
                    f(x["max_ms"], ".2f")] for x in r])
@@ -301,14 +304,14 @@ def block():
 
 def main():
     text = block()
-    with open(README) as fh:
-        readme = fh.read()
-    if BEGIN in readme:
-        readme = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: text, readme, flags=re.S)
+    with open(PAGE) as fh:
+        page = fh.read()
+    if BEGIN in page:
+        page = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: text, page, flags=re.S)
     else:
-        readme = readme.rstrip("\n") + "\n\n## Measured results\n\n" + text + "\n"
-    with open(README, "w") as fh:
-        fh.write(readme)
+        page = page.rstrip("\n") + "\n\n## Measured results\n\n" + text + "\n"
+    with open(PAGE, "w") as fh:
+        fh.write(page)
     print(text)
 
 

@@ -1,4 +1,5 @@
-"""contact_sim: collision detection and contact response for rigid bodies, in pure Python.
+"""contact_sim: collision detection and contact response for rigid bodies, in Python with numpy,
+its hot loops compiled by numba.
 
 Quick start::
 

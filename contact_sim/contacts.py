@@ -2,7 +2,9 @@
 
 ``feature_id (K,) int64`` names a contact point *within its pair* by the features of the two shapes
 that make it (Box2D's contact ids), so the same point keeps its id from one step to the next while
-the same features touch: the warm-start cache keys on ``(body_a, body_b, feature_id)``. Ids are
+the same features touch, so a caller can key per-point data (its own warm starts, a contact's
+history) on ``(body_a, body_b, feature_id)``. The engine's own warm start does not use it: it matches
+contacts by pair and by the point in body A's frame (``response/cache.py``). Ids are
 unique within a pair in one detection. An id packs four fields (``fid(kind, x, y, z)``, read back
 by ``split_fid``): ``kind`` 3 bits (60–62), ``x`` and ``y`` 20 bits each (40–59, 20–39), ``z`` 20
 bits (0–19). "A" and "B" are the narrow-phase kernel's sides: A is the shape of higher rank
@@ -33,8 +35,12 @@ import numpy as np
 
 from .jit import njit
 
-# what produced a contact (the ``feature`` column)
 FEATURES = ("vertex_face", "edge_face", "face_face", "swept", "sphere", "plane")
+"""What produced a contact: ``Contacts.feature`` indexes this tuple. ``vertex_face``: one vertex against
+a face (a one-point patch, a vertex inside a mesh or a polyhedron); ``edge_face``: an edge against a face
+(a two-point patch, an edge crossing a mesh face) or an edge–edge contact; ``face_face``: a point of a
+face–face patch of three or more points; ``swept``: found by the swept-volume time of impact;
+``sphere``: a pair with a sphere; ``plane``: a shape's point on a plane."""
 
 FID_POINT, FID_PLANE, FID_FACE_A, FID_FACE_B, FID_EDGE, FID_MESH_VERTEX, FID_POLY_VERTEX, FID_CROSSING = range(8)
 _MASK20 = (1 << 20) - 1

@@ -64,6 +64,8 @@ def resolve_scene(name_or_path, search=None):
 
 
 def list_scenes(search=None):
+    """The names of the shipped scenes (``list[str]``, sorted; ``resolve_scene`` takes each), from
+    ``scenes_dir(search)``."""
     return sorted(f[:-5] for f in os.listdir(scenes_dir(search)) if f.endswith(".yaml"))
 
 

@@ -73,6 +73,8 @@ class Plane(Shape):
 
 
 class Sphere(Shape):
+    """A sphere of ``radius`` (m), centred on the body origin."""
+
     type = "sphere"
     size_field = "radius"
 

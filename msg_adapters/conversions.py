@@ -152,7 +152,7 @@ def array_to_contacts(a):
         friction_impulse=vec("friction_impulse_"),
         relative_normal_velocity=a["relative_normal_velocity"].astype(np.float64),
         feature=a["feature"].astype(np.int64),
-        feature_id=np.zeros(len(a), np.int64),   # not carried by the message (an engine-side warm-start key)
+        feature_id=np.zeros(len(a), np.int64),   # not carried by the contacts cloud (no such field): zeros
     )
 
 

@@ -46,7 +46,7 @@ def qos_overrides():
 
 
 class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
-    """See the module docstring and the README section "ROS interface"."""
+    """See the module docstring and docs/ros.md (every topic, service and parameter)."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)

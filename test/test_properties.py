@@ -113,7 +113,7 @@ def conservative_springs(world, pairs):
     heavy box sunk past its thickness had its springs jump by 167 J in a step). A box–box manifold
     is where the clipped faces cross (one edge point became four face points: +680 J of spring
     energy in a step), and meshes and hulls are pushed out through their nearest face, which flips:
-    no potential (README, Known limits)."""
+    no potential (docs/limits.md)."""
     from contact_sim.response.toi import plane_world
 
     shapes, s = world.shapes, world.s
@@ -185,7 +185,7 @@ def step_checked(world, dt=None):
     e1 = world.energy() + spring1
     lin += spring_energy(world, new_since=pairs0)[0] + spring_turn_bound(world, h, omega0)
     if ls["response"] == "penalty" and not (potential and conservative_springs(world, pairs1)):
-        # per-point springs that are no potential field: finite, not conserved (README, Known limits)
+        # per-point springs that are no potential field: finite, not conserved (docs/limits.md)
         return 0.0
     lin = max(lin, linearisation_bound(world, h))
     allowed = (1e-9 * scale + ls["correction_energy"] + ls["kinematic_work"] + ls["rotation_drift"]
@@ -363,7 +363,7 @@ def draw_elastic_keeps_energy(data):
     """e = 1, no friction, no gravity (so no resting contact turns a slow bounce inelastic)."""
     toi = data.draw(st.sampled_from(["next_step", "fractional", "swept", "auto"]))
     # dynamic concave meshes are left out: their time-of-impact separation is per vertex, not a lower
-    # bound of the distance, so a fast one can pass edge-first into a hull (README, Known limits)
+    # bound of the distance, so a fast one can pass edge-first into a hull (docs/limits.md)
     world, info = data.draw(scenes(max_bodies=8, responses=("impulse",), tois=(toi,), kinematic=False, elastic=1.0,
                                    gravity=False, separated=True, kinds=("sphere", "box", "convex")))
     return world, _case("elastic_keeps_energy", info)

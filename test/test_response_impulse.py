@@ -310,7 +310,7 @@ def test_a_touching_chain_takes_an_impact_together():
     """Three equal balls in a row, touching, no gravity, e = 1: the first arrives at v. Contacts of one
     instant take the impact together (the resting one is pressed in the compression and held in the
     restitution), so the chain answers as one stiff body: −v/3, 2v/3, 2v/3, energy and momentum
-    exact, not Newton's cradle's 0, 0, v (a sequence of separate impacts; README, Known limits)."""
+    exact, not Newton's cradle's 0, 0, v (a sequence of separate impacts; docs/limits.md)."""
     v = 1.5
     w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01),
                  materials={"m": cs.Material(restitution=1.0, friction=0.0)})

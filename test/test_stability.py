@@ -1,6 +1,6 @@
 """Long-run stability scenes (issue 10): ten simulated seconds each, under default settings, with
 maximum penetration, drift, energy and wall time reported (``HARD`` lines, collected by
-``make bench`` into the README) and the physical bounds asserted: nothing explodes, stacks stand,
+``make bench`` into docs/benchmarks.md) and the physical bounds asserted: nothing explodes, stacks stand,
 piles settle, no body ever moves faster than a fall from the highest start (plus what a kinematic
 paddle gives it), and the total energy never exceeds its start by more than the potential energy
 position correction adds when it separates overlaps.
