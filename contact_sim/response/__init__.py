@@ -1,4 +1,4 @@
-"""Collision response and time of impact (issue 4).
+"""Collision response and time of impact.
 
 * ``rows``    — contact constraint rows and their velocity algebra;
 * ``solver``  — the solve by size: ``direct`` (the exact active set) or projected Gauss–Seidel

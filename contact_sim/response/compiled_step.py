@@ -4,9 +4,8 @@ With ``next_step`` times of impact (every world of more than a few bodies under 
 is one sub-step: prepare → impact (compression with friction, then restitution under the
 energetic cap) → resting solve (exact, island by island; Gauss–Seidel finishing the islands that
 slide) → position correction's plan → store impulses → advance. Run stage by stage from Python,
-those stages cost more in array calls and argument passing than in arithmetic (a 10-body resting
-step: about a quarter of its time in the kernels; an impact step of the default scene ~1.5 ms
-against ~0.3 ms compiled). ``run`` runs them as one compiled call, the same kernels in the same
+those stages cost more in array calls and argument passing than in arithmetic (in a 10-body
+resting step the kernels are about a quarter of the time). ``run`` runs them as one compiled call, the same kernels in the same
 order as the Python stages (``prepare.classify``, ``pgs.build_rows``, ``cache._local_points``,
 ``active_set.islands`` and ``solve_islands``, ``pgs.sweeps``, ``energy.restitution_cap``,
 ``pgs.normal_velocities``, ``cache._warm_start``, ``resting._work_bound``, ``cache._warm_record``,
