@@ -480,7 +480,10 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.counts["ticks"] += 1
         stamp_ns = self._now_ns()   # one stamp for the whole tick: the world's time after the step
         self._publish_tick(contacts, stamp_ns, self.period)
-        elapsed, cpu = time.perf_counter() - start, time.thread_time() - cpu_start
+        # the CPU clock read inside the wall clock's interval at both ends (it starts after ``start``,
+        # and is read first here), so a tick's CPU time never counts time its wall time does not
+        cpu = time.thread_time() - cpu_start
+        elapsed = time.perf_counter() - start
         slot = self._ticks_timed % len(self._tick_buf)
         self._tick_buf[slot], self._tick_cpu_buf[slot] = elapsed, cpu
         self._ticks_timed += 1

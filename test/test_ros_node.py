@@ -277,9 +277,11 @@ def test_tick_time_statistics_cover_the_last_stats_window_ticks(ros):
         assert d["tick_time_ms_max"] == pytest.approx(window.max(), rel=1e-12)
         assert d["tick_time_ms_p50"] == pytest.approx(np.median(window), rel=1e-12)
         assert d["tick_time_ms_last"] == pytest.approx(node._tick_buf[(12 - 1) % 5] * 1e3, rel=1e-12)
-        # the thread's CPU time in each of those ticks: positive, and never more than the wall time
+        # the thread's CPU time in each of those ticks: positive, and never more than the wall time (the
+        # CPU clock is read inside the wall clock's interval; 10 µs for the two clocks' sources and
+        # resolution, under the 0.1 ms and more that a CPU interval wider than the tick would add)
         cpu = node._tick_cpu_buf * 1e3
-        assert np.all(cpu > 0) and np.all(cpu <= window * (1 + 1e-9) + 1e-3)
+        assert np.all(cpu > 0) and np.all(cpu <= window + 1e-2)
         assert d["tick_cpu_ms_max"] == pytest.approx(cpu.max(), rel=1e-12)
         assert d["tick_cpu_ms_p99"] == pytest.approx(np.percentile(cpu, 99), rel=1e-12)
     finally:
