@@ -156,7 +156,7 @@ def test_a_resting_box_holds_its_weight_through_the_compiled_path(answers):
 def test_mixed_materials_combine_in_the_kernel_as_in_the_python_stages(rule, monkeypatch, answers):
     """Three materials under each combine rule (a bouncing ball on a sliding box on the ground): the
     contacts' coefficients (``prepare.coefficient_rows``, which both paths call) are
-    ``settings.combine``'s exactly, and the scene steps bit for bit both ways."""
+    each rule's formula exactly, and the scene steps bit for bit both ways."""
     def scene():
         w = cs.World(settings=cs.Settings(toi="next_step", combine=rule),
                      materials={"rubber": cs.Material(restitution=0.8, friction=0.9, static_friction=1.1),
@@ -170,7 +170,7 @@ def test_mixed_materials_combine_in_the_kernel_as_in_the_python_stages(rule, mon
         return w
 
     from contact_sim.response import models, prepare
-    from contact_sim.settings import combine
+    from test_response_impulse import combined as combine
 
     w = scene()
     w.s.pos[2, 2] = 0.3   # the ball on the box: two pairs, each of two materials

@@ -18,7 +18,7 @@ from .. import dynamics
 from ..jit import njit
 from ..kinds import DYNAMIC
 from ..memo import derived
-from ..settings import COMBINE_RULES
+from ..settings import COMBINE_RULES, combine_pair
 from . import models as _models
 from . import solver
 from . import toi as toi_mod
@@ -275,34 +275,18 @@ def coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic
     """``coefficients`` in a loop, for the compiled step: ``a, b (K,)`` the contacts' bodies, the
     bodies' materials ``(N,)``, ``rule`` the index of ``settings.combine`` in ``COMBINE_RULES``;
     writes ``e, mu_s, mu_d (K,)`` (friction zero unless ``kinetic``), static friction at least the
-    dynamic. ``settings.combine``'s operations, so its values (tests hold the two equal)."""
+    dynamic (``settings.combine_pair``: the one place the rules are written)."""
     for c in range(a.shape[0]):
         ia, ib = a[c], b[c]
-        e[c] = _combine(restitution[ia], restitution[ib], rule)
+        e[c] = combine_pair(restitution[ia], restitution[ib], rule)
         if kinetic:
-            d = _combine(friction[ia], friction[ib], rule)
-            st = _combine(static_friction[ia], static_friction[ib], rule)
+            d = combine_pair(friction[ia], friction[ib], rule)
+            st = combine_pair(static_friction[ia], static_friction[ib], rule)
             mu_s[c] = st if st >= d else d
             mu_d[c] = d
         else:
             mu_s[c] = 0.0
             mu_d[c] = 0.0
-
-
-@njit
-def _combine(x, y, rule):
-    """``settings.combine`` of two coefficients (``rule`` an index into ``COMBINE_RULES``)."""
-    if x == y:
-        return x
-    if rule == 0:
-        return 0.5 * (x + y)
-    if rule == 1:
-        return x if x <= y else y
-    if rule == 2:
-        return x if x >= y else y
-    if rule == 3:
-        return x * y
-    return math.sqrt(x * y)
 
 
 def rows(world, c, inv_inertia_w, rel_vel, m):
