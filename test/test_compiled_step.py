@@ -229,17 +229,7 @@ def test_a_kinematic_push_steps_bit_for_bit_as_the_python_stages(monkeypatch, an
     push cap (``energy.push_cap``) scales the solves back. Every step is compiled, bit-identical to
     the Python stages."""
     from contact_sim.response import impact, resting
-
-    def paddle():
-        w = cs.World(settings=cs.Settings(toi="next_step"),
-                     materials={"m": cs.Material(restitution=0.2, friction=0.4)})
-        w.add_body("ground", cs.Plane(), kind="static", material="m")
-        w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.14),
-                   velocity=(0.5, 0, 0), material="m")
-        w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0, 0, 0.1), material="m")
-        w.add_body("box", cs.Box((0.2, 0.2, 0.2)), mass=1.0, position=(0.35, 0, 0.1), material="m")
-        w.add_body("wall", cs.Box((0.1, 1.0, 1.0)), kind="static", position=(0.5, 0, 0.5), material="m")
-        return w
+    from test_kinematic import squeeze_at_a_wall as paddle
 
     scales = []
     for mod in (impact, resting):

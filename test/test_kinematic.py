@@ -183,6 +183,20 @@ def test_a_ball_squeezed_in_a_closing_wedge_ends_within_the_push_budget(theta_de
     assert w.last_solve.contacts >= 2
 
 
+def squeeze_at_a_wall():
+    """Ground; a kinematic paddle (bodies: 1) moving at 0.5 m/s along x, pressed 1 cm into the ground;
+    a ball (2, 0.5 kg, r 0.1) in its way, then a box (3, 1 kg) standing at a static wall (4); one
+    material, e = 0.2, μ = 0.4, ``next_step``. By t = 0.85 s the three contacts cannot all hold."""
+    w = cs.World(settings=cs.Settings(toi="next_step"), materials={"m": cs.Material(restitution=0.2, friction=0.4)})
+    w.add_body("ground", cs.Plane(), kind="static", material="m")
+    w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.14),
+               velocity=(0.5, 0, 0), material="m")
+    w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0, 0, 0.1), material="m")
+    w.add_body("box", cs.Box((0.2, 0.2, 0.2)), mass=1.0, position=(0.35, 0, 0.1), material="m")
+    w.add_body("wall", cs.Box((0.1, 1.0, 1.0)), kind="static", position=(0.5, 0, 0.5), material="m")
+    return w
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_a_ball_squeezed_between_a_paddle_and_a_box_at_a_wall_rebounds_within_the_push_budget(compiled, monkeypatch):
     """A paddle at u = 0.5 m/s pushes a ball (e = 0.2, μ = 0.4) into a box standing at a static wall:
@@ -195,13 +209,7 @@ def test_a_ball_squeezed_between_a_paddle_and_a_box_at_a_wall_rebounds_within_th
 
     if not compiled:
         monkeypatch.setattr(compiled_step, "applies", lambda ctx: False)
-    w = cs.World(settings=cs.Settings(toi="next_step"), materials={"m": cs.Material(restitution=0.2, friction=0.4)})
-    w.add_body("ground", cs.Plane(), kind="static", material="m")
-    w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.14),
-               velocity=(0.5, 0, 0), material="m")
-    w.add_body("ball", cs.Sphere(0.1), mass=0.5, position=(0, 0, 0.1), material="m")
-    w.add_body("box", cs.Box((0.2, 0.2, 0.2)), mass=1.0, position=(0.35, 0, 0.1), material="m")
-    w.add_body("wall", cs.Box((0.1, 1.0, 1.0)), kind="static", position=(0.5, 0, 0.5), material="m")
+    w = squeeze_at_a_wall()
     u, dt, squeezed = 0.5, 0.01, 0
     for _ in range(150):
         v0 = np.linalg.norm(w.s.vel[2:4], axis=1)
