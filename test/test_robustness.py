@@ -453,3 +453,39 @@ def test_a_box_resting_half_over_another_keeps_the_corners_of_its_patch(rotvec, 
     got = sorted(map(tuple, np.round(c.point[:, :2], 6)))
     assert got == [(0.005, -0.1), (0.005, 0.1), (0.1, -0.1), (0.1, 0.1)]
     assert np.abs(c.depth).max() < 1e-6 * 0.2
+
+
+# ---------------------------------------------------------------- beside an open mesh's rim
+_TILE_POSE = ([0, 0, 0], [0, 0, 0, 1])   # flat_tile_mesh(2.0): the square |x|, |y| <= 2 in z = 0, facing +z
+
+
+@pytest.mark.parametrize("centre, rim", [([2.25, 0.3, -0.03], [2.0, 0.3, 0.0]),      # beyond an edge
+                                         ([2.2, 2.1, -0.03], [2.0, 2.0, 0.0])])      # beyond a corner
+def test_a_sphere_beside_an_open_meshs_rim_touches_the_rim_not_the_back(centre, rim):
+    """A point below a flat open mesh's plane but outside its footprint is beside the sheet, not
+    behind it: its nearest point is on the rim, and its distance to the sheet is its distance to the
+    rim. Taken as behind, a sphere 0.25 m beyond the rim and 3 cm below its plane was reported
+    0.55 m deep and pushed the wrong way (through the tile)."""
+    r = 0.3
+    c = cs.collide(flat_tile_mesh(2.0, 4), _TILE_POSE, cs.Sphere(r), (centre, [0, 0, 0, 1]))
+    gap = np.subtract(centre, rim)
+    dist = np.linalg.norm(gap)
+    assert len(c) == 1
+    np.testing.assert_allclose(c.depth, [r - dist], rtol=1e-12)
+    np.testing.assert_allclose(c.normal, [-gap / dist], atol=1e-12)   # B (sphere) → A (tile): towards the rim
+
+
+@pytest.mark.parametrize("body", ["box", "hull", "closed mesh"])
+def test_a_body_beside_an_open_meshs_rim_is_apart_whatever_the_margin(body):
+    """A cube 5 cm beyond the rim of a flat open mesh, straddling its plane, does not touch it: no
+    contact at margin 0, and within a wide margin only separations of at least the 5 cm gap. Its
+    lower corners are below the plane; taken as behind the sheet they were 0.11 m deep, a contact
+    that came and went with the margin (fresh draws, seed 20261212: a penalty spring on it gave a
+    box 8.5 kJ in one step)."""
+    shape = {"box": cs.Box([0.2] * 3), "hull": cs.Convex(cs.Box([0.2] * 3).vertices),
+             "closed mesh": cs.TriMesh(*_cube_mesh(0.2))}[body]
+    tile = flat_tile_mesh(2.0, 4)
+    pose = ([2.15, 0.3, 0.0], [0, 0, 0, 1])   # x from 2.05 to 2.25, z from -0.1 to 0.1
+    assert len(cs.collide(tile, _TILE_POSE, shape, pose)) == 0
+    c = cs.collide(tile, _TILE_POSE, shape, pose, margin=0.2)
+    assert len(c) and c.depth.max() <= -0.05 + 1e-12, c.depth

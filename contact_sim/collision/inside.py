@@ -72,6 +72,72 @@ def parity_inside(p, V, tris, t0, nt, eps=1e-9):
 
 
 @njit
+def behind_open(px, py, pz, qx, qy, qz, V, tris, t0, nt, t):
+    """Point ``p`` behind an open mesh (triangle rows ``t0 .. t0+nt`` of ``tris``, vertices ``V``)
+    whose nearest point to it is ``q``, on triangle row ``t``: behind that triangle's plane, and not
+    beside the rim. An open mesh is a sheet: a point whose nearest point lies on its rim (an edge
+    only one triangle has, or a vertex on such an edge) and that is not over the triangle is beside
+    the sheet, whatever side of the plane it is on, and its distance to the sheet is its distance to
+    the rim. (Taken as behind, a box corner 0.25 m beyond a terrain's rim and 3 cm below its plane
+    was 0.25 m deep, a contact that came and went with the margin.)"""
+    i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
+    ax, ay, az = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]
+    bx, by, bz = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    dx, dy, dz = px - qx, py - qy, pz - qz
+    s = dx * nx + dy * ny + dz * nz
+    if not s < 0:
+        return False
+    # over the triangle: p - q along its normal (q the foot of the perpendicular); then not beside
+    n2, d2 = nx * nx + ny * ny + nz * nz, dx * dx + dy * dy + dz * dz
+    if d2 - s * s / n2 <= 1e-18 * d2:
+        return True
+    # q on an edge or a vertex of t: beside the rim when one of the edges it lies on is a rim edge
+    scale = np.sqrt(max(ax * ax + ay * ay + az * az, bx * bx + by * by + bz * bz))
+    on = np.zeros(3, np.bool_)   # q on vertex k of t
+    for k in range(3):
+        v = tris[t, k]
+        on[k] = (V[v, 0] - qx) ** 2 + (V[v, 1] - qy) ** 2 + (V[v, 2] - qz) ** 2 <= (1e-9 * scale) ** 2
+    for k in range(3):
+        if on[k]:
+            return not _rim_vertex(tris, t0, nt, tris[t, k])
+    for k in range(3):   # q on the edge from vertex k to k+1: the one opposite the third vertex
+        u, w = tris[t, k], tris[t, (k + 1) % 3]
+        ex, ey, ez = V[w, 0] - V[u, 0], V[w, 1] - V[u, 1], V[w, 2] - V[u, 2]
+        fx, fy, fz = qx - V[u, 0], qy - V[u, 1], qz - V[u, 2]
+        cx, cy, cz = ey * fz - ez * fy, ez * fx - ex * fz, ex * fy - ey * fx
+        if cx * cx + cy * cy + cz * cz <= (1e-9 * scale) ** 2 * (ex * ex + ey * ey + ez * ez):
+            return _edge_uses(tris, t0, nt, u, w) > 1
+    return True
+
+
+@njit
+def _edge_uses(tris, t0, nt, u, w):
+    """How many triangles of rows ``t0 .. t0+nt`` have the edge between vertices ``u`` and ``w``."""
+    n = 0
+    for t in range(t0, t0 + nt):
+        hit = 0
+        for k in range(3):
+            if tris[t, k] == u or tris[t, k] == w:
+                hit += 1
+        n += hit == 2
+    return n
+
+
+@njit
+def _rim_vertex(tris, t0, nt, v):
+    """Vertex ``v`` lies on the rim: one of its edges has one triangle (an inner vertex's fan closes,
+    as many edges as triangles; a rim vertex's is open, one edge more)."""
+    for t in range(t0, t0 + nt):
+        for k in range(3):
+            if tris[t, k] == v:
+                if _edge_uses(tris, t0, nt, v, tris[t, (k + 1) % 3]) == 1 or \
+                        _edge_uses(tris, t0, nt, v, tris[t, (k + 2) % 3]) == 1:
+                    return True
+    return False
+
+
+@njit
 def plane_excess(N, d, npl, X, v):
     """``(max_p N[p]·X[v] − d[p], p)`` over the first ``npl`` planes: how far vertex ``v`` of
     ``X (n, 3)`` lies outside the convex polyhedron's deepest-violated face plane, and which one

@@ -29,8 +29,8 @@ import numpy as np
 
 from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POLY_VERTEX, fid
 from ..jit import njit
-from .geometry import MESH, SF_BOX, SF_SCALE, SI_CLOSED, SI_NV, SI_P0, SI_T0, SI_V0
-from .inside import RAYS, ray_triangle
+from .geometry import MESH, SF_BOX, SF_SCALE, SI_CLOSED, SI_NT, SI_NV, SI_P0, SI_T0, SI_V0
+from .inside import RAYS, behind_open, ray_triangle
 from .manifold import F_EDGE, F_VERTEX, emit_deepest4
 from .vec3 import closest_on_triangle, col_max
 from ..constants import LEAF_SIZE, STACK, TOUCH_TOLERANCE
@@ -230,7 +230,7 @@ def bvh_nearest(px, py, pz, V, tris, nodes, boxes, perm, root, bound, stack):
 
 
 @njit
-def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, closedY, box, margin, tol, side,
+def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, ntY, nodes, boxes, perm, rootY, closedY, box, margin, tol, side,
               RY, pY, kind, P, Nn, D, F, I, c):
     """Step 1 for the vertices ``X[:nx]`` of one mesh (in the frame of the other, Y: vertices
     ``VY``): each one inside Y or within ``margin`` of it becomes a candidate (world point, normal
@@ -255,8 +255,7 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, nodes, boxes, perm, rootY, clos
                 continue
         else:   # an open mesh: behind its nearest triangle is inside
             j, qx, qy, qz, dist = bvh_nearest(px, py, pz, VY, tris, nodes, boxes, perm, rootY, np.inf, stack)
-            f = p0Y + j - t0Y
-            inside = (px - qx) * planes[f, 0] + (py - qy) * planes[f, 1] + (pz - qz) * planes[f, 2] < 0
+            inside = behind_open(px, py, pz, qx, qy, qz, VY, tris, t0Y, ntY, j)
             anyout |= not inside
         sep = -dist if inside else dist
         if sep > margin or c >= P.shape[0]:
@@ -435,10 +434,10 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         tol = TOUCH_TOLERANCE * min(sf[sa, SF_SCALE], sf[sb, SF_SCALE])
         p0A, t0A, p0B, t0B = si[sa, SI_P0], si[sa, SI_T0], si[sb, SI_P0], si[sb, SI_T0]
         c = np.int64(0)
-        c, inB, outB = _vertices(XB, nvb, VA, tris, planes, p0A, t0A, nodes, boxes, perm, root[sa],
+        c, inB, outB = _vertices(XB, nvb, VA, tris, planes, p0A, t0A, si[sa, SI_NT], nodes, boxes, perm, root[sa],
                                  si[sa, SI_CLOSED] != 0, sf[sa, SF_BOX:SF_BOX + 6], margin, tol, 1.0, Ra, pa,
                                  FID_MESH_VERTEX, P, Nn, D, F, I, c)
-        c, inA, outA = _vertices(XA, nva, VB, tris, planes, p0B, t0B, nodes, boxes, perm, root[sb],
+        c, inA, outA = _vertices(XA, nva, VB, tris, planes, p0B, t0B, si[sb, SI_NT], nodes, boxes, perm, root[sb],
                                  si[sb, SI_CLOSED] != 0, sf[sb, SF_BOX:SF_BOX + 6], margin, tol, -1.0, Rb, pb,
                                  FID_POLY_VERTEX, P, Nn, D, F, I, c)
         if not (outA and outB):   # one wholly behind the other, an open mesh: gone through, no contact

@@ -18,7 +18,7 @@ from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POINT, FID_POLY_VERTEX
 from ..jit import njit
 from .geometry import SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
     SI_T0
-from .inside import parity_inside, plane_excess
+from .inside import behind_open, parity_inside, plane_excess
 from ..constants import TOUCH_TOLERANCE
 from .manifold import F_EDGE, F_SPHERE, F_VERTEX, emit_deepest4, put
 from .polyhedra import world_poly
@@ -36,10 +36,10 @@ def tri_normal(V, tris, t):
 @njit
 def inside_mesh(p, V, tris, t0, nt, closed, q, j):
     """Point ``p`` inside the mesh: parity for a closed mesh; behind the nearest triangle ``j``
-    (nearest point ``q``) for an open one."""
+    (nearest point ``q``) and not beside the rim for an open one (``inside.behind_open``)."""
     if closed:
         return parity_inside(p, V, tris, t0, nt)
-    return dot(p - q, tri_normal(V, tris, t0 + j)) < 0
+    return behind_open(p[0], p[1], p[2], q[0], q[1], q[2], V, tris, t0, nt, t0 + j)
 
 
 def points_in_meshes(p, T, valid_t, eps=1e-9):
