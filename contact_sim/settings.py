@@ -78,6 +78,9 @@ class Settings(Declared):
     mass_ratio_limit: float = declare(100.0, Number(ge=1, le=_HUGE),
                                       "preflight warning above this mass ratio between touching bodies")
     penalty: Penalty = declare(Penalty, Nested(Penalty), "spring and damper of the penalty response")
+    kinematic_stiffness: float = declare(0.0, Number(ge=0, le=_HUGE, unit="N/m"),
+                                         "N/m: stiffness of a contact with a kinematic body whose materials give "
+                                         "none (compliant contact: a robot's fingers and pads); 0: rigid")
     # world bounds: finite inputs beyond them are refused by name (BoundsError)
     max_position: float = declare(1e4, Number(gt=0, le=LENGTH_LIMIT, unit="m"),
                                   "m: every coordinate of a body origin or pose within ±this", world_bound=True)
@@ -109,6 +112,10 @@ class Material(Declared):
     friction: float = declare(0.5, Number(ge=0, le=100), "Coulomb coefficient while sliding")
     static_friction: float = declare(None, Number(ge="friction", le=100, optional=True),
                                      "coefficient at rest, >= friction (default: friction)")
+    stiffness: float = declare(None, Number(gt=0, le=_HUGE, optional=True, unit="N/m"),
+                               "N/m: compliant contact, force = stiffness × overlap (+ damping); none: rigid")
+    damping_ratio: float = declare(1.0, Number(ge=0, le=_HUGE),
+                                   "a compliant contact's damping as a fraction of critical (1: critical)")
 
     def _complete(self):
         if self.__dict__.get("static_friction") is None:

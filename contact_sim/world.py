@@ -26,7 +26,7 @@ from .constants import DEFAULT_DENSITY, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MA
 # rollback of add_bodies treat them together: a new per-body attribute belongs here (an engine test
 # fails when an array with a row per body is missing from this list).
 BODY_ARRAYS = ("kind", "particle", "mass", "inv_mass", "inertia_body", "inv_inertia_body", "com_local",
-               "restitution", "friction", "static_friction", "group", "mask")
+               "restitution", "friction", "static_friction", "stiffness", "damping_ratio", "group", "mask")
 BODY_LISTS = ("_names", "shapes", "user_shapes", "material_names")
 MODELS = ("rigid", "particle")
 _KIND, _MODEL = Choice(KINDS), Choice(MODELS)
@@ -155,6 +155,8 @@ class World(BodyInput):
         self.restitution = np.zeros(0)
         self.friction = np.zeros(0)
         self.static_friction = np.zeros(0)
+        self.stiffness = np.zeros(0)       # N/m of the body's material, 0: rigid
+        self.damping_ratio = np.zeros(0)
         self.group = np.zeros(0, np.uint32)
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
@@ -345,6 +347,8 @@ class World(BodyInput):
         self.restitution = np.append(self.restitution, mat.restitution)
         self.friction = np.append(self.friction, mat.friction)
         self.static_friction = np.append(self.static_friction, mat.static_friction)
+        self.stiffness = np.append(self.stiffness, 0.0 if mat.stiffness is None else mat.stiffness)
+        self.damping_ratio = np.append(self.damping_ratio, mat.damping_ratio)
         self.group = np.append(self.group, np.uint32(group))
         self.mask = np.append(self.mask, np.uint32(mask))
         if self._initial is not None:   # reset() returns a body added later to the state it was added in

@@ -39,6 +39,7 @@ from .energy import (FRAME, NO_FRAME, dynamic_bodies, kinematic_work, frame_of, 
                      restitution_cap_in)
 from .impact import next_round
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
+from .compliance import soft_rows, stiffness_rows
 from .resting import _work_bound
 
 #: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it (``LARGE``: a
@@ -84,8 +85,8 @@ def run(ctx):
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
         s.pos, s.vel, s.quat, s.omega, *bodies[:4], prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity,
-        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
-        COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
+        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9], bodies[10], bodies[11],
+        float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, bodies[9],
         float(ctx.dt), float(st.contact_margin), ctx.speculative, TOI_TOLERANCE,
@@ -135,20 +136,21 @@ def run(ctx):
 def _body_arrays(world):
     """The per-body arrays ``_step`` reads that a step never replaces, in its argument order:
     ``(principal_q, principal_moments, inertia_body, inv_mass, mass, particle, restitution, friction,
-    static_friction, extents)``, contiguous and of the kernel's types. Kept on the world while the
+    static_friction, extents, stiffness, damping_ratio)``, contiguous and of the kernel's types. Kept on the world while the
     very same arrays are there (a body added or removed, or a material assigned, replaces them) and
     only when they needed no conversion, so an edit in place is still seen."""
     s = world.s
     raw = (s.principal_q, s.principal_moments, world.inertia_body, world.inv_mass, world.mass, world.particle,
-           world.restitution, world.friction, world.static_friction, world.kind)
+           world.restitution, world.friction, world.static_friction, world.kind, world.stiffness,
+           world.damping_ratio)
     hit = world._derived.get("step_bodies")
     if hit is not None and all(map(is_, hit[0], raw)):
         return hit[1]
     cc = np.ascontiguousarray
     arrays = (cc(raw[0], dtype=float), cc(raw[1], dtype=float), cc(raw[2], dtype=float), cc(raw[3], dtype=float),
               cc(raw[4], dtype=float), cc(raw[5]), cc(raw[6], dtype=float), cc(raw[7], dtype=float),
-              cc(raw[8], dtype=float), toi_mod._extents(world))
-    if all(map(is_, arrays[:9], raw[:9])):   # world.kind: the shapes (the extents) changed with it
+              cc(raw[8], dtype=float), toi_mod._extents(world), cc(raw[10], dtype=float), cc(raw[11], dtype=float))
+    if all(map(is_, arrays[:9], raw[:9])) and all(map(is_, arrays[10:], raw[10:])):   # world.kind: the shapes (the extents) changed with it
         world._derived["step_bodies"] = (raw, arrays)
     return arrays
 
@@ -166,7 +168,8 @@ def _min(x, y):
 @njit
 def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
           inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
-          restitution, friction, static_friction, rule, kinetic, a0, b0, p0, values, has_old, ext, dt, margin,
+          restitution, friction, static_friction, stiffness, damping_ratio, k_kinematic, rule, kinetic, a0, b0, p0,
+          values, has_old, ext, dt, margin,
           speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max,
           max_iterations, tolerance):
     """``run``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
@@ -175,7 +178,8 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     ``look_base`` the contact margin and ``g`` gravity's magnitude); bodies ``kind (N,)``, as
     ``free_motion.advance`` and ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``,
     ``gravity_rows (N,3)``, ``mass (N,)``, ``particle (N,) bool``, their materials ``restitution,
-    friction, static_friction (N,)`` combined by ``rule`` (``prepare.coefficient_rows``); the contact
+    friction, static_friction (N,)`` combined by ``rule`` (``prepare.coefficient_rows``), their
+    ``stiffness, damping_ratio (N,)`` and ``k_kinematic`` (``compliance.stiffness_rows``); the contact
     cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), f3 (3,K,3), f1 (2,K), flags
     (2,K), wv (K,4), pw (2,N,3), out (10,))``: ``status`` ``DONE``, or with the world untouched why
     not (``LARGE``, ``NONE_NEAR``); the contacts kept by the filter when
@@ -209,9 +213,13 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     out = np.zeros(11)
     e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
+    stiff, zeta = np.empty(k), np.empty(k)
+    n_soft = stiffness_rows(a, b, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff, zeta)
+    soft = stiff > 0.0 if n_soft else np.zeros(0, np.bool_)
     status = _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments,
                         inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic,
-                        mass, particle, e, mu_s, mu_d, kinetic, a0, b0, p0, values, has_old, ext, dt, margin,
+                        mass, particle, e, mu_s, mu_d, stiff, zeta, soft, kinetic, a0, b0, p0, values, has_old, ext,
+                        dt, margin,
                         speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop,
                         split_beta, direct_max, max_iterations, tolerance, local, normal_impulse, friction_impulse,
                         impulse, vn0, used, resting, wv, vp, wp, out)
@@ -221,7 +229,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
 @njit
 def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments, inertia_body,
                inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s,
-               mu_d, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous,
+               mu_d, stiff, zeta, soft, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous,
                rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local,
                normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out):
     """``_step`` into its outputs (``e`` is overwritten: zero where the rebound rests); returns the status."""
@@ -240,7 +248,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
     spec_target = np.empty(k)
     e_material = e.copy()   # classify zeroes e where a rebound rests; a later impact round rules again
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, np.zeros(0), False, toi_tolerance,
-                              simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, e, vn0,
+                              simultaneous, margin, True, rebound_speed, impact_speed, speculative, dt, soft, e, vn0,
                               touching, imp, closing, spec_target, bounced)
     # the step's velocities: the world's only once nothing can decline any more (below: a solve
     # solver.solve_auto gives to another method); with a kinematic body, those the push cap's budget
@@ -254,7 +262,8 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
     if counts.impact or counts.closing:
         vn1 = np.empty(k)
         status, it_i, residual_i, unconverged = _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
-                                                        touching, closing, bounced, spec_target, e, e_material, vn0,
+                                                        touching, closing, bounced, spec_target, e, e_material, soft,
+                                                        vn0,
                                                         rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind,
                                                         dynamic, kinematic, mass, particle, pos, quat, inertia_body,
                                                         direct_max, max_iterations, tolerance, vel_s, omega_s,
@@ -265,7 +274,8 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
     # for the penetrating contacts, frictionless; the cap on how far they move stays in Python
     planned = False
     if counts.deepest > split_slop:
-        pen = np.flatnonzero(depth > 0.0)
+        # a compliant contact's overlap is its spring's deflection: not corrected (correction.plan)
+        pen = np.flatnonzero((depth > 0.0) & ~soft) if soft.shape[0] else np.flatnonzero(depth > 0.0)
         if pen.shape[0]:
             p = pen.shape[0]
             ptarget = np.empty(p)
@@ -273,7 +283,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
                 ptarget[i] = split_beta * depth[pen[i]] / dt
             pzeros = np.zeros(p)
             plan, _, _ = _exact(a[pen], b[pen], dirs[pen], ang_a[pen], ang_b[pen], iang_a[pen], iang_b[pen], ima[pen],
-                                imb[pen], K[pen], ptarget, pzeros, pzeros, False, np.zeros((p, 3)), False, dynamic,
+                                imb[pen], K[pen], ptarget, pzeros, pzeros, pzeros, False, np.zeros((p, 3)), False, dynamic,
                                 direct_max, max_iterations, tolerance, vp, wp, np.zeros((p, 3)))
             if plan != DONE:
                 return plan
@@ -311,8 +321,11 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
         use_warm = has_old and kr > 0 and _warm_start(a0, b0, p0, sa, sb, slocal, ext, MATCH_FRACTION, values, dt,
                                                       sdirs, smu_d, warm)
         lam = np.zeros((kr, 3))
+        compliance = np.zeros(kr)
+        if soft.shape[0]:   # the compliant rows: their spring's target and compliance (compliance.soft_rows)
+            soft_rows(ri, K, depth, vn1, stiff, zeta, dt, target, compliance)
         solved, it_r, residual_r = _exact(sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK, target,
-                                          smu_s, smu_d, kinetic, warm, use_warm, dynamic, direct_max, max_iterations,
+                                          compliance, smu_s, smu_d, kinetic, warm, use_warm, dynamic, direct_max, max_iterations,
                                           tolerance, v_end, w_end, lam)
         if solved != DONE:
             return solved
@@ -372,7 +385,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
 
 @njit
 def _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, closing, bounced, spec_target, e,
-            e_material, vn0, rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, mass,
+            e_material, soft, vn0, rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, mass,
             particle, pos, quat, inertia_body, direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref,
             lam, vn1):
     """``impact.impact_solve`` (the impulse response) on the rows of ``_step``, round by round
@@ -383,6 +396,8 @@ def _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touchi
     0.0, False)`` for a solve ``solver.solve_auto`` gives to another method."""
     k = a.shape[0]
     take = (touching & (vn0 <= tolerance)) | closing
+    if soft.shape[0]:   # a compliant contact takes no impact (impact.impact_solve)
+        take &= ~soft
     er, hit, vn = e, bounced, vn0
     e_next, hit_next = np.empty(k), np.empty(k, np.bool_)
     it, residual, unconverged = 0, 0.0, False
@@ -397,7 +412,7 @@ def _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touchi
             return status, 0, 0.0, False
         it, residual, unconverged = max(it, it_r), max(residual, residual_r), unconverged or stopped
         normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, vn1)
-        if not next_round(touching, spec_target, vn1, e_material, True, rebound_speed, impact_speed, tolerance, take,
+        if not next_round(touching, spec_target, vn1, e_material, True, rebound_speed, impact_speed, tolerance, soft, take,
                           e_next, hit_next):
             break
         for c in range(k):
@@ -438,7 +453,7 @@ def _impact_round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
         target[j] = 0.0 if touching[ti[j]] else spec_target[ti[j]]
     lam_t = np.zeros((nt, 3))
     status, it, residual = _exact(a[ti], b[ti], dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti], ima[ti],
-                                  imb[ti], K[ti], target, mu_s[ti], mu_d[ti], kinetic, np.zeros((nt, 3)), False,
+                                  imb[ti], K[ti], target, np.zeros(nt), mu_s[ti], mu_d[ti], kinetic, np.zeros((nt, 3)), False,
                                   dynamic, direct_max, max_iterations, tolerance, vel, omega, lam_t)
     if status != DONE:
         return status, 0, 0.0, False
@@ -466,7 +481,7 @@ def _impact_round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
         zeros = np.zeros(nh)
         lam_h = np.zeros((nh, 3))
         status, it_h, residual_h = _exact(a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi], iang_b[hi],
-                                          ima[hi], imb[hi], K[hi], target_h, zeros, zeros, False, np.zeros((nh, 3)),
+                                          ima[hi], imb[hi], K[hi], target_h, zeros, zeros, zeros, False, np.zeros((nh, 3)),
                                           False, dynamic, direct_max, max_iterations, tolerance, vel, omega, lam_h)
         if status != DONE:
             return status, 0, 0.0, False
@@ -486,8 +501,8 @@ def _impact_round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
 
 
 @njit
-def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic, lam, vel, omega,
-            iterations, tolerance):
+def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d, kinetic, lam,
+            vel, omega, iterations, tolerance):
     """Gauss–Seidel on the contacts ``ids (U,)`` that the active set left unfinished, from their
     impulses in ``lam (K,3)`` (``solver.solve`` on ``rows.select(ids)``: the warm impulses applied,
     then ``pgs.sweeps`` on the gathered rows); writes their impulses into ``lam`` and the
@@ -503,8 +518,8 @@ def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, 
     umud = mu_d[ids] if friction else zeros
     if np.any(ulam != 0.0):
         apply_ids(np.arange(u), ua, ub, udirs, uiang_a, uiang_b, uima, uimb, ulam, vel, omega)
-    it, residual = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, utarget, zeros, umus, umud,
-                          friction, ulam, vel, omega, iterations, tolerance)
+    it, residual = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, utarget, compliance[ids],
+                          umus, umud, friction, ulam, vel, omega, iterations, tolerance)
     for i in range(u):
         for x in range(3):
             lam[ids[i], x] = ulam[i, x]
@@ -512,10 +527,10 @@ def _finish(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, 
 
 
 @njit
-def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic, warm, use_warm, dynamic,
-           direct_max, max_iterations, tolerance, vel, omega, lam):
+def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d, kinetic, warm,
+           use_warm, dynamic, direct_max, max_iterations, tolerance, vel, omega, lam):
     """``solver.solve_auto``'s exact branch on the rows given (``k`` contacts; ``warm (k,3)`` read
-    when ``use_warm``): the active set per island (``active_set.solve_islands``), the impulses
+    when ``use_warm``; ``compliance (k,)`` the normal rows' regulariser, 0 rigid): the active set per island (``active_set.solve_islands``), the impulses
     applied to ``vel, omega (N,3)``, Gauss–Seidel finishing the islands it left unfinished
     (``_finish``). Returns ``(DONE, sweeps, residual)``, or ``LARGE`` where ``solve_auto`` would
     take another branch (more than ``direct_max`` contacts; Gauss–Seidel first for a large island;
@@ -538,8 +553,8 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
             return DONE, 0, 0.0
         lam_l = np.zeros((n_live, 3))
         status, it, residual = _exact(a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li], iang_b[li], ima[li],
-                                      imb[li], K[li], target[li], mu_s[li], mu_d[li], kinetic, warm[li]
-                                      , use_warm, dynamic, direct_max, max_iterations, tolerance, vel,
+                                      imb[li], K[li], target[li], compliance[li], mu_s[li], mu_d[li], kinetic,
+                                      warm[li], use_warm, dynamic, direct_max, max_iterations, tolerance, vel,
                                       omega, lam_l)
         for j in range(n_live):
             for x in range(3):
@@ -557,7 +572,8 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
     mus = mu_s if friction else zeros
     mud = mu_d if friction else zeros
     status = np.empty(k, np.int64)
-    residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, zeros, mus, mud,
+    residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus,
+                             mud,
                              friction, warm, use_warm, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
                              DIRECT_MAX_ROUNDS, vel, omega, True, lam, status)
     for c in range(k):
@@ -568,6 +584,6 @@ def _exact(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, 
         return DONE, 1, residual
     # sliding friction or an inconsistent set: Gauss–Seidel finishes those islands from the start
     # the active set left (solver.solve_auto's direct branch, solver.solve)
-    sweeps, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
-                          kinetic, lam, vel, omega, max_iterations, tolerance)
+    sweeps, res = _finish(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s,
+                          mu_d, kinetic, lam, vel, omega, max_iterations, tolerance)
     return DONE, sweeps, max(res, residual)

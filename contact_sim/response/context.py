@@ -44,6 +44,9 @@ class StepContext:
     mu_s: np.ndarray = None        # (K,) static friction (zero without friction)
     mu_d: np.ndarray = None        # (K,) dynamic friction (zero without friction)
     friction: bool = False         # the solves take friction (the models' friction, not kinematic)
+    stiffness: np.ndarray = None   # (K,) N/m of the compliant contacts, 0 for rigid ones (compliance)
+    zeta: np.ndarray = None        # (K,) their damping ratio
+    soft: np.ndarray = None        # (K,) bool: the compliant contacts, or (0,) when none is
     vn0: np.ndarray = None         # (K,) normal velocity at preparation (the approach speed)
     touching: np.ndarray = None    # (K,) bool: within the margin (or the time of impact's tolerance)
     spec_target: np.ndarray = None  # (K,) normal velocity that closes a speculative gap exactly

@@ -17,7 +17,8 @@ def plan(ctx):
     st = world.settings
     if len(c) == 0 or ctx.counts.deepest <= st.split_slop:
         return
-    pen = np.flatnonzero(c.depth > 0)
+    # a compliant contact's overlap is its spring's deflection, which its force needs: not corrected
+    pen = np.flatnonzero((c.depth > 0) & ~ctx.soft) if ctx.soft.shape[0] else np.flatnonzero(c.depth > 0)
     if pen.size == 0:
         return
     vp = np.zeros_like(world.s.vel)

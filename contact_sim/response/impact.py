@@ -54,6 +54,8 @@ def impact_solve(ctx):
     st = ctx.settings
     tol = float(st.solver_tolerance)
     take = (touching & (vn0 <= tol)) | closing
+    if ctx.soft.shape[0]:   # a compliant contact takes no impact: its spring and damper stop it
+        take &= ~ctx.soft
     e, bounced, vn = ctx.restitution, ctx.bounced, vn0
     r = ctx.rows
     cc = np.ascontiguousarray
@@ -66,7 +68,7 @@ def impact_solve(ctx):
         pgs.normal_velocities(a, b, dirs, ang_a, ang_b, world.s.vel, world.s.omega, vn)
         take, e_next, hit = more
         if not next_round(touching, ctx.spec_target, vn, ctx.e_material, ctx.models.resting,
-                          REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, tol, take, e_next, hit):
+                          REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, tol, ctx.soft, take, e_next, hit):
             break
         ctx.bounced = ctx.bounced | hit
         e, bounced = e_next, hit
@@ -123,14 +125,15 @@ def _round(ctx, ti, vn, e, bounced, lam):
 
 
 @njit
-def next_round(touching, spec_target, vn, e_material, resting, rebound_speed, impact_speed, tolerance, take, e,
+def next_round(touching, spec_target, vn, e_material, resting, rebound_speed, impact_speed, tolerance, soft, take, e,
                bounced):
     """The next impact round, from the normal velocities ``vn (K,)`` the last round left: whether
     one is due, and its contacts. It is due when a contact approaches now, a touching one faster
     than a bounce needs (``impact_speed`` with resting contact, else at all), an apart one (within
     the look-ahead, or the margin of an exact time of impact) fast enough to close its gap within
     the step (``vn < spec_target``); ``tolerance`` (m/s) keeps round-off out. It takes them and, as
-    the first round does, the touching contacts that do not separate. Writes ``take (K,) bool``, the
+    the first round does, the touching contacts that do not separate; never a compliant one (``soft
+    (K,) bool``, or empty: none). Writes ``take (K,) bool``, the
     restitution ``e (K,)`` (zero where the rebound would rest, as ``prepare.classify`` rules) and
     ``bounced (K,) bool``; returns how many approach and, with resting contact, bounce (0: no
     further round: with e = 0 a 200-body pile ran rounds to the limit of 128 a sub-step, 8 times
@@ -145,6 +148,9 @@ def next_round(touching, spec_target, vn, e_material, resting, rebound_speed, im
         else:
             approach = v < spec_target[c] - tolerance
             take[c] = approach
+        if soft.shape[0] > 0 and soft[c]:
+            approach = False
+            take[c] = False
         er = e_material[c]
         if resting and er * max(-v, 0.0) < rebound_speed:
             er = 0.0

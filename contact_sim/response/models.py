@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..jit import njit
-from ..kinds import DYNAMIC
+from ..kinds import DYNAMIC, KINEMATIC
 from ..memo import derived
 from ..shapes import Sphere
 from ..constants import PENALTY_OMEGA_DT_LIMIT, FRACTIONAL_AUTO_MAX_BODIES, FRICTION_CREEP_LIMIT
@@ -130,9 +130,10 @@ def choose(world, dt=None):
     st = world.settings
     dt = st.dt if dt is None else dt
     # kept: the models when no body is thin-and-fast, and the limits the velocity test reads
-    models, limit = derived(world, "models", _body_deps(world) + (world.friction, world.restitution, world.particle),
+    models, limit = derived(world, "models", _body_deps(world) + (world.friction, world.restitution, world.particle,
+                                                                 world.stiffness, world.damping_ratio),
                             lambda: (_choose(world, dt, []), _shape_info(world)[3] if len(world) else np.zeros(0)),
-                            key=(dt, st.toi, st.response, st.friction, st.resting, st.speculative,
+                            key=(dt, st.toi, st.response, st.friction, st.resting, st.speculative, st.kinematic_stiffness,
                                  world.kind.tobytes()))
     if st.toi != "auto" or not _any_too_fast(world.s.vel, world.kind, limit, world.gravity_norm(), float(dt)):
         return models
@@ -201,19 +202,44 @@ def _choose(world, dt, fast):
         if st.speculative:
             reasons.append("speculative contacts on (next_step): pairs that can close within a step (look-ahead "
                            "2·speed·dt, at most half the thinnest body) are slowed to arrive exactly touching")
+    # compliant contacts (response.compliance): rows of the resting solve
+    soft_materials = int(np.count_nonzero(world.stiffness > 0))
+    soft_kinematic = st.kinematic_stiffness > 0 and bool(np.any(world.kind == KINEMATIC))
+    compliant = response == "impulse" and (soft_materials > 0 or soft_kinematic)
     # resting
     if st.resting == "auto":
         lone = int(dyn.sum()) == 1 and response != "penalty"
         bouncy = lone and np.all(world.restitution[dyn] >= 1.0)   # e < 1: it comes to rest in finite time
         lone_sphere = lone and spheres_only and not friction
-        resting = not (bouncy and lone_sphere) and response != "penalty"
+        resting = (not (bouncy and lone_sphere) or compliant) and response != "penalty"
         reasons.append("resting-contact solver " + ("off: a lone elastic (e = 1) body never comes to rest, impacts suffice" if not resting and response != "penalty"
                                                     else "off: penalty forces hold bodies" if response == "penalty"
+                                                    else "on: compliant contacts are rows of the resting solve" if compliant and bouncy and lone_sphere
                                                     else "on: bodies can rest on each other"))
     else:
         resting = bool(st.resting) and response != "penalty"
         reasons.append(f"resting-contact solver {'on' if resting else 'off'}: set by the scene")
+    if compliant and resting:
+        parts = []
+        if soft_kinematic:
+            parts.append(f"contacts with a kinematic body {st.kinematic_stiffness:.3g} N/m (settings.kinematic_stiffness)")
+        if soft_materials:
+            parts.append(f"{soft_materials} bod{'y' if soft_materials == 1 else 'ies'} of a compliant material "
+                         f"(springs in series)")
+        reasons.append("compliant contacts: " + ", ".join(parts) + " per contact point, damping ratio "
+                       + _ratios(world) + " (1: critical); the others rigid")
+    elif compliant:
+        reasons.append("compliant contacts off: they are rows of the resting solve, which the scene turned off")
+    else:
+        reasons.append("contacts rigid: no material has a stiffness" + (" and settings.kinematic_stiffness is 0"
+                                                                       if np.any(world.kind == KINEMATIC) else ""))
     return Models(response, toi, friction, resting, rotation, reasons, continuous)
+
+
+def _ratios(world):
+    """The damping ratios of the world's materials, as text."""
+    z = np.unique(world.damping_ratio)
+    return ", ".join(f"{v:.3g}" for v in z[:4]) + (" ..." if len(z) > 4 else "")
 
 
 def describe(world):

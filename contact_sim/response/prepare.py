@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import dynamics
 from ..jit import njit
+from .compliance import stiffness_rows
 from ..kinds import DYNAMIC
 from ..memo import derived
 from ..settings import COMBINE_RULES, combine_pair
@@ -43,6 +44,8 @@ def prepare_contacts(ctx):
     ext = toi_mod._extents(world) if ctx.exact_toi else np.zeros(0)
     cc = np.ascontiguousarray
     a, b = cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64)
+    ctx.stiffness, ctx.zeta = stiffnesses(world, a, b, m)
+    ctx.soft = ctx.stiffness > 0.0 if ctx.stiffness.any() else _NO_SOFT
     ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.bounced = (
         np.empty(k), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool))
     ctx.spec_target = np.empty(k)
@@ -52,19 +55,21 @@ def prepare_contacts(ctx):
         a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
         cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
         world.settings.contact_margin, m.resting, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, ctx.speculative,
-        ctx.t_left, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.spec_target, ctx.bounced)
+        ctx.t_left, ctx.soft, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.spec_target, ctx.bounced)
     if ctx.first:
         ctx.max_penetration = max(ctx.max_penetration, ctx.counts.deepest)
 
 
 @njit
 def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_tolerance, simultaneous, margin, resting,
-             rebound_speed, impact_speed, speculative, t, e, vn0, touching, impact, closing, spec_target, bounced):
+             rebound_speed, impact_speed, speculative, t, soft, e, vn0, touching, impact, closing, spec_target, bounced):
     """The contact classes of ``prepare_contacts``, per contact: writes ``vn0`` (the approach speed
     ``n·rel_vel``), ``touching``, ``impact``, ``closing``, ``bounced (K,) bool``, ``spec_target
     (K,)`` and zeroes ``e (K,)`` where the rebound rests. ``gravity (N,3)`` per body; ``ext (N,)``
-    the bodies' extents (read with ``exact_toi``). Returns ``Counts`` of the classes and the
-    deepest depth (what the stages test before doing anything)."""
+    the bodies' extents (read with ``exact_toi``); ``soft (K,) bool`` the compliant contacts (or
+    empty: none), which are never impacts nor closing (their spring stops them: ``compliance``).
+    Returns ``Counts`` of the classes and the deepest depth (what the stages test before doing
+    anything)."""
     n_touch, n_impact, n_closing, n_bounced, deepest = 0, 0, 0, 0, -np.inf
     for c in range(a.shape[0]):
         ia, ib = a[c], b[c]
@@ -82,7 +87,10 @@ def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_toleranc
         # a rebound whose flight is shorter than a step comes to rest (ends Zeno bounces)
         if resting and e[c] * max(-v, 0.0) < rebound_speed:
             e[c] = 0.0
-        impact[c] = touch and v < (-impact_speed if resting else 0.0)
+        compliant = soft.shape[0] > 0 and soft[c]
+        if compliant:
+            e[c] = 0.0
+        impact[c] = touch and v < (-impact_speed if resting else 0.0) and not compliant
         # speculative contacts (apart, within the look-ahead): the impulse leaves the normal velocity
         # at what closes exactly the gap over the step under gravity, v_n ≥ (−gap − g_n T²/2)/T, so
         # the pair arrives touching instead of overlapping; one that bounces (e > 0) does so in this
@@ -96,7 +104,7 @@ def classify(a, b, normal, depth, rel_vel, gravity, ext, exact_toi, toi_toleranc
                + normal[c, 2] * (gravity[ia, 2] - gravity[ib, 2]))
         st = min((depth[c] - 0.5 * g_n * t * t) / t, 0.0)
         spec_target[c] = st
-        close = speculative and not touch and v < st
+        close = speculative and not touch and v < st and not compliant
         closing[c] = close
         bounced[c] = impact[c] or (close and e[c] > 0)
         n_touch += touch
@@ -268,6 +276,22 @@ def coefficients(world, c, m):
                      COMBINE_RULES.index(world.settings.combine), m.friction and m.response != "kinematic",
                      out[0], out[1], out[2])
     return out[0], out[1], out[2]
+
+
+_NO_SOFT = np.zeros(0, np.bool_)
+
+
+def stiffnesses(world, a, b, m):
+    """Per contact of bodies ``a, b (K,)``: stiffness (N/m, 0 rigid) and damping ratio ``(K,)``
+    (``compliance.stiffness_rows``, the compiled step's too); rigid throughout under the kinematic
+    response and the resting stage off (a compliant row lives in the resting solve)."""
+    k = len(a)
+    out = np.zeros((2, k))
+    if m.response == "impulse" and m.resting:
+        st = world.settings
+        stiffness_rows(a, b, world.stiffness, world.damping_ratio, world.body_masks().kinematic,
+                       float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), out[0], out[1])
+    return out[0], out[1]
 
 
 @njit

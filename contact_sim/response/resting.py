@@ -15,6 +15,7 @@ import numpy as np
 from ..jit import njit
 from .pgs import _row_velocity
 from .cache import warm_record, warm_start
+from .compliance import soft_rows
 from .energy import kinematic_push, push_cap
 
 
@@ -47,10 +48,16 @@ def resting_solve(ctx):
     ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
     r2 = ctx.rows.select(rmask)
     target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - ctx.vn1[ri], 0.0)
+    compliance = None
+    if ctx.soft.shape[0]:   # the compliant rows: their spring's target and compliance (compliance.soft_rows)
+        compliance = np.zeros(len(target))
+        ids = np.arange(len(c)) if isinstance(ri, slice) else ri
+        soft_rows(ids, ctx.rows.K, np.ascontiguousarray(c.depth, dtype=float), ctx.vn1, ctx.stiffness, ctx.zeta,
+                  t_left, target, compliance)
     warm = warm_start(world, c.body_a[ri], c.body_b[ri], ctx.local[ri], t_left, r2, ctx.mu_d[ri])
     fr = ctx.friction
     res = ctx.solve(r2, v_end, w_end, target_n=target, mu_s=ctx.mu_s[ri] if fr else None,
-                    mu_d=ctx.mu_d[ri] if fr else None, warm=warm)
+                    mu_d=ctx.mu_d[ri] if fr else None, warm=warm, compliance=compliance)
     ctx.note(res)
     pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
     if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it

@@ -186,16 +186,21 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
 
 
 def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
-               method="auto", direct_max=None):
+               method="auto", direct_max=None, compliance=None):
     """Contact impulses by the best method for the size: ``direct`` (active set, exact) up to
     ``direct_max`` contacts (default ``DIRECT_MAX_CONTACTS``; ``settings.direct_max_contacts``),
     finished by Gauss–Seidel when friction slides; ``jacobi``
     (mass splitting) or ``gs`` (compiled sequential Gauss–Seidel) above. Same result type as ``solve``.
+    ``compliance (K,)`` (or None: rigid) regularises the normal rows, ``n·v + compliance·λn ≥
+    target_n`` (compliant contact: ``response.compliance``), in every method; ``jacobi`` has no such
+    row and gives compliant rows to ``gs``.
 
     Contacts between two bodies that cannot move (a kinematic robot link pressed into a static
     floor) are reported by detection but carry no impulse: nothing can respond, and their rows
     have no effective mass (``K = 0``), which no solver may divide by."""
     k = len(rows.a)
+    if compliance is not None and not np.any(compliance):
+        compliance = None
     live = rows.movable[rows.a] | rows.movable[rows.b]
     if not live.all():
         lam = np.zeros((k, 3))
@@ -204,7 +209,8 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
             res = solve_auto(rows.select(li), vel, omega, target_n=target_n[li],
                              mu_s=None if mu_s is None else mu_s[li], mu_d=None if mu_d is None else mu_d[li],
                              iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[li],
-                             method=method, direct_max=direct_max)
+                             method=method, direct_max=direct_max,
+                             compliance=None if compliance is None else compliance[li])
             lam[li] = res.impulse
             return SolveResult(lam, res.iterations, res.residual)
         return SolveResult(lam, 0, 0.0)
@@ -217,7 +223,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
             # dense kernel, as fast as Gauss–Seidel and exact
             v0, w0 = vel.copy(), omega.copy()
             res = solve_auto(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
-                             tolerance=tolerance, warm=warm, method="gs")
+                             tolerance=tolerance, warm=warm, method="gs", compliance=compliance)
             if res.residual <= tolerance:
                 return res
             vel[...] = v0
@@ -227,33 +233,34 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
         # islands are independent: the solved ones keep their exact impulses (applied), Gauss–Seidel
         # finishes the others (sliding friction, an inconsistent set) from the start the active set left
         lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
-                                            apply_solved=True)
+                                            apply_solved=True, compliance=compliance)
         if solved.all():
             return SolveResult(lam, 1, residual)
         ui = np.flatnonzero(~solved)
         res = solve(rows.select(ui), vel, omega, target_n=target_n[ui], mu_s=None if mu_s is None else mu_s[ui],
                     mu_d=None if mu_d is None else mu_d[ui], iterations=iterations, tolerance=tolerance,
-                    warm=lam[ui])
+                    warm=lam[ui], compliance=None if compliance is None else compliance[ui])
         lam[ui] = res.impulse
         return SolveResult(lam, res.iterations, max(res.residual, residual))
     if method == "gs":
         # islands of one contact (a body touching only static geometry) exactly, by the island kernel;
         # Gauss–Seidel for the coupled rest and for a single contact that slides
         lam, solved, _ = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
-                                     apply_solved=True, island_max=1, sparse=False)
+                                     apply_solved=True, island_max=1, sparse=False, compliance=compliance)
         if solved.all():
             return SolveResult(lam, 1, 0.0)
         rest = np.flatnonzero(~solved)
         res = solve(rows.select(rest), vel, omega, target_n=target_n[rest],
                     mu_s=None if mu_s is None else mu_s[rest], mu_d=None if mu_d is None else mu_d[rest],
-                    iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[rest])
+                    iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[rest],
+                    compliance=None if compliance is None else compliance[rest])
         lam[rest] = res.impulse
         return SolveResult(lam, res.iterations, res.residual)
-    if method == "jacobi":
+    if method == "jacobi" and compliance is None:
         return solve_jacobi(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
                             tolerance=tolerance, warm=warm)
     return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
-                 tolerance=tolerance, warm=warm)
+                 tolerance=tolerance, warm=warm, compliance=compliance)
 
 
 def _largest_island(rows):

@@ -1,0 +1,105 @@
+"""Compliant contact: a contact with a stiffness enters the resting solve as a regularised row.
+
+A rigid contact has no answer where a body cannot yield: a cube squeezed between two kinematic
+fingers, or between a kinematic pusher and a wall, overlaps by what the geometry fixes, and a rigid
+solve (and the position correction after it) pushes the cube out sideways. A compliant contact
+has one bounded answer: a spring of stiffness ``k`` (N/m) and a damper ``c`` (N·s/m) along the
+normal, never pulling, the model of MuJoCo's soft constraints, Drake's compliant contact and Box2D
+v3's soft step.
+
+Over the resting interval ``T`` the step's velocity changes linearly (the kick–drift–kick of the
+advance stage), so a contact that starts ``d`` deep (m, > 0 overlapping) with normal velocity
+``v₀`` (m/s, > 0 separating) ends ``d − T (v₀ + v⁺)/2`` deep. The force on that end depth and
+the end velocity ``v⁺``, ``F = k (d − T (v₀ + v⁺)/2) − c v⁺ ≥ 0``, over the interval is the
+impulse ``λ = T F``; rearranged, the row of the solve (exact active set and Gauss–Seidel alike)::
+
+    v⁺ + γ λ ≥ b  ⟂  λ ≥ 0,    γ = 1 / (T (T k/2 + c)),    b = T k (d − T v₀/2) / (T (T k/2 + c))
+
+The damper takes energy out; ``c = 2 ζ √(k m)`` with ``m = 1/K_nn`` the contact's effective mass along
+its normal and ``ζ`` the damping ratio (1: critical, no rebound), so one ``ζ`` means the same for
+a finger on a 20 g part and on a 20 kg one. The damper acts only while overlapping; a speculative
+contact (apart) meets the spring alone, which acts only if the point gets inside by the end.
+A compliant contact takes no impact (no restitution: the damper decides its rebound) and no
+position correction (its overlap is the spring's deflection, which the force needs).
+
+Stiffness of a pair of bodies in contact: the two materials' ``stiffness`` as springs in series,
+``k_a k_b / (k_a + k_b)`` (a rigid material adds no spring of its own: the other's alone); with
+neither material compliant, ``settings.kinematic_stiffness`` for a contact with a kinematic body
+(robot fingers and pads), rigid otherwise. The pair's points share it (``k / n`` each of ``n``
+points): a pad pressed ``d`` into a face pushes with ``k·d`` whether the manifold holds one point
+or four. The damping ratio is the materials' combined by ``settings.combine``. Each point's
+``m`` and ``c`` are its own.
+
+The step integrates the spring on its end depth (backward Euler in the force, as Drake's and
+Box2D's soft contacts do): stable for any stiffness, and it damps what the step cannot resolve,
+a loss of order ``ω T`` per contact (``ω = √(k/m)``): an undamped floor (``ζ = 0``) returns 61 % of
+a drop's height at ``ω T = 0.4``, 88 % at 0.1, 97 % at 0.026, converging to all of it.
+"""
+import math
+
+import numpy as np
+
+from ..jit import njit
+from ..settings import combine_pair
+
+
+@njit
+def stiffness_rows(a, b, stiffness, damping_ratio, kinematic, k_kinematic, rule, k_out, zeta_out):
+    """Per contact ``a, b (K,)``: writes the stiffness ``k_out (K,)`` of each point (N/m, 0 rigid: the
+    pair's stiffness shared by its points, so a face held at four points feels ``k`` × their mean
+    depth, as one point would, and a manifold that gains or loses points does not jump) and damping ratio
+    ``zeta_out (K,)`` from the bodies' ``stiffness, damping_ratio (N,)`` (0 stiffness: rigid
+    material), ``kinematic (N,) bool`` and ``k_kinematic`` (``settings.kinematic_stiffness``),
+    ``rule`` the index of ``settings.combine``. Returns how many contacts are compliant."""
+    n_soft = 0
+    k_pair = a.shape[0]
+    # the points of each pair share its stiffness: how many the pair has (pairs by key a·N + b)
+    key = np.empty(k_pair, np.int64)
+    nb = stiffness.shape[0]
+    for c in range(k_pair):
+        key[c] = a[c] * nb + b[c]
+    order = np.argsort(key, kind="mergesort")
+    points = np.empty(k_pair, np.int64)
+    i = 0
+    while i < k_pair:
+        j = i
+        while j < k_pair and key[order[j]] == key[order[i]]:
+            j += 1
+        for r in range(i, j):
+            points[order[r]] = j - i
+        i = j
+    for c in range(k_pair):
+        ka, kb = stiffness[a[c]], stiffness[b[c]]
+        if ka > 0.0 and kb > 0.0:
+            k = ka * kb / (ka + kb)
+        elif ka > 0.0:
+            k = ka
+        elif kb > 0.0:
+            k = kb
+        elif kinematic[a[c]] or kinematic[b[c]]:
+            k = k_kinematic
+        else:
+            k = 0.0
+        k_out[c] = k / points[c]
+        zeta_out[c] = combine_pair(damping_ratio[a[c]], damping_ratio[b[c]], rule)
+        n_soft += k > 0.0
+    return n_soft
+
+
+@njit
+def soft_rows(ids, K, depth, vn, stiffness, zeta, T, target, compliance):
+    """The compliant rows of the resting solve over an interval ``T`` (s): for row ``j`` of contact
+    ``ids[j]`` with ``stiffness > 0``, writes its ``compliance[j] = γ`` and ``target[j] = b`` (module
+    docstring) from the contact's effective mass ``1/K[c, 0, 0]``, ``depth`` (m) and normal velocity
+    ``vn`` (m/s) at the interval's start; a rigid row's target is left as it is, its compliance 0."""
+    for j in range(ids.shape[0]):
+        c = ids[j]
+        k = stiffness[c]
+        knn = K[c, 0, 0]
+        if k > 0.0 and knn > 0.0:
+            damp = 2.0 * zeta[c] * math.sqrt(k / knn) if depth[c] >= 0.0 else 0.0
+            h = T * (0.5 * T * k + damp)
+            compliance[j] = 1.0 / h
+            target[j] = T * k * (depth[c] - 0.5 * T * vn[c]) / h
+        else:
+            compliance[j] = 0.0
