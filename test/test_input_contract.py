@@ -118,7 +118,8 @@ def _ok(*kinds):
     return frozenset(kinds)
 
 
-ZERO_OK_SETTINGS = {"solver_tolerance", "contact_margin", "split_beta", "split_slop", "direct_max_contacts"}
+ZERO_OK_SETTINGS = {"solver_tolerance", "contact_margin", "split_beta", "split_slop", "direct_max_contacts",
+                    "kinematic_stiffness"}
 
 
 def _shape_then_add(make, kind="dynamic"):
@@ -141,7 +142,8 @@ def _table():
         t.append(Arg(f"Penalty({name}=)", scalar_junk(), lambda w, v, n=name: Penalty(**{n: v}),
                      (f"penalty.{name}",), _ok("0") if name == "damping" else _ok(), world=False))
     for name in cs.Material.rules():
-        ok = {"restitution": _ok("0"), "friction": _ok("0"), "static_friction": _ok("None")}[name]
+        ok = {"restitution": _ok("0"), "friction": _ok("0"), "static_friction": _ok("None"), "stiffness": _ok("None"),
+              "damping_ratio": _ok("0")}[name]
         t.append(Arg(f"Material({name}=)", scalar_junk(), lambda w, v, n=name: cs.Material(**{n: v}),
                      (f"material.{name}",), ok, world=False))
     # --- World

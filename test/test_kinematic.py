@@ -145,7 +145,7 @@ def test_the_work_of_a_turning_moving_kinematic_body_is_taken_where_it_touches(s
     no gravity): the ball gains exactly the work ``λ·(v + ω × (p − x))`` of the box's contact point
     at the impact, which ``last_solve.kinematic_work`` reports. Taken after the step, with the box's
     centre moved on by v·dt, it was off by ``λ·(ω × v dt)``."""
-    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01),
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01, kinematic_stiffness=0.0),
                  materials={"m": cs.Material(restitution=1.0, friction=0.0)})
     w.add_body("paddle", cs.Box([1.0, 1.0, 1.0]), kind="kinematic", material="m")
     w.set_state("paddle", velocity=[2.0, 0.0, 0.0], angular_velocity=[0.0, 0.0, spin])
@@ -158,7 +158,8 @@ def test_the_work_of_a_turning_moving_kinematic_body_is_taken_where_it_touches(s
 
 @pytest.mark.parametrize("theta_deg", [5.0, 10.0])
 def test_a_ball_squeezed_in_a_closing_wedge_ends_within_the_push_budget(theta_deg):
-    """A ball touching a static wall (normal −x) and a kinematic paddle tilted by θ from facing it
+    """Rigid contacts (``kinematic_stiffness`` 0). A ball touching a static wall (normal −x) and a
+    kinematic paddle tilted by θ from facing it
     (normal (cos θ, sin θ, 0)) that moves at u = 0.5 m/s along +x: staying out of both needs
     ``v_y = u cot θ`` (5.7 m/s at 5°, 2.8 m/s at 10°), beyond the push budget (``½m(|v₀| + 2u)² +
     ½m(2u)²``: from rest, a speed of 2√2·u = 1.41 m/s), which caps it. Each impact round measured
@@ -168,7 +169,7 @@ def test_a_ball_squeezed_in_a_closing_wedge_ends_within_the_push_budget(theta_de
     on it."""
     u, r = 0.5, 0.1
     th = np.radians(theta_deg)
-    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01),
+    w = cs.World(gravity=(0, 0, 0), settings=cs.Settings(toi="next_step", dt=0.01, kinematic_stiffness=0.0),
                  materials={"m": cs.Material(restitution=0.0, friction=0.0)})
     w.add_body("wall", cs.Plane([-1.0, 0.0, 0.0], -r), kind="static", material="m")
     n = np.array([np.cos(th), np.sin(th), 0.0])          # the paddle's face normal, towards the ball
@@ -186,8 +187,10 @@ def test_a_ball_squeezed_in_a_closing_wedge_ends_within_the_push_budget(theta_de
 def squeeze_at_a_wall():
     """Ground; a kinematic paddle (bodies: 1) moving at 0.5 m/s along x, pressed 1 cm into the ground;
     a ball (2, 0.5 kg, r 0.1) in its way, then a box (3, 1 kg) standing at a static wall (4); one
-    material, e = 0.2, μ = 0.4, ``next_step``. By t = 0.85 s the three contacts cannot all hold."""
-    w = cs.World(settings=cs.Settings(toi="next_step"), materials={"m": cs.Material(restitution=0.2, friction=0.4)})
+    material, e = 0.2, μ = 0.4, ``next_step``, rigid contacts (``kinematic_stiffness`` 0: the push
+    cap is the rigid model's answer to a squeeze). By t = 0.85 s the three contacts cannot all hold."""
+    w = cs.World(settings=cs.Settings(toi="next_step", kinematic_stiffness=0.0),
+                 materials={"m": cs.Material(restitution=0.2, friction=0.4)})
     w.add_body("ground", cs.Plane(), kind="static", material="m")
     w.add_body("paddle", cs.Box((0.05, 0.5, 0.3)), kind="kinematic", position=(-0.4, 0, 0.14),
                velocity=(0.5, 0, 0), material="m")
