@@ -13,7 +13,7 @@ import numpy as np
 from . import dynamics, free_motion, quat, stepper
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
-from .kinds import DYNAMIC, KINDS, body_masks
+from .kinds import DYNAMIC, KINDS, KINEMATIC, body_masks
 from .response.cache import ContactCache
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .stats import StepStats
@@ -626,7 +626,8 @@ class World(BodyInput):
         return np.einsum("ijk,ik->ij", inertia_w, self.s.omega[mask])
 
     def energy(self):
-        """Kinetic (linear and rotational) plus gravitational potential energy (J) of the dynamic bodies."""
+        """Kinetic (linear and rotational) plus gravitational potential energy (J) of the dynamic
+        bodies, plus the energy stored in compliant contacts (``contact_energy``)."""
         d = self.kind == DYNAMIC
         s = self.s
         m = self.mass[d]
@@ -634,7 +635,28 @@ class World(BodyInput):
         rigid = d & ~self.particle
         rot = 0.5 * np.sum(np.einsum("ij,ij->i", s.omega[rigid], self._spin(rigid)))
         pot = -np.sum(m * (s.pos[d] @ self.gravity))
-        return float(lin + rot + pot)
+        return float(lin + rot + pot) + self.contact_energy()
+
+    def contact_energy(self):
+        """Potential energy (J) stored in the compliant contacts of the current state: ``½ Σ k d²``
+        over the touching contacts (within ``settings.contact_margin``) with a stiffness, each
+        point's ``k`` as the step gives it (``response.compliance``). 0, with no detection, when no
+        contact can be compliant."""
+        from .response import compliance, models, prepare
+
+        st = self.settings
+        if not (np.any(self.stiffness > 0) or (st.kinematic_stiffness > 0 and np.any(self.kind == KINEMATIC))):
+            return 0.0
+        m = models.choose(self)
+        if m.response != "impulse" or not m.resting:
+            return 0.0
+        from .collision import detect_world
+
+        c, _ = detect_world(self, margin=st.contact_margin)
+        k, _ = prepare.stiffnesses(self, c, m)
+        dyn = self.kind == DYNAMIC   # two bodies that cannot move store nothing (no force acts)
+        k = np.where(dyn[c.body_a] | dyn[c.body_b], k, 0.0)
+        return compliance.stored_energy(k, c.depth)
 
     def angular_momentum(self):
         """Total angular momentum (3,) of the dynamic bodies about the world origin (spin of the

@@ -233,16 +233,33 @@ def test_a_ball_squeezed_by_a_compliant_paddle_never_has_more_energy_than_the_pa
     """The squeeze the rigid model caps (test_kinematic.squeeze_at_a_wall) with the default
     compliant paddle: a paddle at 0.5 m/s drives a ball into a box standing at a wall. The springs
     store what the paddle does as work and give it back when the ball escapes, so the ball may
-    leave faster than a rigid push would make it, but the bodies' energy never exceeds the start's
-    plus the paddle's work so far (the rest was stored or damped)."""
+    leave faster than a rigid push would make it, but the bodies' energy with the springs' (``World.energy``)
+    never exceeds the start's plus the paddle's work so far and the steps' own error bounds (the
+    resting force's first-order work, the position correction's potential energy)."""
     from test_kinematic import squeeze_at_a_wall
 
     w = squeeze_at_a_wall()
-    w.settings.kinematic_stiffness = cs.Settings().kinematic_stiffness
+    w.settings.kinematic_stiffness = 1e5
     e0, work = w.energy(), 0.0
     for _ in range(150):
         w.step()
-        work += w.last_solve.kinematic_work
+        ls = w.last_solve
+        work += ls.kinematic_work + ls.rest_work_bound + max(ls.correction_energy, 0.0)
         assert w.energy() <= e0 + work + 1e-9 * (1 + abs(e0) + abs(work))
     assert work > 1.0                           # the paddle pushed (and drove on into the wall)
     assert np.all(np.isfinite(w.s.vel)) and np.all(np.isfinite(w.s.pos))
+
+
+def test_a_ball_resting_on_a_compliant_kinematic_floor_sinks_by_its_weight():
+    """``kinematic_stiffness`` k: a 1 kg ball at rest on a kinematic box sinks ``m g / k``, and the
+    contact reports the weight's impulse ``m g dt``; the stored energy is ``½ k d²``."""
+    k = 1e5
+    w = cs.World(settings=cs.Settings(dt=0.01, kinematic_stiffness=k))
+    w.add_body("floor", cs.Box([2, 2, 0.2]), kind="kinematic", position=[0, 0, -0.1])
+    w.add_body("ball", cs.Sphere(0.1), mass=1.0, position=[0, 0, 0.1])
+    for _ in range(200):
+        w.step()
+    sink = 9.81 / k
+    assert w.body("ball").position[2] == pytest.approx(0.1 - sink, abs=1e-9)
+    np.testing.assert_allclose(w.contacts.normal_impulse.sum(), 9.81 * 0.01, rtol=1e-9)
+    assert w.contact_energy() == pytest.approx(0.5 * k * sink ** 2, rel=1e-6)

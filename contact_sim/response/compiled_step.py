@@ -214,7 +214,7 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
     stiff, zeta = np.empty(k), np.empty(k)
-    n_soft = stiffness_rows(a, b, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff, zeta)
+    n_soft = stiffness_rows(a, b, depth, margin, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff, zeta)
     soft = stiff > 0.0 if n_soft else np.zeros(0, np.bool_)
     status = _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments,
                         inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic,
@@ -296,7 +296,8 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
     half_dv, half_dw = np.zeros((0, 3)), np.zeros((0, 3))   # the force's half-kicks (none unless it rests)
     if rested:
         for c in range(k):
-            resting[c] = not (bounced[c] and vn1[c] > impact_speed)
+            # beside a compliant contact a rebounding one stays in (resting.resting_solve)
+            resting[c] = soft.shape[0] > 0 or not (bounced[c] and vn1[c] > impact_speed)
             kr += resting[c]
         ri = np.flatnonzero(resting)
         # every contact rests (the usual case): the arrays as they are, no gathers
@@ -330,9 +331,13 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
         if solved != DONE:
             return solved
         # where kinematic bodies push, no body ends faster than a push can make it (resting.resting_solve)
-        u = push_speed(sa, sb, point if whole else point[ri], kinematic, pos, vel_s, omega_s)
+        ca, cb, cpoint = sa, sb, point if whole else point[ri]
+        if soft.shape[0]:   # the push cap is the rigid contacts' (resting.resting_solve)
+            rig = np.flatnonzero(compliance == 0.0)
+            ca, cb, cpoint = ca[rig], cb[rig], cpoint[rig]
+        u = push_speed(ca, cb, cpoint, kinematic, pos, vel_s, omega_s)
         if u >= 0.0:
-            pb = dynamic_bodies(sa, sb, dynamic)
+            pb = dynamic_bodies(ca, cb, dynamic)
             vref = vel_ref[pb]
             for j in range(pb.shape[0]):
                 for x in range(3):

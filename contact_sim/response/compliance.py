@@ -17,8 +17,16 @@ impulse ``λ = T F``; rearranged, the row of the solve (exact active set and Gau
 
 The damper takes energy out; ``c = 2 ζ √(k m)`` with ``m = 1/K_nn`` the contact's effective mass along
 its normal and ``ζ`` the damping ratio (1: critical, no rebound), so one ``ζ`` means the same for
-a finger on a 20 g part and on a 20 kg one. The damper acts only while overlapping; a speculative
-contact (apart) meets the spring alone, which acts only if the point gets inside by the end.
+a finger on a 20 g part and on a 20 kg one.
+
+A speculative contact (apart at the interval's start, ``d < 0``) meets no damper and half the
+spring, ``F = (k/2)·(d − T (v₀ + v⁺)/2) ≥ 0`` (``γ = 4 / (T² k)``, ``b = 2d/T − v₀``: the rigid
+speculative row, softened): the mean force of a spring that grows from nothing at touching. The
+full spring over the whole interval would do more work than it stores (up to ``½ k d²``: a paddle
+sweeping a pile gave the bodies 8 J beyond its own work); this half never does, since ``−F (d −
+d_end) ≥ ½ k d_end²`` for ``d ≤ 0``. Inside (``d ≥ 0``) the spring's work on the end depth is the
+energy it releases, ``½ k (d² − d_end²)``, less ``½ k (d − d_end)²`` (the step's loss); the damper
+acts on the end velocity.
 A compliant contact takes no impact (no restitution: the damper decides its rebound) and no
 position correction (its overlap is the spring's deflection, which the force needs).
 
@@ -44,11 +52,12 @@ from ..settings import combine_pair
 
 
 @njit
-def stiffness_rows(a, b, stiffness, damping_ratio, kinematic, k_kinematic, rule, k_out, zeta_out):
+def stiffness_rows(a, b, depth, touch, stiffness, damping_ratio, kinematic, k_kinematic, rule, k_out, zeta_out):
     """Per contact ``a, b (K,)``: writes the stiffness ``k_out (K,)`` of each point (N/m, 0 rigid: the
     pair's stiffness shared by its points, so a face held at four points feels ``k`` × their mean
-    depth, as one point would, and a manifold that gains or loses points does not jump) and damping ratio
-    ``zeta_out (K,)`` from the bodies' ``stiffness, damping_ratio (N,)`` (0 stiffness: rigid
+    depth, as one point would, and a manifold that gains or loses points does not jump; the points
+    sharing it are those touching, ``depth (K,) ≥ −touch`` (the contact margin, m), and a speculative
+    point apart takes a touching one's share) and damping ratio ``zeta_out (K,)`` from the bodies' ``stiffness, damping_ratio (N,)`` (0 stiffness: rigid
     material), ``kinematic (N,) bool`` and ``k_kinematic`` (``settings.kinematic_stiffness``),
     ``rule`` the index of ``settings.combine``. Returns how many contacts are compliant."""
     n_soft = 0
@@ -65,8 +74,11 @@ def stiffness_rows(a, b, stiffness, damping_ratio, kinematic, k_kinematic, rule,
         j = i
         while j < k_pair and key[order[j]] == key[order[i]]:
             j += 1
+        n = 0
         for r in range(i, j):
-            points[order[r]] = j - i
+            n += depth[order[r]] >= -touch
+        for r in range(i, j):
+            points[order[r]] = max(n, 1)
         i = j
     for c in range(k_pair):
         ka, kb = stiffness[a[c]], stiffness[b[c]]
@@ -96,10 +108,19 @@ def soft_rows(ids, K, depth, vn, stiffness, zeta, T, target, compliance):
         c = ids[j]
         k = stiffness[c]
         knn = K[c, 0, 0]
-        if k > 0.0 and knn > 0.0:
-            damp = 2.0 * zeta[c] * math.sqrt(k / knn) if depth[c] >= 0.0 else 0.0
-            h = T * (0.5 * T * k + damp)
+        if k > 0.0 and knn > 0.0 and depth[c] >= 0.0:
+            h = T * (0.5 * T * k + 2.0 * zeta[c] * math.sqrt(k / knn))
             compliance[j] = 1.0 / h
             target[j] = T * k * (depth[c] - 0.5 * T * vn[c]) / h
+        elif k > 0.0 and knn > 0.0:   # apart: the mean of a spring that grows from 0 at touching
+            compliance[j] = 4.0 / (T * T * k)
+            target[j] = 2.0 * depth[c] / T - vn[c]
         else:
             compliance[j] = 0.0
+
+
+def stored_energy(stiffness, depth):
+    """Potential energy (J) of compliant contacts of ``stiffness (K,)`` (N/m per point, 0 rigid) at
+    ``depth (K,)`` (m, > 0 overlapping): ``½ Σ k d²`` over the overlapping ones."""
+    d = np.maximum(depth, 0.0)
+    return float(0.5 * np.sum(stiffness * d * d))

@@ -44,7 +44,7 @@ def prepare_contacts(ctx):
     ext = toi_mod._extents(world) if ctx.exact_toi else np.zeros(0)
     cc = np.ascontiguousarray
     a, b = cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64)
-    ctx.stiffness, ctx.zeta = stiffnesses(world, a, b, m)
+    ctx.stiffness, ctx.zeta = stiffnesses(world, c, m)
     ctx.soft = ctx.stiffness > 0.0 if ctx.stiffness.any() else _NO_SOFT
     ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.bounced = (
         np.empty(k), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool))
@@ -281,15 +281,17 @@ def coefficients(world, c, m):
 _NO_SOFT = np.zeros(0, np.bool_)
 
 
-def stiffnesses(world, a, b, m):
-    """Per contact of bodies ``a, b (K,)``: stiffness (N/m, 0 rigid) and damping ratio ``(K,)``
+def stiffnesses(world, c, m):
+    """Per contact of ``c``: stiffness (N/m, 0 rigid) and damping ratio ``(K,)``
     (``compliance.stiffness_rows``, the compiled step's too); rigid throughout under the kinematic
     response and the resting stage off (a compliant row lives in the resting solve)."""
-    k = len(a)
+    k = len(c)
     out = np.zeros((2, k))
     if m.response == "impulse" and m.resting:
         st = world.settings
-        stiffness_rows(a, b, world.stiffness, world.damping_ratio, world.body_masks().kinematic,
+        cc = np.ascontiguousarray
+        stiffness_rows(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.depth, dtype=float),
+                       float(st.contact_margin), world.stiffness, world.damping_ratio, world.body_masks().kinematic,
                        float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), out[0], out[1])
     return out[0], out[1]
 

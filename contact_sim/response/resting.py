@@ -40,6 +40,11 @@ def resting_solve(ctx):
     # of impact only touching or slowly approaching contacts rest (a fast one within the margin gets
     # its impact time); with next_step every contact within the margin is a speculative one
     leaving = ctx.bounced & (ctx.vn1 > ctx.impact_speed)
+    if ctx.soft.shape[0]:
+        # beside a compliant contact it stays in: its row (v⁺ ≥ −vn1, never pulling) lets it leave
+        # and keeps the spring from driving the pair back through each other (a ball squeezed by a
+        # compliant paddle into a box it had just bounced off went 4 cm into the box at 4 m/s)
+        leaving = np.zeros_like(leaving)
     if ctx.exact_toi:
         rmask = (ctx.touching | (ctx.vn0 >= -ctx.gdt)) & ~leaving
     else:
@@ -59,7 +64,13 @@ def resting_solve(ctx):
     res = ctx.solve(r2, v_end, w_end, target_n=target, mu_s=ctx.mu_s[ri] if fr else None,
                     mu_d=ctx.mu_d[ri] if fr else None, warm=warm, compliance=compliance)
     ctx.note(res)
-    pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
+    # the push cap is the rigid contacts' answer to a squeeze; a compliant one obeys its spring law,
+    # and what it stores is counted (World.contact_energy)
+    if compliance is None:
+        pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
+    else:
+        rigid = compliance == 0.0
+        pushed = kinematic_push(world, r2.a[rigid], r2.b[rigid], c.point[ri][rigid])
     if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
         bodies = pushed[0]
         ref = None if ctx.push_ref is None else (ctx.push_ref[0][bodies] + ctx.gravity[bodies] * t_left,
