@@ -13,7 +13,7 @@ import numpy as np
 from . import dynamics, free_motion, quat, stepper
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
-from .kinds import DYNAMIC, KINDS, KINEMATIC, body_masks
+from .kinds import DYNAMIC, KINDS, body_masks
 from .response.cache import ContactCache
 from .settings import DEFAULT_MATERIAL, Material, Settings
 from .stats import StepStats
@@ -645,7 +645,7 @@ class World(BodyInput):
         from .response import compliance, models, prepare
 
         st = self.settings
-        if not (np.any(self.stiffness > 0) or (st.kinematic_stiffness > 0 and np.any(self.kind == KINEMATIC))):
+        if not compliance.possible(self):
             return 0.0
         m = models.choose(self)
         if m.response != "impulse" or not m.resting:

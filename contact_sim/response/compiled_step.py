@@ -39,7 +39,7 @@ from .energy import (FRAME, NO_FRAME, dynamic_bodies, kinematic_work, frame_of, 
                      restitution_cap_in)
 from .impact import next_round
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
-from .compliance import soft_rows, stiffness_rows
+from .compliance import possible as may_be_compliant, soft_rows, stiffness_rows
 from .resting import _work_bound
 
 #: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it (``LARGE``: a
@@ -85,7 +85,8 @@ def run(ctx):
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
         s.pos, s.vel, s.quat, s.omega, *bodies[:4], prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity,
-        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9], bodies[10], bodies[11],
+        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9], may_be_compliant(world), bodies[10],
+        bodies[11],
         float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, bodies[9],
@@ -168,7 +169,8 @@ def _min(x, y):
 @njit
 def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
           inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
-          restitution, friction, static_friction, stiffness, damping_ratio, k_kinematic, rule, kinetic, a0, b0, p0,
+          restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule, kinetic, a0,
+          b0, p0,
           values, has_old, ext, dt, margin,
           speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max,
           max_iterations, tolerance):
@@ -179,7 +181,8 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     ``free_motion.advance`` and ``pgs.build_rows`` take them, ``R (N,3,3)``, ``gravity (3,)``,
     ``gravity_rows (N,3)``, ``mass (N,)``, ``particle (N,) bool``, their materials ``restitution,
     friction, static_friction (N,)`` combined by ``rule`` (``prepare.coefficient_rows``), their
-    ``stiffness, damping_ratio (N,)`` and ``k_kinematic`` (``compliance.stiffness_rows``); the contact
+    ``stiffness, damping_ratio (N,)`` and ``k_kinematic`` (``compliance.stiffness_rows``, read when
+    ``may_soften``: ``compliance.possible``); the contact
     cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``. Returns ``(status, near (K,) or (0,), f3 (3,K,3), f1 (2,K), flags
     (2,K), wv (K,4), pw (2,N,3), out (10,))``: ``status`` ``DONE``, or with the world untouched why
     not (``LARGE``, ``NONE_NEAR``); the contacts kept by the filter when
@@ -213,8 +216,11 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
     out = np.zeros(11)
     e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
-    stiff, zeta = np.empty(k), np.empty(k)
-    n_soft = stiffness_rows(a, b, depth, margin, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff, zeta)
+    stiff, zeta = np.zeros(k), np.zeros(k)
+    n_soft = 0
+    if may_soften:
+        n_soft = stiffness_rows(a, b, depth, margin, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff,
+                                zeta)
     soft = stiff > 0.0 if n_soft else np.zeros(0, np.bool_)
     status = _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments,
                         inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic,

@@ -124,3 +124,10 @@ def stored_energy(stiffness, depth):
     ``depth (K,)`` (m, > 0 overlapping): ``½ Σ k d²`` over the overlapping ones."""
     d = np.maximum(depth, 0.0)
     return float(0.5 * np.sum(stiffness * d * d))
+
+
+def possible(world):
+    """Whether any contact of ``world`` can be compliant: a material with a stiffness, or
+    ``settings.kinematic_stiffness`` with a kinematic body (else the step skips the stiffness rows)."""
+    return bool(np.any(world.stiffness > 0)) or (world.settings.kinematic_stiffness > 0
+                                                 and world.body_masks().any_kinematic)

@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import dynamics
 from ..jit import njit
+from . import compliance
 from .compliance import stiffness_rows
 from ..kinds import DYNAMIC
 from ..memo import derived
@@ -287,7 +288,7 @@ def stiffnesses(world, c, m):
     response and the resting stage off (a compliant row lives in the resting solve)."""
     k = len(c)
     out = np.zeros((2, k))
-    if m.response == "impulse" and m.resting:
+    if m.response == "impulse" and m.resting and k and compliance.possible(world):
         st = world.settings
         cc = np.ascontiguousarray
         stiffness_rows(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.depth, dtype=float),
