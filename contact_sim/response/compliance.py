@@ -48,6 +48,8 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..kinds import KINEMATIC
+from ..memo import derived
 from ..settings import combine_pair
 
 
@@ -128,6 +130,8 @@ def stored_energy(stiffness, depth):
 
 def possible(world):
     """Whether any contact of ``world`` can be compliant: a material with a stiffness, or
-    ``settings.kinematic_stiffness`` with a kinematic body (else the step skips the stiffness rows)."""
-    return bool(np.any(world.stiffness > 0)) or (world.settings.kinematic_stiffness > 0
-                                                 and world.body_masks().any_kinematic)
+    ``settings.kinematic_stiffness`` with a kinematic body (else the step skips the stiffness rows).
+    What the bodies decide is kept on the world while their arrays are the same."""
+    soft_material, any_kinematic = derived(world, "compliant", (world.stiffness, world.kind), lambda: (
+        bool(np.any(world.stiffness > 0)), bool(np.any(world.kind == KINEMATIC))))
+    return soft_material or (any_kinematic and world.settings.kinematic_stiffness > 0)
