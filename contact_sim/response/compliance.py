@@ -15,19 +15,17 @@ impulse ``λ = T F``; rearranged, the row of the solve (exact active set and Gau
 
     v⁺ + γ λ ≥ b  ⟂  λ ≥ 0,    γ = 1 / (T (T k/2 + c)),    b = T k (d − T v₀/2) / (T (T k/2 + c))
 
-The damper takes energy out; ``c = 2 ζ √(k m)`` with ``m = 1/K_nn`` the contact's effective mass along
-its normal and ``ζ`` the damping ratio (1: critical, no rebound), so one ``ζ`` means the same for
-a finger on a 20 g part and on a 20 kg one.
+The damper takes energy out; ``c = 2 ζ √(k m)`` with ``m = 1/K_nn`` the contact's effective mass
+along its normal and ``ζ`` the damping ratio (1: critical, no rebound), so one ``ζ`` means the
+same for a finger on a 20 g part and on a 20 kg one.
 
 A speculative contact (apart at the interval's start, ``d < 0``) meets no damper and half the
 spring, ``F = (k/2)·(d − T (v₀ + v⁺)/2) ≥ 0`` (``γ = 4 / (T² k)``, ``b = 2d/T − v₀``: the rigid
 speculative row, softened): the mean force of a spring that grows from nothing at touching. The
-full spring over the whole interval would do more work than it stores (up to ``½ k d²``: a paddle
-sweeping a pile gave the bodies 8 J beyond its own work); this half never does, since ``−F (d −
-d_end) ≥ ½ k d_end²`` for ``d ≤ 0``. Inside (``d ≥ 0``) the spring's work on the end depth is the
+full spring over the whole interval would do more work than it stores (up to ``½ k d²`` for a
+gap ``d``); this half never does, since ``−F (d − d_end) ≥ ½ k d_end²`` for ``d ≤ 0``. Inside (``d ≥ 0``) the spring's work on the end depth is the
 energy it releases, ``½ k (d² − d_end²)``, less ``½ k (d − d_end)²`` (the step's loss); the damper
-acts on the end velocity.
-A compliant contact takes no impact (no restitution: the damper decides its rebound) and no
+acts on the end velocity. A compliant contact takes no impact (no restitution: the damper decides its rebound) and no
 position correction (its overlap is the spring's deflection, which the force needs).
 
 Stiffness of a pair of bodies in contact: the two materials' ``stiffness`` as springs in series,
@@ -59,9 +57,10 @@ def stiffness_rows(a, b, depth, touch, stiffness, damping_ratio, kinematic, k_ki
     pair's stiffness shared by its points, so a face held at four points feels ``k`` × their mean
     depth, as one point would, and a manifold that gains or loses points does not jump; the points
     sharing it are those touching, ``depth (K,) ≥ −touch`` (the contact margin, m), and a speculative
-    point apart takes a touching one's share) and damping ratio ``zeta_out (K,)`` from the bodies' ``stiffness, damping_ratio (N,)`` (0 stiffness: rigid
-    material), ``kinematic (N,) bool`` and ``k_kinematic`` (``settings.kinematic_stiffness``),
-    ``rule`` the index of ``settings.combine``. Returns how many contacts are compliant."""
+    point apart takes a touching one's share) and damping ratio ``zeta_out (K,)`` from the bodies'
+    ``stiffness, damping_ratio (N,)`` (0 stiffness: rigid material), ``kinematic (N,) bool`` and
+    ``k_kinematic`` (``settings.kinematic_stiffness``), ``rule`` the index of ``settings.combine``.
+    Returns how many contacts are compliant."""
     n_soft = 0
     k_pair = a.shape[0]
     # the points of each pair share its stiffness: how many the pair has (pairs by key a·N + b)

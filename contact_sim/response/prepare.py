@@ -17,7 +17,6 @@ import numpy as np
 from .. import dynamics
 from ..jit import njit
 from . import compliance
-from .compliance import stiffness_rows
 from ..kinds import DYNAMIC
 from ..memo import derived
 from ..settings import COMBINE_RULES, combine_pair
@@ -56,7 +55,8 @@ def prepare_contacts(ctx):
         a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
         cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
         world.settings.contact_margin, m.resting, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, ctx.speculative,
-        ctx.t_left, ctx.soft, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.spec_target, ctx.bounced)
+        ctx.t_left, ctx.soft, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.spec_target,
+        ctx.bounced)
     if ctx.first:
         ctx.max_penetration = max(ctx.max_penetration, ctx.counts.deepest)
 
@@ -291,7 +291,7 @@ def stiffnesses(world, c, m):
     if m.response == "impulse" and m.resting and k and compliance.possible(world):
         st = world.settings
         cc = np.ascontiguousarray
-        stiffness_rows(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.depth, dtype=float),
+        compliance.stiffness_rows(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.depth, dtype=float),
                        float(st.contact_margin), world.stiffness, world.damping_ratio, world.body_masks().kinematic,
                        float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), out[0], out[1])
     return out[0], out[1]
