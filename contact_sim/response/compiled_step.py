@@ -85,8 +85,7 @@ def run(ctx):
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
         s.pos, s.vel, s.quat, s.omega, *bodies[:4], prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity,
-        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9], may_be_compliant(world), bodies[10],
-        bodies[11],
+        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9], may_be_compliant(world), *bodies[10:12],
         float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and m.response != "kinematic",
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, bodies[9],
@@ -137,8 +136,8 @@ def run(ctx):
 def _body_arrays(world):
     """The per-body arrays ``_step`` reads that a step never replaces, in its argument order:
     ``(principal_q, principal_moments, inertia_body, inv_mass, mass, particle, restitution, friction,
-    static_friction, extents, stiffness, damping_ratio)``, contiguous and of the kernel's types. Kept on the world while the
-    very same arrays are there (a body added or removed, or a material assigned, replaces them) and
+    static_friction, extents, stiffness, damping_ratio)``, contiguous and of the kernel's types. Kept
+    on the world while the very same arrays are there (a body added or removed, or a material assigned, replaces them) and
     only when they needed no conversion, so an edit in place is still seen."""
     s = world.s
     raw = (s.principal_q, s.principal_moments, world.inertia_body, world.inv_mass, world.mass, world.particle,
@@ -151,7 +150,8 @@ def _body_arrays(world):
     arrays = (cc(raw[0], dtype=float), cc(raw[1], dtype=float), cc(raw[2], dtype=float), cc(raw[3], dtype=float),
               cc(raw[4], dtype=float), cc(raw[5]), cc(raw[6], dtype=float), cc(raw[7], dtype=float),
               cc(raw[8], dtype=float), toi_mod._extents(world), cc(raw[10], dtype=float), cc(raw[11], dtype=float))
-    if all(map(is_, arrays[:9], raw[:9])) and all(map(is_, arrays[10:], raw[10:])):   # world.kind: the shapes (the extents) changed with it
+    # the extents are derived (from the shapes, which change with world.kind): the others must be the raw arrays
+    if all(map(is_, arrays[:9] + arrays[10:], raw[:9] + raw[10:])):
         world._derived["step_bodies"] = (raw, arrays)
     return arrays
 
@@ -170,8 +170,7 @@ def _min(x, y):
 def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
           inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
           restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule, kinetic, a0,
-          b0, p0,
-          values, has_old, ext, dt, margin,
+          b0, p0, values, has_old, ext, dt, margin,
           speculative, toi_tolerance, simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max,
           max_iterations, tolerance):
     """``run``'s kernel: the stages in the Python stages' order and arithmetic. Contacts ``a, b
@@ -235,8 +234,8 @@ def _step(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, ve
 @njit
 def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega, principal_q, moments, inertia_body,
                inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, e, mu_s,
-               mu_d, stiff, zeta, soft, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance, simultaneous,
-               rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local,
+               mu_d, stiff, zeta, soft, kinetic, a0, b0, p0, values, has_old, ext, dt, margin, speculative, toi_tolerance,
+               simultaneous, rebound_speed, impact_speed, split_slop, split_beta, direct_max, max_iterations, tolerance, local,
                normal_impulse, friction_impulse, impulse, vn0, used, resting, wv, vp, wp, out):
     """``_step`` into its outputs (``e`` is overwritten: zero where the rebound rests); returns the status."""
     k = a.shape[0]
@@ -269,8 +268,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
         vn1 = np.empty(k)
         status, it_i, residual_i, unconverged = _impact(a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
                                                         touching, closing, bounced, spec_target, e, e_material, soft,
-                                                        vn0,
-                                                        rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind,
+                                                        vn0, rebound_speed, impact_speed, mu_s, mu_d, kinetic, kind,
                                                         dynamic, kinematic, mass, particle, pos, quat, inertia_body,
                                                         direct_max, max_iterations, tolerance, vel_s, omega_s,
                                                         vel_ref, omega_ref, lam_i, vn1)
