@@ -489,3 +489,30 @@ def test_a_body_beside_an_open_meshs_rim_is_apart_whatever_the_margin(body):
     assert len(cs.collide(tile, _TILE_POSE, shape, pose)) == 0
     c = cs.collide(tile, _TILE_POSE, shape, pose, margin=0.2)
     assert len(c) and c.depth.max() <= -0.05 + 1e-12, c.depth
+
+
+@pytest.mark.parametrize("body", ["box", "hull", "closed mesh"])
+@pytest.mark.parametrize("margin", [0.0, 0.05, 0.3])
+def test_a_body_under_an_open_meshs_rim_has_gone_through_whatever_the_margin(body, margin):
+    """A cube wholly below a flat open mesh's plane, half under the sheet and half beyond its rim,
+    has gone through the sheet: no contact, at any margin. Its corners under the sheet are behind it,
+    those beyond the rim beside it, none in front. Counting the corners beside the rim as in front,
+    the cube was 0.2 m deep and was pushed up through the tile (fresh draws, seed 20261205: a penalty
+    spring on a box under a terrain's rim gave it 36 J in one step)."""
+    shape = {"box": cs.Box([0.2] * 3), "hull": cs.Convex(cs.Box([0.2] * 3).vertices),
+             "closed mesh": cs.TriMesh(*_cube_mesh(0.2))}[body]
+    pose = ([2.0, 0.3, -0.15], [0, 0, 0, 1])   # x from 1.9 to 2.1 across the rim at 2, z from -0.25 to -0.05
+    assert len(cs.collide(flat_tile_mesh(2.0, 4), _TILE_POSE, shape, pose, margin=margin)) == 0
+
+
+@pytest.mark.parametrize("body", ["box", "hull", "closed mesh"])
+def test_a_body_across_an_open_meshs_rim_and_plane_is_pushed_out(body):
+    """The same cube raised to straddle the plane (z from -0.05 to 0.15) has a corner in front of the
+    sheet: not gone through; its corners under the sheet are 5 cm deep, pushed up along +z."""
+    shape = {"box": cs.Box([0.2] * 3), "hull": cs.Convex(cs.Box([0.2] * 3).vertices),
+             "closed mesh": cs.TriMesh(*_cube_mesh(0.2))}[body]
+    c = cs.collide(flat_tile_mesh(2.0, 4), _TILE_POSE, shape, ([2.0, 0.3, 0.05], [0, 0, 0, 1]))
+    assert len(c)
+    np.testing.assert_allclose(c.depth.max(), 0.05, rtol=1e-12)
+    deep = c.depth > 0.05 - 1e-12
+    np.testing.assert_allclose(c.normal[deep], np.tile([0, 0, -1.0], (deep.sum(), 1)), atol=1e-12)

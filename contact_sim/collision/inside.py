@@ -112,6 +112,19 @@ def behind_open(px, py, pz, qx, qy, qz, V, tris, t0, nt, t):
 
 
 @njit
+def in_front(px, py, pz, qx, qy, qz, V, tris, t):
+    """Point ``p`` in front of (or on) the plane of triangle row ``t`` of an open mesh, at its nearest
+    point ``q`` on it. A body with a point behind an open mesh and none in front has gone through
+    it; a point below the plane but beside the rim (``behind_open`` false) is neither, so a body
+    under a terrain's rim, part under the sheet and part beyond it, has gone through too."""
+    i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
+    ax, ay, az = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]
+    bx, by, bz = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]
+    return ((px - qx) * (ay * bz - az * by) + (py - qy) * (az * bx - ax * bz)
+            + (pz - qz) * (ax * by - ay * bx)) >= 0
+
+
+@njit
 def _edge_uses(tris, t0, nt, u, w):
     """How many triangles of rows ``t0 .. t0+nt`` have the edge between vertices ``u`` and ``w``."""
     n = 0

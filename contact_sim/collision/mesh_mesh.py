@@ -30,7 +30,7 @@ import numpy as np
 from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POLY_VERTEX, fid
 from ..jit import njit
 from .geometry import MESH, SF_BOX, SF_SCALE, SI_CLOSED, SI_NT, SI_NV, SI_P0, SI_T0, SI_V0
-from .inside import RAYS, behind_open, ray_triangle
+from .inside import RAYS, behind_open, in_front, ray_triangle
 from .manifold import F_EDGE, F_VERTEX, emit_deepest4
 from .vec3 import closest_on_triangle, col_max
 from ..constants import LEAF_SIZE, STACK, TOUCH_TOLERANCE
@@ -234,11 +234,13 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, ntY, nodes, boxes, perm, rootY,
               RY, pY, kind, P, Nn, D, F, I, c):
     """Step 1 for the vertices ``X[:nx]`` of one mesh (in the frame of the other, Y: vertices
     ``VY``): each one inside Y or within ``margin`` of it becomes a candidate (world point, normal
-    B→A, depth). ``side`` +1 when X is B's vertices (Y = A), -1 for A's. Returns ``(c, any inside, any
-    outside)``: a mesh with no vertex outside an open mesh Y is wholly behind it (no contact)."""
+    B→A, depth). ``side`` +1 when X is B's vertices (Y = A), -1 for A's. Returns ``(c, any inside, gone
+    through)``: a mesh with a vertex behind an open mesh Y and none in front of it has gone through
+    Y (no contact; ``inside.in_front``)."""
     stack = np.empty(STACK, np.int64)
     anyin = False
-    anyout = closedY   # only asked of an open Y (whose every vertex is looked at)
+    front = closedY    # only asked of an open Y (whose every vertex is looked at)
+    behind = False
     reach = margin + tol
     for u in range(nx):
         px, py, pz = X[u, 0], X[u, 1], X[u, 2]
@@ -256,7 +258,9 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, ntY, nodes, boxes, perm, rootY,
         else:   # an open mesh: behind its nearest triangle is inside
             j, qx, qy, qz, dist = bvh_nearest(px, py, pz, VY, tris, nodes, boxes, perm, rootY, np.inf, stack)
             inside = behind_open(px, py, pz, qx, qy, qz, VY, tris, t0Y, ntY, j)
-            anyout |= not inside
+            behind |= inside
+            if not front:
+                front = in_front(px, py, pz, qx, qy, qz, VY, tris, j)
         sep = -dist if inside else dist
         if sep > margin or c >= P.shape[0]:
             continue
@@ -275,7 +279,7 @@ def _vertices(X, nx, VY, tris, planes, p0Y, t0Y, ntY, nodes, boxes, perm, rootY,
             Nn[c, r] = RY[r, 0] * nx_ + RY[r, 1] * ny_ + RY[r, 2] * nz_
         D[c], F[c], I[c] = -sep, F_VERTEX, fid(kind, u, j - t0Y, 0)
         c += 1
-    return c, anyin, anyout
+    return c, anyin, behind and not front
 
 
 @njit
@@ -434,13 +438,13 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         tol = TOUCH_TOLERANCE * min(sf[sa, SF_SCALE], sf[sb, SF_SCALE])
         p0A, t0A, p0B, t0B = si[sa, SI_P0], si[sa, SI_T0], si[sb, SI_P0], si[sb, SI_T0]
         c = np.int64(0)
-        c, inB, outB = _vertices(XB, nvb, VA, tris, planes, p0A, t0A, si[sa, SI_NT], nodes, boxes, perm, root[sa],
+        c, inB, goneB = _vertices(XB, nvb, VA, tris, planes, p0A, t0A, si[sa, SI_NT], nodes, boxes, perm, root[sa],
                                  si[sa, SI_CLOSED] != 0, sf[sa, SF_BOX:SF_BOX + 6], margin, tol, 1.0, Ra, pa,
                                  FID_MESH_VERTEX, P, Nn, D, F, I, c)
-        c, inA, outA = _vertices(XA, nva, VB, tris, planes, p0B, t0B, si[sb, SI_NT], nodes, boxes, perm, root[sb],
+        c, inA, goneA = _vertices(XA, nva, VB, tris, planes, p0B, t0B, si[sb, SI_NT], nodes, boxes, perm, root[sb],
                                  si[sb, SI_CLOSED] != 0, sf[sb, SF_BOX:SF_BOX + 6], margin, tol, -1.0, Rb, pb,
                                  FID_POLY_VERTEX, P, Nn, D, F, I, c)
-        if not (outA and outB):   # one wholly behind the other, an open mesh: gone through, no contact
+        if goneA or goneB:   # one gone through the other, an open mesh: no contact
             continue
         if inA or inB:
             counters[0] += 1

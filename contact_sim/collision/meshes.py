@@ -5,8 +5,8 @@ A closed mesh is a solid: a point is inside by odd ray-crossing parity over thre
 (a ray that grazes an edge or vertex is discarded for the next). An open mesh (a terrain tile, a
 flat floor) has no inside; it is a one-sided surface whose back is below it: a point is inside
 when it lies behind the nearest triangle, so a body pressed through a terrain is pushed back out
-the way it came. A body entirely behind it (every vertex behind; a sphere whose centre is behind by
-more than its radius) has gone through and has no contact with it: the broad phase pairs such a
+the way it came. A body with a vertex behind it and none in front (the others below its plane
+beside the rim; a sphere whose centre is behind by more than its radius) has gone through and has no contact with it: the broad phase pairs such a
 body with the surface only within the margin, so a contact there would come and go with the
 margin (a box resting on the ground 0.4 m under a terrain tile was pushed up through the tile
 when a fast body elsewhere widened the step's speculative margin). A distance below ``TOUCH_TOLERANCE`` × the smaller body's size is touching, and
@@ -18,7 +18,7 @@ from ..contacts import FID_CROSSING, FID_MESH_VERTEX, FID_POINT, FID_POLY_VERTEX
 from ..jit import njit
 from .geometry import SF_RADIUS, SF_SCALE, SI_CLOSED, SI_E0, SI_NE, SI_NP, SI_NT, SI_NV, SI_P0, SI_V0, \
     SI_T0
-from .inside import behind_open, parity_inside, plane_excess
+from .inside import behind_open, in_front, parity_inside, plane_excess
 from ..constants import TOUCH_TOLERANCE
 from .manifold import F_EDGE, F_SPHERE, F_VERTEX, emit_deepest4, put
 from .polyhedra import world_poly
@@ -235,11 +235,14 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                     P[c, j], Nn[c, j] = VM[v, j] - 0.5 * m * NP[pm, j], NP[pm, j]
                 D[c], F[c], I[c] = -m, F_VERTEX, fid(FID_POLY_VERTEX, v, pm, 0)
                 c += 1
-        front = False              # a vertex of B in front of an open mesh: B is not wholly behind it
+        front = False              # a vertex of B in front of an open mesh: B has not gone through it
+        behind = False             # a vertex of B behind it
         for u in range(nvp):       # (a) polyhedron vertices against the mesh triangles
             j, qb, dist = nearest_triangle(VM, tris, t0, nt, VP[u])
             inside = inside_mesh(VP[u], VM, tris, t0, nt, closed, qb, j)
-            front |= not inside
+            behind |= inside
+            if not (closed or front):
+                front = in_front(VP[u, 0], VP[u, 1], VP[u, 2], qb[0], qb[1], qb[2], VM, tris, t0 + j)
             sep = -dist if inside else dist
             if sep > margin:
                 continue
@@ -253,7 +256,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                 P[c, jj], Nn[c, jj] = VP[u, jj] + 0.5 * sep * na[jj], na[jj]
             D[c], F[c], I[c] = -sep, F_VERTEX, fid(FID_MESH_VERTEX, u, j, 0)
             c += 1
-        if not (closed or front):   # entirely behind an open mesh: gone through, no contact
+        if not (closed or front) and behind:   # behind an open mesh, none in front: gone through, no contact
             continue
         if c:
             counters[0] += 1
