@@ -78,10 +78,10 @@ class Settings(Declared):
     mass_ratio_limit: float = declare(100.0, Number(ge=1, le=_HUGE),
                                       "preflight warning above this mass ratio between touching bodies")
     penalty: Penalty = declare(Penalty, Nested(Penalty), "spring and damper of the penalty response")
-    kinematic_stiffness: float = declare(0.0, Number(ge=0, le=_HUGE, unit="N/m"),
+    kinematic_stiffness: float = declare(1.0e5, Number(ge=0, le=_HUGE, unit="N/m"),
                                          "N/m: stiffness of a contact with a kinematic body whose materials give "
-                                         "none (compliant contact: a robot's fingers hold what they squeeze; at "
-                                         "1e5 a 1 kg part resting on one sinks 0.1 mm); 0: rigid")
+                                         "none (compliant contact: a robot's fingers hold what they squeeze, 1 mm "
+                                         "deep with 100 N; a 1 kg part resting on one sinks 0.1 mm); 0: rigid")
     # world bounds: finite inputs beyond them are refused by name (BoundsError)
     max_position: float = declare(1e4, Number(gt=0, le=LENGTH_LIMIT, unit="m"),
                                   "m: every coordinate of a body origin or pose within ±this", world_bound=True)

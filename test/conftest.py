@@ -17,6 +17,8 @@ if os.environ.get("CONTACT_SIM_BLOCK_ROS") == "1":
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = os.path.join(REPO, "config", "scenes")
+# pybullet_data's Franka Panda (URDF and collision meshes, Apache 2.0: test/data/franka_panda/README.md)
+PANDA_URDF = os.path.join(REPO, "test", "data", "franka_panda", "panda.urdf")
 
 
 @pytest.fixture

@@ -48,7 +48,7 @@ from hypothesis import strategies as st
 import contact_sim as cs
 from contact_sim import quat
 from contact_sim.collision import detect_world
-from contact_sim.response import ContactModelWarning, MassRatioWarning, choose
+from contact_sim.response import ContactModelWarning, MassRatioWarning, choose, prepare
 from scenegen import REPO, calls, scenes
 
 # derandomized: CI sees the same examples every run (a red CI is a regression, not a new draw);
@@ -88,21 +88,38 @@ def energy_scale(world):
                  + abs(world.energy()) + 1e-12)
 
 
+def springs(world):
+    """``(contacts, k (K,))``: the contacts whose force is a spring and each one's stiffness (N/m).
+    Under ``penalty``, every contact at margin 0 with a dynamic body (``settings.penalty``); under
+    the impulse response, the compliant ones (``response.compliance``: a material stiffness or
+    ``kinematic_stiffness``, within the contact margin, each point its share of its pair's), whose
+    stored energy ``World.energy`` counts itself. A spring between two bodies nothing moves (a
+    kinematic one into a static one) stores nothing."""
+    m = choose(world)
+    dyn = world.kind == 2
+    if m.response == "penalty":
+        c, _ = detect_world(world, margin=0.0)
+        c = c.select(dyn[c.body_a] | dyn[c.body_b])
+        return c, np.full(len(c), world.settings.penalty.stiffness)
+    c, _ = detect_world(world, margin=world.settings.contact_margin)
+    k, _ = prepare.stiffnesses(world, c, m)
+    keep = (k > 0) & (dyn[c.body_a] | dyn[c.body_b])
+    return c.select(keep), k[keep]
+
+
 def spring_energy(world, new_since=None):
-    """``(energy, pairs)``: energy stored in the penalty springs, ``½ k Σ depth²`` over the contacts at
-    margin 0 that have a dynamic body (J), and the set of touching pairs; with ``new_since`` (such a set), only the springs of
-    pairs not in it: a pair that penetrated during the step's free motion compressed its spring
-    before the force could act (the penalty method's first step in), energy the step may show."""
-    if choose(world).response != "penalty":
-        return 0.0, set()
-    c, _ = detect_world(world, margin=0.0)
-    dyn = world.kind == 2   # a spring between two bodies nothing moves (kinematic into static) stores nothing
-    c = c.select(dyn[c.body_a] | dyn[c.body_b])
+    """``(energy, pairs)``: energy stored in the springs (``springs``), ``½ Σ k depth²`` (J), and the
+    set of touching pairs; with ``new_since`` (such a set), only the springs of pairs not in it: a
+    pair that penetrated during the step's free motion compressed its spring before the force could
+    act (the penalty method's first step in; a compliant contact's too, when a turning body brings
+    it in from beyond the speculative margin), energy the step may show."""
+    c, k = springs(world)
     pairs = set(zip(c.body_a.tolist(), c.body_b.tolist()))
     d = np.maximum(c.depth, 0.0)
     if new_since is not None:
-        d = d[[(a, b) not in new_since for a, b in zip(c.body_a.tolist(), c.body_b.tolist())]]
-    return 0.5 * world.settings.penalty.stiffness * float(d @ d), pairs
+        new = np.array([(a, b) not in new_since for a, b in zip(c.body_a.tolist(), c.body_b.tolist())], bool)
+        d, k = d[new], k[new]
+    return 0.5 * float(np.sum(k * d * d)), pairs
 
 
 def conservative_springs(world, pairs):
@@ -150,30 +167,29 @@ def linearisation_bound(world, dt):
 
 
 def spring_turn_bound(world, dt, omega0):
-    """Energy (J) the penalty springs may gain by the same linearisation: the step computes each
-    spring's force for the depth its point reaches along the tangent, ``d − dt·v_n⁺``, but the body
-    turns on the circle, so the depth it ends with is off by up to ``δ = r (|ω| dt)²/2`` per turning
-    body (``r`` its extent; ``ω`` the larger of the spin before, ``omega0 (N,3)``, and after), and
-    ``½k(d + δ)² − ½kd² ≤ k (|d| δ + δ²/2)``, summed over the springs of the contacts at margin 0."""
-    if choose(world).response != "penalty":
-        return 0.0
+    """Energy (J) the springs (``springs``) may gain by the same linearisation: the step computes
+    each spring's force for the depth its point reaches along the tangent, ``d − dt·v_n⁺``, but the
+    body turns on the circle, so the depth it ends with is off by up to ``δ = r (|ω| dt)²/2`` per
+    turning body (``r`` its extent; ``ω`` the larger of the spin before, ``omega0 (N,3)``, and
+    after), and ``½k(d + δ)² − ½kd² ≤ k (|d| δ + δ²/2)``, summed over the springs."""
     from contact_sim.response.toi import _extents
 
-    c, _ = detect_world(world, margin=0.0)
+    c, k = springs(world)
     dyn = world.kind == 2
     ext = np.where(np.isfinite(_extents(world)), _extents(world), 0.0)
     w = np.maximum(np.linalg.norm(omega0, axis=1), np.linalg.norm(world.s.omega, axis=1))
     delta = np.where(dyn, ext * (w * dt) ** 2 / 2, 0.0)
     dc = delta[c.body_a] + delta[c.body_b]
     d = np.abs(c.depth)
-    return float(world.settings.penalty.stiffness * np.sum(d * dc + 0.5 * dc * dc))
+    return float(np.sum(k * (d * dc + 0.5 * dc * dc)))
 
 
 def step_checked(world, dt=None):
     """One step with every per-step invariant; returns the energy excess (J, ≤ 0 when fine)."""
+    penalty = choose(world).response == "penalty"   # World.energy counts compliant springs itself
     spring0, pairs0 = spring_energy(world)
     potential = conservative_springs(world, pairs0)
-    e0 = world.energy() + spring0
+    e0 = world.energy() + (spring0 if penalty else 0.0)
     scale = energy_scale(world)
     h = world.settings.dt if dt is None else dt
     lin = linearisation_bound(world, h)
@@ -182,14 +198,20 @@ def step_checked(world, dt=None):
     assert finite(world)
     ls = world.last_solve
     spring1, pairs1 = spring_energy(world)
-    e1 = world.energy() + spring1
+    e1 = world.energy() + (spring1 if penalty else 0.0)
     lin += spring_energy(world, new_since=pairs0)[0] + spring_turn_bound(world, h, omega0)
-    if ls["response"] == "penalty" and not (potential and conservative_springs(world, pairs1)):
+    conservative = potential and conservative_springs(world, pairs1)
+    if penalty and not conservative:
         # per-point springs that are no potential field: finite, not conserved (docs/limits.md)
         return 0.0
     lin = max(lin, linearisation_bound(world, h))
     allowed = (1e-9 * scale + ls["correction_energy"] + ls["kinematic_work"] + ls["rotation_drift"]
                + ls["kick_error_bound"] + ls["rest_work_bound"] + lin)
+    if not conservative:
+        # compliant springs that are no potential field (a manifold whose points change, a mesh's
+        # nearest face): the energy they hold at the step's end is not a function of the pose, but
+        # they give back at most what they held: the bodies' energy without it is bounded
+        e1 -= world.contact_energy()
     excess = e1 - e0 - allowed
     assert excess <= 0, (f"energy grew by {e1 - e0:.6g} J in a step, {excess:.6g} J more than it may "
                          f"(correction {ls['correction_energy']:.3g}, kinematic work {ls['kinematic_work']:.3g}, "

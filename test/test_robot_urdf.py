@@ -435,13 +435,14 @@ def test_a_collision_mesh_that_is_its_own_hull_becomes_a_convex_body(tmp_path):
 
 
 def test_the_panda_of_pybullet_data_loads_its_links_as_their_hulls():
-    """pybullet_data's Panda (when pybullet is installed: make bench installs it) loads with no
-    package path; its collision meshes, within 0.23 mm of their hulls, are those hulls but link6's,
-    which has a real concavity; at its zero pose nothing touches that is not excluded."""
-    pybullet_data = pytest.importorskip("pybullet_data", reason="pybullet is not installed (make bench installs it)")
+    """pybullet_data's Panda (its copy in test/data) loads with no package path; its collision
+    meshes, within 0.23 mm of their hulls, are those hulls but link6's, which has a real
+    concavity; at its zero pose nothing touches that is not excluded."""
+    from conftest import PANDA_URDF
+
     w = cs.World()
     w.add_body("floor", cs.Plane(), kind="static")
-    names = w.add_urdf(os.path.join(pybullet_data.getDataPath(), "franka_panda", "panda.urdf"))
+    names = w.add_urdf(PANDA_URDF)
     kinds = {n: w.user_shapes[w.index(n)].type for n in names}
     assert kinds.pop("panda_link6") == "mesh" and set(kinds.values()) == {"convex"}
     assert len(w.detect()) == 0

@@ -40,6 +40,7 @@ from .energy import (FRAME, NO_FRAME, dynamic_bodies, kinematic_work, frame_of, 
 from .impact import next_round
 from .pgs import apply_ids, build_rows, normal_velocities, sweeps
 from .compliance import possible as may_be_compliant, soft_rows, stiffness_rows
+from .correction import penetrating
 from .resting import _work_bound
 
 #: ``_step``'s answers: the step ran (``DONE``), or why a Python stage has to run it (``LARGE``: a
@@ -278,8 +279,7 @@ def _step_into(a, b, point, normal, depth, rel_vel, kind, pos, vel, quat, omega,
     # for the penetrating contacts, frictionless; the cap on how far they move stays in Python
     planned = False
     if counts.deepest > split_slop:
-        # a compliant contact's overlap is its spring's deflection: not corrected (correction.plan)
-        pen = np.flatnonzero((depth > 0.0) & ~soft) if soft.shape[0] else np.flatnonzero(depth > 0.0)
+        pen = penetrating(depth, soft, a, b, dynamic)   # correction.penetrating: rigid, no body held by a spring
         if pen.shape[0]:
             p = pen.shape[0]
             ptarget = np.empty(p)

@@ -6,7 +6,37 @@ potential energy the separation adds is reported as ``StepStats.correction_energ
 import numpy as np
 
 from .. import quat
+from ..jit import njit
 from .energy import potential_change
+
+
+@njit(cache=True)
+def penetrating(depth, soft, a, b, dynamic):
+    """Indices (int64) of the contacts position correction pushes apart: overlapping (``depth``
+    (K,) > 0), rigid (``soft`` (K,) bool, empty when no contact is compliant) and not touching a
+    dynamic body that a compliant contact holds (``dynamic`` (N,) bool, ``a``/``b`` (K,) body
+    indices).
+
+    A compliant contact's overlap is its spring's deflection, which its force needs. A body held
+    by one is where the spring puts it: pushing it out of a rigid overlap moves it into the spring
+    (a sphere spawned half in the ground and half in a compliant robot base was pushed 7.5 cm into
+    the base in a step, the spring then gave it 1.4 kJ). Its rigid overlaps are left to the
+    resting solve, which keeps them from growing."""
+    k = depth.shape[0]
+    held = np.zeros(dynamic.shape[0], np.bool_)
+    for i in range(soft.shape[0]):
+        if soft[i]:
+            if dynamic[a[i]]:
+                held[a[i]] = True
+            if dynamic[b[i]]:
+                held[b[i]] = True
+    out = np.empty(k, np.int64)
+    n = 0
+    for i in range(k):
+        if depth[i] > 0.0 and not (soft.shape[0] > 0 and soft[i]) and not held[a[i]] and not held[b[i]]:
+            out[n] = i
+            n += 1
+    return out[:n]
 
 
 def plan(ctx):
@@ -17,8 +47,7 @@ def plan(ctx):
     st = world.settings
     if len(c) == 0 or ctx.counts.deepest <= st.split_slop:
         return
-    # a compliant contact's overlap is its spring's deflection, which its force needs: not corrected
-    pen = np.flatnonzero((c.depth > 0) & ~ctx.soft) if ctx.soft.shape[0] else np.flatnonzero(c.depth > 0)
+    pen = penetrating(c.depth, ctx.soft, c.body_a, c.body_b, world.body_masks().dynamic)
     if pen.size == 0:
         return
     vp = np.zeros_like(world.s.vel)

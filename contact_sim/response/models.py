@@ -226,7 +226,7 @@ def _choose(world, dt, fast):
         if soft_materials:
             parts.append(f"{soft_materials} bod{'y' if soft_materials == 1 else 'ies'} of a compliant material "
                          f"(springs in series)")
-        reasons.append("compliant contacts: " + ", ".join(parts) + " per contact point, damping ratio "
+        reasons.append("compliant contacts: " + ", ".join(parts) + " per touching pair (shared by its points), damping ratio "
                        + _ratios(world) + " (1: critical); the others rigid")
     elif compliant:
         reasons.append("compliant contacts off: they are rows of the resting solve, which the scene turned off")
