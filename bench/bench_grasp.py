@@ -25,10 +25,11 @@ Reported per engine, object and ``over`` (0.5, 1, 5 mm):
   MuJoCo: ``mj_contactForce``; pybullet: ``normalForce``); ``grip_shake_N`` the same over 3–5 s;
 * ``shake_mm``: the shake amplitude the fingers really made (largest |y| of their midpoint over
   3–5 s), since the peers' hands follow the command through their controllers;
-* ``step_ms``: median time of one step call (contact_sim: ``set_poses`` + ``step``; MuJoCo: setting
-  ``ctrl`` + ``mj_step``; pybullet: ``setJointMotorControlArray`` + ``stepSimulation``), over
-  several rounds; ``ratio``: the engine's median step time ÷ contact_sim's in the same round, the
-  median over rounds. The engines step in turns (chunks of 24 steps, the order rotated each chunk)
+* ``step_ms``: median time of one step: the command and the step (contact_sim: ``set_poses`` +
+  ``step``; MuJoCo: setting ``ctrl`` + ``mj_step``; pybullet: ``setJointMotorControlArray`` +
+  ``stepSimulation``), over every step of every round; ``command_ms`` the median of the command
+  alone; ``ratio``: the engine's median step time ÷ contact_sim's in the same round, the median
+  over rounds (below 1: faster than contact_sim). The engines step in turns (chunks of 24 steps, the order rotated each chunk)
   because this machine's absolute speed drifts 2× over minutes; only the step calls are timed.
 
 Each engine on its own terms (defaults unless the scenario needs a value; all printed):
@@ -128,9 +129,11 @@ class ContactSimGrasp:
         self.i_obj, self.i_left, self.i_right = w.index("object"), w.index("left"), w.index("right")
         self.settings = f"Settings(dt=1/240, kinematic_stiffness={kinematic_stiffness:g}), mu {MU}, e 0"
 
-    def step(self, t):
+    def command(self, t):
         left, right = finger_targets(t, self.over)
         self.w.set_poses(["left", "right"], [left, right], [[0, 0, 0, 1]] * 2, t)
+
+    def advance(self):
         self.w.step()
 
     def positions(self):
@@ -220,8 +223,10 @@ class MujocoGrasp:
         d = off - self.off0   # finger joint displacement: left moves +x by -d, right -x
         return np.array([hand[0] - start[0], hand[1] - start[1], hand[2] - start[2], -d, d])
 
-    def step(self, t):
+    def command(self, t):
         self.d.ctrl[:] = self.ctrl(t)
+
+    def advance(self):
         self.mj.mj_step(self.m, self.d)
 
     def positions(self):
@@ -297,14 +302,16 @@ class PybulletGrasp:
         d = off - self.off0
         return np.array([hand[0], hand[1], hand[2] - HALF, -d, d])
 
-    def step(self, t):
+    def command(self, t):
         p = self.p
         q = self.targets(t)
         v = (q - self.prev) / DT
         self.prev = q
         p.setJointMotorControlArray(self.gripper, self.joints, p.POSITION_CONTROL, targetPositions=q.tolist(),
                                     targetVelocities=v.tolist(), forces=self.forces, physicsClientId=self.cid)
-        p.stepSimulation(physicsClientId=self.cid)
+
+    def advance(self):
+        self.p.stepSimulation(physicsClientId=self.cid)
 
     def positions(self):
         p = self.p
@@ -338,7 +345,7 @@ class Recorder:
         self.prev = (obj, left, right)
         self.t, self.obj_z, self.hand_z, self.hand_y = [], [], [], []
         self.faster, self.depth, self.rel0, self.slip = -np.inf, 0.0, None, 0.0
-        self.grip_lift, self.grip_shake, self.step_s = [], [], []
+        self.grip_lift, self.grip_shake, self.step_s, self.command_s = [], [], [], []
 
     def record(self, t):
         obj, left, right = self.e.positions()
@@ -380,7 +387,8 @@ def run_contact_sim(over, shape="cube", kinematic_stiffness=K_FINGER):
     rec = Recorder(e)
     for i in range(N_STEPS):
         t = (i + 1) * DT
-        e.step(t)
+        e.command(t)
+        e.advance()
         rec.record(t)
     return rec.result()
 
@@ -397,8 +405,12 @@ def run_round(names, over, shape, rotate):
             for i in range(start, min(start + CHUNK, N_STEPS)):
                 t = (i + 1) * DT
                 t0 = time.perf_counter()
-                e.step(t)
-                rec.step_s.append(time.perf_counter() - t0)
+                e.command(t)
+                t1 = time.perf_counter()
+                e.advance()
+                t2 = time.perf_counter()
+                rec.step_s.append(t2 - t0)
+                rec.command_s.append(t1 - t0)
                 rec.record(t)
     for e in engines:
         if hasattr(e, "close"):
@@ -407,7 +419,7 @@ def run_round(names, over, shape, rotate):
 
 
 FIELDS = ["object", "over_mm", "engine", "held", "object_z_end_mm", "slip_mm", "faster_m_s", "depth_mm", "grip_N",
-          "grip_shake_N", "shake_mm", "step_ms", "ratio", "rounds", "settings"]
+          "grip_shake_N", "shake_mm", "step_ms", "command_ms", "ratio", "rounds", "settings"]
 
 
 def main(argv=None):
@@ -436,7 +448,8 @@ def main(argv=None):
     # warm up the compiled kernels outside the timed rounds
     warm = ContactSimGrasp(1e-3)
     for i in range(24):
-        warm.step((i + 1) * DT)
+        warm.command((i + 1) * DT)
+        warm.advance()
 
     print(f"# grasp, lift 10 cm, shake ±5 cm along y at 2 Hz; dt 1/240; mu {MU}; object {MASS} kg; "
           f"{rounds} round(s), engines in turns, chunks of {CHUNK} steps")
@@ -459,6 +472,7 @@ def main(argv=None):
             settings[n] = eng_settings
             row = {"object": shape, "over_mm": over, "engine": rec0.e.name, **rec0.result(),
                    "step_ms": 1e3 * float(np.median(np.concatenate([rec.step_s for rec in per[n]]))),
+                   "command_ms": 1e3 * float(np.median(np.concatenate([rec.command_s for rec in per[n]]))),
                    "ratio": ratio[n], "rounds": rounds, "settings": eng_settings}
             rows.append(row)
             if shape == "cube" and over == 1.0:
@@ -466,15 +480,20 @@ def main(argv=None):
     for n in names:
         print(f"# {ENGINES[n].name}: {settings[n]}")
     head = (f"{'object':8s} {'over':>5s} {'engine':11s} {'held':>4s} {'z_end':>6s} {'slip':>6s} {'faster':>7s} "
-            f"{'depth':>6s} {'grip':>6s} {'gripS':>6s} {'shake':>6s} {'step':>7s} {'ratio':>6s}")
+            f"{'depth':>6s} {'grip':>6s} {'gripS':>6s} {'shake':>6s} {'step':>7s} {'cmd':>6s} {'ratio':>6s}")
     print(head)
     print(f"{'':8s} {'mm':>5s} {'':11s} {'':>4s} {'mm':>6s} {'mm':>6s} {'m/s':>7s} {'mm':>6s} {'N':>6s} {'N':>6s} "
-          f"{'mm':>6s} {'ms':>7s} {'÷cs':>6s}")
+          f"{'mm':>6s} {'ms':>7s} {'ms':>6s} {'÷cs':>6s}")
     for r in rows:
         print(f"{r['object']:8s} {r['over_mm']:5.1f} {r['engine']:11s} {'yes' if r['held'] else 'NO':>4s} "
               f"{r['object_z_end_mm']:6.1f} {r['slip_mm']:6.2f} {r['faster_m_s']:7.3f} {r['depth_mm']:6.2f} "
               f"{r['grip_N']:6.1f} {r['grip_shake_N']:6.1f} {r['shake_mm']:6.1f} {r['step_ms']:7.3f} "
-              f"{r['ratio']:6.2f}")
+              f"{r['command_ms']:6.3f} {r['ratio']:6.3f}")
+    for n in names:
+        if n != "contact_sim":
+            rs = [r["ratio"] for r in rows if r["engine"] == ENGINES[n].name]
+            print(f"# step time contact_sim ÷ {ENGINES[n].name}: {1 / np.median(rs):.1f}× (median over the rows; "
+                  f"each row's ratio is the median over rounds of the within-round ratio of medians)")
     os.makedirs(a.out, exist_ok=True)
     stem = "grasp_quick" if a.quick else "grasp"
     with open(os.path.join(a.out, stem + ".csv"), "w", newline="") as fh:
