@@ -12,7 +12,9 @@ is the midpoint of the fingers; t in s):
 * 3–5 s, shake: the hand's y = 0.05 sin(2π·2 Hz·(t − 3)) m (±5 cm along y, across the grip axis,
   so friction carries the shake; the speed jumps from 0 to 0.63 m/s at 3 s), z held.
 
-Reported per engine, object and ``over`` (0.5, 1, 5 mm):
+Reported per engine, object and ``over`` (0.5, 1, 5 mm; the cylinder at 1 mm), from positions read
+back from each engine after every step (contact_sim: ``World.poses``; MuJoCo: ``data.xpos``;
+pybullet: the object's base position and the finger links' frames), never from the commands:
 
 * ``held``: the object's centre is above z = 5 cm at the end (5 s);
 * ``slip_mm``: the largest change of the object's height relative to the fingers' mean height from
@@ -29,8 +31,9 @@ Reported per engine, object and ``over`` (0.5, 1, 5 mm):
   ``step``; MuJoCo: setting ``ctrl`` + ``mj_step``; pybullet: ``setJointMotorControlArray`` +
   ``stepSimulation``), over every step of every round; ``command_ms`` the median of the command
   alone; ``ratio``: the engine's median step time ÷ contact_sim's in the same round, the median
-  over rounds (below 1: faster than contact_sim). The engines step in turns (chunks of 24 steps, the order rotated each chunk)
-  because this machine's absolute speed drifts 2× over minutes; only the step calls are timed.
+  over rounds (below 1: faster than contact_sim). The engines step in turns (chunks of 24 steps,
+  the order rotated each chunk) because this machine's absolute speed drifts 2× over minutes; only
+  the command and step calls are timed (not the measuring).
 
 Each engine on its own terms (defaults unless the scenario needs a value; all printed):
 
@@ -58,8 +61,8 @@ Run (from the repository root)::
                                                       [--engines contact_sim,mujoco,pybullet]
                                                       [--no-cylinder] [--out DIR]
 
-Prints a table and writes ``grasp.csv`` and ``grasp.png`` (object height and finger height against
-time, per engine, at over = 1 mm) to bench/results/ (``--quick``: one over (1 mm), one round, no
+Prints a table and writes ``grasp.csv`` and ``grasp.png`` (object height and the fingers' mean
+height against time, a panel per engine and case) to bench/results/ (``--quick``: one over (1 mm), one round, no
 cylinder, ``grasp_quick.*``). An engine that is not installed is left out with a note.
 """
 import argparse
@@ -475,8 +478,7 @@ def main(argv=None):
                    "command_ms": 1e3 * float(np.median(np.concatenate([rec.command_s for rec in per[n]]))),
                    "ratio": ratio[n], "rounds": rounds, "settings": eng_settings}
             rows.append(row)
-            if shape == "cube" and over == 1.0:
-                traces[rec0.e.name] = (np.array(rec0.t), np.array(rec0.obj_z), np.array(rec0.hand_z))
+            traces[(shape, over, rec0.e.name)] = (np.array(rec0.t), np.array(rec0.obj_z), np.array(rec0.hand_z))
     for n in names:
         print(f"# {ENGINES[n].name}: {settings[n]}")
     head = (f"{'object':8s} {'over':>5s} {'engine':11s} {'held':>4s} {'z_end':>6s} {'slip':>6s} {'faster':>7s} "
@@ -508,15 +510,21 @@ def main(argv=None):
     except ImportError:
         print("# matplotlib is not installed: no chart")
         return rows
-    fig, axes = plt.subplots(1, len(traces), figsize=(4.5 * len(traces), 3.5), sharey=True, squeeze=False)
-    for ax, (name, (t, oz, hz)) in zip(axes[0], traces.items()):
-        ax.plot(t, 1e3 * oz, label="cube centre z")
-        ax.plot(t, 1e3 * hz, "--", label="fingers' mean z")
-        ax.set_title(f"{name}, over = 1 mm")
+    labels = [ENGINES[n].name for n in names]
+    fig, axes = plt.subplots(len(cases), len(labels), figsize=(4.2 * len(labels), 2.6 * len(cases)), sharex=True,
+                             sharey=True, squeeze=False)
+    for i, (shape, over) in enumerate(cases):
+        for j, name in enumerate(labels):
+            t, oz, hz = traces[(shape, over, name)]
+            ax = axes[i][j]
+            ax.plot(t, 1e3 * oz, label=f"{shape} centre z")
+            ax.plot(t, 1e3 * hz, "--", label="fingers' mean z")
+            ax.set_title(f"{name}: {shape}, over {over:g} mm", fontsize=9)
+            ax.grid(alpha=0.3)
+        axes[i][0].set_ylabel("height (mm)")
+    for ax in axes[-1]:
         ax.set_xlabel("t (s)")
-        ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("height (mm)")
-    axes[0][0].legend()
+    axes[0][0].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(a.out, stem + ".png"), dpi=90)
     return rows

@@ -26,3 +26,16 @@ def test_contact_sim_holds_the_cube_through_lift_and_shake(over_mm):
     assert r["faster_m_s"] <= 0.1, r
     # compliant contacts with the kinematic fingers: each pushes with about k × over
     assert r["grip_N"] == pytest.approx(1e5 * over_mm * 1e-3, rel=0.05), r
+
+
+def test_a_quick_run_writes_its_table(tmp_path):
+    """``main(["--quick"])`` with contact_sim alone writes one CSV row with every column and the chart."""
+    import csv
+
+    rows = bench_grasp.main(["--quick", "--engines", "contact_sim", "--out", str(tmp_path)])
+    assert len(rows) == 1
+    with open(tmp_path / "grasp_quick.csv", newline="") as fh:
+        got = list(csv.DictReader(fh))
+    assert len(got) == 1 and set(got[0]) == set(bench_grasp.FIELDS)
+    assert got[0]["engine"] == "contact_sim" and got[0]["held"] == "True" and float(got[0]["step_ms"]) > 0
+    assert (tmp_path / "grasp_quick.png").stat().st_size > 0
