@@ -60,10 +60,14 @@ Run (from the repository root)::
     PYTHONPATH=. .venv/bin/python bench/bench_grasp.py [--quick] [--rounds N] [--overs 0.5,1,5]
                                                       [--engines contact_sim,mujoco,pybullet]
                                                       [--no-cylinder] [--out DIR]
+                                                      [--mujoco-option 'cone="elliptic" impratio="10"']
 
 Prints a table and writes ``grasp.csv`` and ``grasp.png`` (object height and the fingers' mean
 height against time, a panel per engine and case) to bench/results/ (``--quick``: one over (1 mm), one round, no
 cylinder, ``grasp_quick.*``). An engine that is not installed is left out with a note.
+``--mujoco-option`` adds attributes to MuJoCo's ``<option>`` (not its defaults: a variant to try,
+e.g. the elliptic cone with a high ``impratio`` that MuJoCo's documentation suggests against slip);
+the printed header and the CSV's ``settings`` column say so.
 """
 import argparse
 import csv
@@ -157,7 +161,7 @@ class ContactSimGrasp:
 
 MJCF = """
 <mujoco model="grasp">
-  <option timestep="{dt!r}" gravity="0 0 -9.81"/>
+  <option timestep="{dt!r}" gravity="0 0 -9.81" {extra_option}/>
   <worldbody>
     <geom name="floor" type="plane" size="1 1 0.1"/>
     <body name="object" pos="0 0 {half!r}">
@@ -196,6 +200,8 @@ class MujocoGrasp:
 
     name = "MuJoCo"
 
+    extra_option = ""   # MJCF <option> attributes beyond the defaults (main's --mujoco-option)
+
     def __init__(self, over, shape="cube", hand_kp=1e5, finger_kp=K_FINGER):
         import mujoco
         self.mj, self.over = mujoco, over
@@ -203,7 +209,7 @@ class MujocoGrasp:
         hand_total = HAND_MASS + 2 * FINGER_MASS
         object_geom = (f'type="box" size="{HALF!r} {HALF!r} {HALF!r}"' if shape == "cube"
                        else f'type="cylinder" size="{HALF!r} {HALF!r}"')
-        xml = MJCF.format(dt=DT, half=HALF, object_geom=object_geom, mass=MASS, hand_mass=HAND_MASS,
+        xml = MJCF.format(dt=DT, extra_option=self.extra_option, half=HALF, object_geom=object_geom, mass=MASS, hand_mass=HAND_MASS,
                           finger_mass=FINGER_MASS, hand_damping=2 * math.sqrt(hand_kp * hand_total),
                           finger_damping=2 * math.sqrt(finger_kp * FINGER_MASS), neg_off=-self.off0,
                           off=self.off0, fx=FINGER[0] / 2, fy=FINGER[1] / 2, fz=FINGER[2] / 2,
@@ -216,7 +222,8 @@ class MujocoGrasp:
         self.g_obj, self.g_left, self.g_right = gid("object"), gid("left"), gid("right")
         self.b_obj, self.b_left, self.b_right = bid("object"), bid("left"), bid("right")
         self.f6 = np.zeros(6)
-        self.settings = (f"Euler, Newton, default solref/solimp, friction 1 0.005 0.0001; hand {HAND_MASS} kg "
+        self.settings = (f"{'option ' + self.extra_option + '; ' if self.extra_option else ''}"
+                         f"Euler, Newton, default solref/solimp, friction 1 0.005 0.0001; hand {HAND_MASS} kg "
                          f"slide x/y/z position kp {hand_kp:g} damping 2sqrt(kp m); fingers {FINGER_MASS} kg "
                          f"slide x position kp {finger_kp:g} forcerange ±{FINGER_FORCE:g} N damping 2sqrt(kp m)")
 
@@ -432,8 +439,11 @@ def main(argv=None):
     ap.add_argument("--overs", default="0.5,1,5", help="mm, comma separated")
     ap.add_argument("--engines", default="contact_sim,mujoco,pybullet")
     ap.add_argument("--no-cylinder", action="store_true")
+    ap.add_argument("--mujoco-option", default="",
+                    help='extra MJCF <option> attributes for MuJoCo, e.g. \'cone="elliptic" impratio="10"\'')
     ap.add_argument("--out", default=os.path.join(HERE, "results"))
     a = ap.parse_args(argv)
+    MujocoGrasp.extra_option = a.mujoco_option
     overs = [1.0] if a.quick else [float(v) for v in a.overs.split(",")]
     rounds = 1 if a.quick else a.rounds
     names = []
