@@ -40,7 +40,10 @@ Each engine on its own terms (defaults unless the scenario needs a value; all pr
 * contact_sim: ``Settings(dt=1/240, kinematic_stiffness=1e5)`` (compliant contacts with the
   kinematic fingers, 1e5 N/m, critically damped: the grip force per finger is about 1e5 × over;
   this branch's default ``kinematic_stiffness`` is 0, rigid), material μ = 1, e = 0. The fingers are
-  kinematic bodies posed every step by ``set_poses`` at the step's end time.
+  kinematic bodies posed every step by ``set_poses`` at the step's end time. (Read back after the
+  step, on this tree, such a body is one step's motion beyond that pose — the pose plus its
+  velocity × dt — so the fingers lead the schedule by a step; the measures use the read-back
+  positions, as for the peers.)
 * MuJoCo: default Euler integrator, Newton solver, pyramidal cone, default solref/solimp; geom
   friction "1 0.005 0.0001" (MuJoCo's default, μ = 1). The hand is a 1 kg body on three slide joints
   (x, y, z), each with a position actuator kp = 1e5 N/m and joint damping 2√(kp·m) (joint damping:
@@ -51,7 +54,7 @@ Each engine on its own terms (defaults unless the scenario needs a value; all pr
 * pybullet: default solver (50 iterations), ``DIRECT``; every body's lateralFriction 1 (product rule:
   1). The gripper is one multibody with a fixed base: prismatic x, y, z links (0.1, 0.1, 1 kg, no
   collision shape), then two finger links (0.1 kg) on prismatic joints along x. Every joint under
-  ``POSITION_CONTROL`` (default position gain 0.1, velocity gain 1) with the schedule's target
+  ``POSITION_CONTROL`` (pybullet's default position and velocity gains) with the schedule's target
   positions and velocities (finite differences of the schedule): force limit 100 N on the fingers,
   1000 N on the hand's joints.
 
@@ -63,8 +66,8 @@ Run (from the repository root)::
                                                       [--mujoco-option 'cone="elliptic" impratio="10"']
 
 Prints a table and writes ``grasp.csv`` and ``grasp.png`` (object height and the fingers' mean
-height against time, a panel per engine and case) to bench/results/ (``--quick``: one over (1 mm), one round, no
-cylinder, ``grasp_quick.*``). An engine that is not installed is left out with a note.
+height against time, a panel per engine and case) to bench/results/ (``--quick``: one over
+(1 mm), one round, no cylinder, ``grasp_quick.*``). An engine that is not installed is left out with a note.
 ``--mujoco-option`` adds attributes to MuJoCo's ``<option>`` (not its defaults: a variant to try,
 e.g. the elliptic cone with a high ``impratio`` that MuJoCo's documentation suggests against slip);
 the printed header and the CSV's ``settings`` column say so.
