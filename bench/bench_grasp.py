@@ -213,7 +213,8 @@ class MujocoGrasp:
         object_geom = (f'type="box" size="{HALF!r} {HALF!r} {HALF!r}"' if shape == "cube"
                        else f'type="cylinder" size="{HALF!r} {HALF!r}"')
         xml = MJCF.format(dt=DT, extra_option=self.extra_option, half=HALF, object_geom=object_geom, mass=MASS,
-                          hand_mass=HAND_MASS, finger_mass=FINGER_MASS, hand_damping=2 * math.sqrt(hand_kp * hand_total),
+                          hand_mass=HAND_MASS,
+                          finger_mass=FINGER_MASS, hand_damping=2 * math.sqrt(hand_kp * hand_total),
                           finger_damping=2 * math.sqrt(finger_kp * FINGER_MASS), neg_off=-self.off0,
                           off=self.off0, fx=FINGER[0] / 2, fy=FINGER[1] / 2, fz=FINGER[2] / 2,
                           hand_kp=hand_kp, finger_kp=finger_kp, fmax=FINGER_FORCE)
