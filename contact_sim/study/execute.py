@@ -1,0 +1,232 @@
+"""Running a study: the executors (in this process, a local process pool, Ray tasks) and the rows
+written to ``runs.csv`` as each run completes.
+
+Every executor is a generator of finished rows with a bounded number of runs in flight, so the
+driver holds neither all the runs' futures nor their results: a study of any length runs in flat
+memory, its rows on disk. Ray is imported only inside ``ray_rows``; neither the engine nor the node
+imports it.
+"""
+import csv
+import math
+import os
+import subprocess
+import sys
+
+from ..errors import StudyError
+from ..scene import load_scene
+from .runner import columns, run_one
+from .spec import load_study
+from .summary import summarise
+
+#: runs in flight per worker (enough to keep every worker busy, few enough to hold nothing)
+IN_FLIGHT = 4
+
+
+def code_version():
+    """``git describe --always --dirty`` of the source tree this package runs from, else the
+    package version: what ``runs.csv`` records as the code that made each row."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=here, capture_output=True, text=True,
+                             timeout=10)
+        if out.returncode == 0 and out.stdout.strip():
+            return out.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("contact_sim")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+# ---------------------------------------------------------------------------- executors
+def inline_rows(study, todo, version):
+    """Each run in this process, one after the other (``--workers 1``)."""
+    for _rid, cell, rep in todo:
+        yield run_one(study, cell, rep, version)
+
+
+_WORKER_STUDY = None
+
+
+def _init_worker(study):
+    """A pool worker's start: keep the study, and load (from numba's on-disk cache) the kernels its
+    scene uses by stepping it a few times, so no run pays that."""
+    global _WORKER_STUDY
+    _WORKER_STUDY = study
+    warm(study)
+
+
+def _pool_run(cell, rep, version):
+    return run_one(_WORKER_STUDY, cell, rep, version)
+
+
+def warm(study):
+    """Step the study's base scene a few times: compiles its kernels into numba's on-disk cache
+    the first time (in the driver, once, before any worker starts), loads them afterwards."""
+    try:
+        world = load_scene(study.scene, base_dir=study.base_dir)
+        for _ in range(3):
+            world.step()
+    except Exception:   # a scene that cannot step is each run's error to record, not the driver's
+        pass
+
+
+def pool_rows(study, todo, version, workers):
+    """Runs on ``workers`` local processes (``concurrent.futures`` with the ``spawn`` start method,
+    which numba and threads are safe with), at most ``IN_FLIGHT × workers`` submitted at a time."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    warm(study)
+    ctx = multiprocessing.get_context("spawn")
+    todo = iter(todo)
+    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(study,)) as pool:
+        pending = set()
+        while True:
+            while len(pending) < IN_FLIGHT * workers:
+                nxt = next(todo, None)
+                if nxt is None:
+                    break
+                pending.add(pool.submit(_pool_run, nxt[1], nxt[2], version))
+            if not pending:
+                return
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in done:
+                yield f.result()
+
+
+def ray_rows(study, todo, version, workers, address):
+    """Runs as Ray tasks: on the cluster at ``address`` (``auto``: the one ``ray start --head``
+    made, or ``RAY_ADDRESS``; ``ray://HOST:PORT``: through the Ray client), on a Ray instance
+    already initialised in this process, or (``local``) on a new local one of ``workers`` CPUs;
+    results streamed with ``ray.wait``, at most ``IN_FLIGHT ×`` the cluster's CPUs in flight."""
+    try:
+        import ray
+    except ImportError:
+        raise StudyError("--cluster", "Ray is not installed: pip install 'contact_sim[cluster]' "
+                                      "(or pip install ray)") from None
+    started = False
+    if not ray.is_initialized():
+        if address == "local":
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address, log_to_driver=False)
+        started = True
+    try:
+        cpus = max(1, int(ray.cluster_resources().get("CPU", workers)))
+        remote = ray.remote(num_cpus=1)(run_one)
+        ref = ray.put(study)
+        todo = iter(todo)
+        pending = []
+        while True:
+            while len(pending) < IN_FLIGHT * cpus:
+                nxt = next(todo, None)
+                if nxt is None:
+                    break
+                pending.append(remote.remote(ref, nxt[1], nxt[2], version))
+            if not pending:
+                return
+            done, pending = ray.wait(pending, num_returns=1)
+            for r in done:
+                yield ray.get(r)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+# ---------------------------------------------------------------------------- rows on disk
+def cell_text(value):
+    """A value as ``runs.csv`` holds it: floats in their shortest exact form (``repr``), so
+    reading them back gives the same bits; None as empty."""
+    if value is None:
+        return ""
+    if isinstance(value, float) or hasattr(value, "dtype"):
+        v = float(value)
+        return repr(v) if math.isfinite(v) else str(v)
+    return str(value)
+
+
+def done_runs(path, cols, fingerprint):
+    """Ids of the runs already in ``path`` (a resume skips them). A last line cut short by an
+    interruption is dropped; a file written by another study (other columns or fingerprint) is
+    refused rather than mixed with."""
+    if not os.path.exists(path):
+        return set()
+    with open(path, "rb+") as fh:   # drop a partial last line (a run killed while being written)
+        data = fh.read()
+        if data and not data.endswith(b"\n"):
+            fh.truncate(data.rfind(b"\n") + 1)
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None:
+            return set()
+        if header != cols:
+            raise StudyError(path, "holds the runs of a study with other columns; use another --out folder")
+        ids, k, s = set(), cols.index("run_id"), cols.index("study")
+        for row in reader:
+            if len(row) != len(cols):
+                continue
+            if row[s] != fingerprint:
+                raise StudyError(path, f"holds runs of another version of this study (fingerprint {row[s]}, "
+                                       f"now {fingerprint}); use another --out folder")
+            ids.add(row[k])
+    return ids
+
+
+def run_study(study, out, workers=None, cluster=None, progress=True, limit=None, stream=None):
+    """Run ``study`` (a ``Study``, a study file, a shipped study's name or a dict), writing one row
+    per run to ``out/runs.csv`` as each completes, then ``out/summary.csv`` and, where the study
+    names one, ``out/plot.png``; returns ``(runs.csv path, summary rows)``.
+
+    ``workers``: processes on this machine (default all cores; 1 runs in this process);
+    ``cluster``: None (this machine), ``"local"`` (a new local Ray instance), ``"auto"`` (the
+    running Ray cluster, or the Ray instance already initialised here) or ``"ray://HOST:PORT"``.
+    ``limit`` runs only the first so many runs. Runs already in ``runs.csv`` are skipped (resume).
+    ``stream``: where the summary table is printed (default stdout; False: not printed)."""
+    study = load_study(study)
+    workers = int(workers or os.cpu_count() or 1)
+    if workers < 1:
+        raise StudyError("--workers", f"must be >= 1, got {workers}")
+    if cluster is not None and not (cluster in ("auto", "local") or str(cluster).startswith("ray://")):
+        raise StudyError("--cluster", f"must be auto, local or ray://HOST:PORT, got {cluster!r}")
+    os.makedirs(out, exist_ok=True)
+    path = os.path.join(out, "runs.csv")
+    cols = columns(study)
+    done = done_runs(path, cols, study.fingerprint)
+    runs = list(study.runs())[:limit] if limit is not None else study.runs()
+    todo = [r for r in runs if r[0] not in done]
+    version = code_version()
+    if cluster is not None:
+        rows = ray_rows(study, todo, version, workers, cluster)
+    elif workers == 1 or len(todo) <= 1:
+        rows = inline_rows(study, todo, version)
+    else:
+        rows = pool_rows(study, todo, version, min(workers, len(todo)))
+    bar = None
+    if progress and todo:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(todo), unit="run", file=sys.stderr, desc=study.name, dynamic_ncols=True)
+    failed = 0
+    fresh = not os.path.exists(path) or os.path.getsize(path) == 0
+    with open(path, "a", newline="") as fh:
+        w = csv.writer(fh)
+        if fresh:
+            w.writerow(cols)
+            fh.flush()
+        for row in rows:
+            w.writerow([cell_text(row[c]) for c in cols])
+            fh.flush()
+            failed += bool(row["error"])
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(failed=failed, refresh=False)
+    if bar is not None:
+        bar.close()
+    summary = summarise(study, path, out, stream=sys.stdout if stream is None else stream)
+    return path, summary
+
