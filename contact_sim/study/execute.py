@@ -221,7 +221,7 @@ def run_study(study, out, workers=None, cluster=None, progress=True, limit=None,
         for row in rows:
             w.writerow([cell_text(row[c]) for c in cols])
             fh.flush()
-            failed += bool(row["error"])
+            failed += bool(row["exception"])
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(failed=failed, refresh=False)

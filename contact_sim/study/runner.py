@@ -8,6 +8,7 @@ the same wherever it ran (except ``wall_time`` and ``cost``, which measure the m
 import copy
 import math
 import time
+import warnings
 
 import numpy as np
 
@@ -41,11 +42,12 @@ def figure_columns(study):
 
 def columns(study):
     """Every column of ``runs.csv`` for ``study``: ids and seed, the grid cell's values, the
-    perturbations' draws (``drawn:PATH``), the figures, timing, the error text (empty when the run
-    finished), the code version and the study's fingerprint."""
+    perturbations' draws (``drawn:PATH``), the figures, timing, the exception text (empty when the
+    run finished), the warnings it raised (distinct messages), the code version and the study's
+    fingerprint."""
     drawn = [f"drawn:{p}" for q in study.perturb.values() for p in q["paths"]]
     return (["run_id", "cell", "replicate", "seed"] + [a[0] for a in study.axes] + drawn + figure_columns(study)
-            + ["wall_time", "cost", "error", "code_version", "study"])
+            + ["wall_time", "cost", "exception", "warnings", "code_version", "study"])
 
 
 def run_scene(study, cell, rng, row=None):
@@ -80,21 +82,27 @@ def run_scene(study, cell, rng, row=None):
 
 def run_one(study, cell, rep, code_version=""):
     """Run replicate ``rep`` of grid cell ``cell`` of ``study``; returns its row (a dict keyed by
-    ``columns(study)``). A run that raises is returned with its ``error`` text and no figures."""
+    ``columns(study)``). A run that raises is returned with its ``exception`` text and no figures.
+    Warnings are caught and recorded (``warnings``), never raised, whatever the interpreter's
+    warning filters: a run's row does not depend on where it ran."""
     rng, seed = run_seed(study.seed, cell, rep)
     row = dict.fromkeys(columns(study))
     row.update(run_id=run_id(cell, rep), cell=cell, replicate=rep, seed=seed, code_version=code_version,
-               study=study.fingerprint, error="")
+               study=study.fingerprint, exception="", warnings="")
     for path, label, _value in study.cell_params(cell):
         row[path] = label
     t0 = time.perf_counter()
-    try:
-        scene, duration, drive = run_scene(study, cell, rng, row)
-        world = load_scene(scene, base_dir=study.base_dir)
-        row.update(simulate(world, scene, study, duration, drive))
-    except Exception as exc:   # a run that raises is recorded with its error; the study goes on
-        row["error"] = f"{type(exc).__name__}: {exc}".replace("\n", " ")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            scene, duration, drive = run_scene(study, cell, rng, row)
+            world = load_scene(scene, base_dir=study.base_dir)
+            row.update(simulate(world, scene, study, duration, drive))
+        except Exception as exc:   # a run that raises is recorded with its exception; the study goes on
+            row["exception"] = f"{type(exc).__name__}: {exc}".replace("\n", " ")
     row["wall_time"] = time.perf_counter() - t0
+    row["warnings"] = " | ".join(dict.fromkeys(f"{w.category.__name__}: {w.message}".replace("\n", " ")
+                                               for w in caught))
     return row
 
 

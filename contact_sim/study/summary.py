@@ -44,7 +44,7 @@ def summarise(study, runs_csv, out, stream=None):
                 c = cells[row["cell"]] = {"labels": [row[a] for a in axes], "runs": 0, "failed": 0, "success": [],
                                           "values": {f: [] for f in figs}}
             c["runs"] += 1
-            if row["error"]:
+            if row["exception"]:
                 c["failed"] += 1
                 continue
             if study.success is not None:
@@ -134,7 +134,8 @@ def plot(study, rows, path):
         ax.set_ylabel(f"{p['y']} (mean per cell; below 1e-16 drawn at 1e-16)")
         ax.set_title(f"{study.name}: {study.description}"[:100], fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        if ax.get_lines():
+            ax.legend(fontsize=7)
     else:
         others = [a for a in labels if a not in (p["x"], p["y"])]
         combos = sorted({tuple(str(r[a]) for a in others) for r in rows}, key=lambda c: [
