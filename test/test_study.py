@@ -277,17 +277,6 @@ def test_rows_on_ray_equal_the_process_pools_bit_for_bit(tmp_path, ray_local):
     assert len(b) == 6 and physics(a) == physics(b)
 
 
-def test_import_contact_sim_does_not_import_ray():
-    import subprocess
-    import sys
-
-    code = ("import sys, contact_sim, contact_sim.study, msg_adapters.conversions; "
-            "assert 'ray' not in sys.modules, 'ray imported'")
-    env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
-    assert r.returncode == 0, r.stderr
-
-
 # ---------------------------------------------------------------------------- the shipped studies
 def test_shipped_accuracy_study_matches_the_exact_bounce(tmp_path, capsys):
     assert main(["study", "accuracy", "--out", str(tmp_path), "--workers", "1", "--limit", "3", "--no-progress"]) == 0
