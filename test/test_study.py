@@ -218,6 +218,27 @@ def test_rows_are_bit_identical_in_process_in_a_pool_and_after_a_resume(tmp_path
         assert len(fh.read().splitlines()) == 7
 
 
+def test_the_pool_forks_only_a_single_threaded_driver(tmp_path):
+    """Forked workers inherit the driver's loaded kernels; with another thread running a fork is
+    unsafe and the pool spawns fresh interpreters instead — whose rows are the same."""
+    import sys
+    import threading
+
+    assert execute.start_method() == ("fork" if sys.platform.startswith("linux") else "spawn")
+    release = threading.Event()
+    t = threading.Thread(target=release.wait)
+    t.start()
+    try:
+        assert execute.start_method() == "spawn"
+        spawned, _ = run_study(small_study(replicates=1), str(tmp_path / "spawn"), workers=2, progress=False,
+                               stream=False)
+    finally:
+        release.set()
+        t.join()
+    forked, _ = run_study(small_study(replicates=1), str(tmp_path / "fork"), workers=2, progress=False, stream=False)
+    assert physics(read_rows(spawned)) == physics(read_rows(forked))
+
+
 def test_a_resume_refuses_another_studys_rows(tmp_path):
     run_study(small_study(replicates=1), str(tmp_path), workers=1, progress=False, stream=False)
     with pytest.raises(cs.StudyError, match="runs of another version of this study"):

@@ -7,6 +7,7 @@ memory, its rows on disk. Ray is imported only inside ``ray_rows``; neither the 
 imports it.
 """
 import csv
+import itertools
 import math
 import os
 import subprocess
@@ -228,20 +229,24 @@ def run_study(study, out, workers=None, cluster=None, progress=True, limit=None,
     path = os.path.join(out, "runs.csv")
     cols = columns(study)
     done = done_runs(path, cols, study.fingerprint)
-    runs = list(study.runs())[:limit] if limit is not None else study.runs()
-    todo = [r for r in runs if r[0] not in done]
+    limit = len(study) if limit is None else max(0, min(int(limit), len(study)))
+
+    def todo():     # the runs still to do, generated (a study of any length holds no list of them)
+        return (r for r in itertools.islice(study.runs(), limit) if r[0] not in done)
+
+    count = sum(1 for _ in todo())
     version = code_version()
     if cluster is not None:
-        rows = ray_rows(study, todo, version, workers, cluster)
-    elif workers == 1 or len(todo) <= 1:
-        rows = inline_rows(study, todo, version)
+        rows = ray_rows(study, todo(), version, workers, cluster)
+    elif workers == 1 or count <= 1:
+        rows = inline_rows(study, todo(), version)
     else:
-        rows = pool_rows(study, todo, version, min(workers, len(todo)))
+        rows = pool_rows(study, todo(), version, min(workers, count))
     bar = None
-    if progress and todo:
+    if progress and count:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(todo), unit="run", file=sys.stderr, desc=study.name, dynamic_ncols=True)
+        bar = tqdm(total=count, unit="run", file=sys.stderr, desc=study.name, dynamic_ncols=True)
     failed = 0
     fresh = not os.path.exists(path) or os.path.getsize(path) == 0
     with open(path, "a", newline="") as fh:
