@@ -8,7 +8,9 @@ of two CPUs. Prints a table, writes bench/results/study.csv.
 speed-up: one worker's wall time ÷ this one's. Per-run overhead: (wall × workers − the runs' own
 wall time) ÷ runs — scheduling, start-up (spawning and importing the workers, loading the kernels
 from numba's cache) and writing the rows, spread over the runs. Start-up alone: the wall time of
-two runs on two fresh workers minus one run's own time.
+two runs on two fresh workers minus one run's own time. Memory: the driver's peak resident size
+(``ru_maxrss``) running 1,000 and 10,000 one-step runs in a fresh process (rows streamed to
+``runs.csv``, none held; the summary at the end reads the figures back).
 """
 import argparse
 import csv
@@ -50,11 +52,35 @@ def measure(s, label, workers, cluster=None, limit=None):
         shutil.rmtree(out, ignore_errors=True)
 
 
+TINY = """
+import resource, sys, tempfile
+from contact_sim.study import run_study
+scene = {"settings": {"dt": 0.01}, "bodies": [{"name": "ground", "kind": "static", "shape": {"type": "plane"}},
+         {"name": "ball", "shape": {"type": "sphere", "radius": 0.1}, "mass": 1.0, "position": [0, 0, 0.1]}]}
+study = {"scene": scene, "duration": 0.01, "replicates": int(sys.argv[1]), "record": ["max_penetration"],
+         "perturb": {"p": {"paths": ["bodies.ball.position[2]"], "distribution": "uniform", "low": 0, "high": 0.01}}}
+with tempfile.TemporaryDirectory() as out:
+    run_study(study, out, workers=1, progress=False, stream=False)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def peak_memory(runs):
+    """Peak resident size (MB) of a fresh process running a study of ``runs`` one-step runs, and its wall s."""
+    import subprocess
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(HERE), os.environ.get("PYTHONPATH", "")]))
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", TINY, str(runs)], capture_output=True, text=True, env=env, check=True)
+    return int(out.stdout.split()[-1]) / 1024, time.perf_counter() - t0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=200)
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--no-ray", action="store_true")
+    ap.add_argument("--memory-runs", default="1000,10000", help="study lengths of the memory check ('' skips it)")
     args = ap.parse_args(argv)
     s = study(args.runs, args.duration)
     try:
@@ -87,10 +113,15 @@ def main(argv=None):
         print(f"{label:<32} {workers:>7} {n:>5} {wall:8.2f}   start-up {wall - busy / n:.2f} s")
         table.append({"executor": label, "workers": workers, "runs": n, "wall_s": wall, "speedup": "",
                       "overhead_ms_per_run": "", "run_ms": busy / n * 1e3, "startup_s": wall - busy / n})
+    for n in [int(x) for x in args.memory_runs.split(",") if x]:
+        mb, wall = peak_memory(n)
+        print(f"driver peak memory, {n} one-step runs in one process: {mb:.0f} MB ({wall:.1f} s)")
+        table.append({"executor": f"memory: {n} one-step runs", "workers": 1, "runs": n, "wall_s": wall,
+                      "peak_mb": mb})
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, "study.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["executor", "workers", "runs", "wall_s", "speedup", "overhead_ms_per_run",
-                                           "run_ms", "startup_s"])
+                                           "run_ms", "startup_s", "peak_mb"])
         w.writeheader()
         w.writerows(table)
     print(f"wrote {os.path.relpath(os.path.join(RESULTS, 'study.csv'))}")
