@@ -177,6 +177,11 @@ def test_a_raising_run_is_recorded_and_the_study_goes_on(tmp_path):
      "study.drive.pads: must name two kinematic bodies of the scene"),
     ({"plot": {"type": "heatmap", "x": "settings.dt", "y": "materials.rubber.restitution", "value": "success_rate"}},
      "study.plot.x: 'settings.dt' is not a grid axis"),
+    ({"plot": {"type": "heatmap", "x": "materials.rubber.restitution", "y": "materials.rubber.restitution",
+               "value": "speed_mean"}}, "study.plot.value: 'speed_mean' is not a summary column"),
+    ({"plot": {"type": "work_precision", "series": "materials.rubber.restitution",
+               "points": "materials.rubber.restitution", "x": "cost", "y": "error"}},
+     "study.plot.y: 'error' is not a recorded figure"),
 ])
 def test_bad_study_files_are_refused_with_the_place_and_the_reason(change, message):
     with pytest.raises(cs.StudyError) as exc:
@@ -191,6 +196,8 @@ def test_cli_study_errors_exit_2(tmp_path, capsys):
     assert "contact-sim: error: study.grid['settings.dt'][1]: -1: settings.dt: must be > 0" in capsys.readouterr().err
     assert main(["study", "nonesuch", "--no-progress"]) == 2
     assert "no shipped study of that name (shipped: accuracy, grasp)" in capsys.readouterr().err
+    assert main(["study", "grasp", "--workers", "0", "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    assert "--workers: must be >= 1, got 0" in capsys.readouterr().err
     assert main(["studies"]) == 0
     assert capsys.readouterr().out.split() == ["accuracy", "grasp"]
 

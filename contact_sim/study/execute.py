@@ -220,7 +220,7 @@ def run_study(study, out, workers=None, cluster=None, progress=True, limit=None,
     ``limit`` runs only the first so many runs. Runs already in ``runs.csv`` are skipped (resume).
     ``stream``: where the summary table is printed (default stdout; False: not printed)."""
     study = load_study(study)
-    workers = int(workers or os.cpu_count() or 1)
+    workers = int(os.cpu_count() or 1) if workers is None else int(workers)
     if workers < 1:
         raise StudyError("--workers", f"must be >= 1, got {workers}")
     if cluster is not None and not (cluster in ("auto", "local") or str(cluster).startswith("ray://")):

@@ -14,30 +14,10 @@ import numpy as np
 
 from ..scene import load_scene
 from ..settings import Material, combine
-from .spec import get_path, parse_path, run_id, run_seed, set_path
+from .spec import POSE_COLUMNS, figure_columns, get_path, parse_path, run_id, run_seed, set_path
 
 #: the columns that measure the machine, not the physics (left out when rows are compared)
 TIMING_COLUMNS = ("wall_time", "cost")
-POSE_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw")
-
-
-def figure_columns(study):
-    """The names of the figures a run of ``study`` records, in ``runs.csv`` order."""
-    out = []
-    for name, opts in study.records:
-        if name == "final_pose":
-            out += [f"{b}.{c}" for b in opts["bodies"] for c in POSE_COLUMNS]
-        elif name == "max_penetration":
-            out.append("max_penetration")
-        elif name == "energy_drift":
-            out += ["energy_drift", "max_energy_gain"]
-        elif name == "contacts":
-            out += ["contacts_max", "contacts_final", "max_contact_force", "final_contact_force"]
-        elif name == "reference":
-            out.append("error")
-    if study.success is not None:
-        out.append("success")
-    return out
 
 
 def columns(study):

@@ -46,6 +46,7 @@ VECTOR_DEFAULT = {"position": [0.0, 0.0, 0.0], "orientation": [0.0, 0.0, 0.0, 1.
 SUCCESS_FIELDS = ("x", "y", "z", "vx", "vy", "vz", "speed")
 SUCCESS_OPS = (">=", "<=", ">", "<")
 PLOT_TYPES = ("work_precision", "heatmap")
+POSE_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw")
 _SEGMENT = re.compile(r"^([A-Za-z_][\w\-]*)(?:\[(\d+)\])?$")
 _FRACTION = re.compile(r"^\s*(-?\d+(?:\.\d*)?)\s*/\s*(\d+(?:\.\d*)?)\s*$")
 
@@ -366,6 +367,15 @@ class Study:
         for k in ("series", "points") if p["type"] == "work_precision" else ("x", "y"):
             if p[k] not in grid:
                 raise StudyError(f"{where}.{k}", f"{p[k]!r} is not a grid axis (axes: {', '.join(grid) or 'none'})")
+        figures = [f for f in figure_columns(self) if f != "success"] + ["cost"]
+        if p["type"] == "work_precision":
+            for k in ("x", "y"):
+                if p[k] not in figures:
+                    raise StudyError(f"{where}.{k}", f"{p[k]!r} is not a recorded figure (figures: {', '.join(figures)})")
+        else:
+            values = ["success_rate"] * (self.success is not None) + [f"{f}_mean" for f in figures]
+            if p["value"] not in values:
+                raise StudyError(f"{where}.value", f"{p['value']!r} is not a summary column (one of {', '.join(values)})")
         return dict(p)
 
     # ------------------------------------------------------------------ values
@@ -422,6 +432,25 @@ class Study:
 
     def __len__(self):
         return self.cells * self.replicates
+
+
+def figure_columns(study):
+    """The names of the figures a run of ``study`` records, in ``runs.csv`` order."""
+    out = []
+    for name, opts in study.records:
+        if name == "final_pose":
+            out += [f"{b}.{c}" for b in opts["bodies"] for c in POSE_COLUMNS]
+        elif name == "max_penetration":
+            out.append("max_penetration")
+        elif name == "energy_drift":
+            out += ["energy_drift", "max_energy_gain"]
+        elif name == "contacts":
+            out += ["contacts_max", "contacts_final", "max_contact_force", "final_contact_force"]
+        elif name == "reference":
+            out.append("error")
+    if study.success is not None:
+        out.append("success")
+    return out
 
 
 def run_id(cell, rep):

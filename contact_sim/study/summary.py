@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from .runner import figure_columns
+from .spec import figure_columns
 
 
 def _float(text):
