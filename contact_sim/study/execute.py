@@ -9,14 +9,16 @@ imports it.
 import csv
 import itertools
 import math
+import numbers
 import os
 import subprocess
 import sys
+import warnings
 
 from ..errors import StudyError
 from ..scene import load_scene
-from .runner import columns, run_one
-from .spec import load_study
+from .runner import columns, make_drive, run_one, run_scene
+from .spec import load_study, run_seed
 from .summary import summarise
 
 #: runs in flight per worker (enough to keep every worker busy, few enough to hold nothing)
@@ -52,27 +54,48 @@ def inline_rows(study, todo, version):
 _WORKER_STUDY = None
 
 
-def _init_worker(study):
-    """A pool worker's start: keep the study, and load (from numba's on-disk cache) the kernels its
-    scene uses by stepping it a few times, so no run pays that."""
+def _init_worker(study, forked):
+    """A pool worker's start: keep the study, and load the kernels its runs use (``warm``: from
+    numba's on-disk cache when spawned; already loaded when forked), so no run pays that."""
     global _WORKER_STUDY
     _WORKER_STUDY = study
-    warm(study)
+    if not forked:
+        warm(study)
 
 
 def _pool_run(cell, rep, version):
     return run_one(_WORKER_STUDY, cell, rep, version)
 
 
-def warm(study):
-    """Step the study's base scene a few times: compiles its kernels into numba's on-disk cache
-    the first time (in the driver, once, before any worker starts), loads them afterwards."""
-    try:
-        world = load_scene(study.scene, base_dir=study.base_dir)
-        for _ in range(3):
-            world.step()
-    except Exception:   # a scene that cannot step is each run's error to record, not the driver's
-        pass
+def warm(study, seconds=1.0, most=16):
+    """Run, without recording, up to ``seconds`` simulated seconds of one cell per distinct
+    combination of the grid's non-numeric values (a *model* axis; at most ``most``): the kernels
+    those runs use are compiled into numba's on-disk cache the first time (once, in the driver,
+    before any worker starts) and loaded into this process, which forked workers inherit — so no
+    worker compiles, and a run's ``cost`` does not include loading its kernels (except kernels
+    first needed later than ``seconds`` into a run)."""
+    seen = set()
+    for cell in range(study.cells):
+        key = tuple(label for _path, label, value in study.cell_params(cell)
+                    if isinstance(value, bool) or not isinstance(value, numbers.Real))
+        if key in seen:
+            continue
+        seen.add(key)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                scene, duration, drive = run_scene(study, cell, run_seed(study.seed, cell, 0)[0])
+                world = load_scene(scene, base_dir=study.base_dir)
+                motion = make_drive(drive, world, scene)
+                dt = world.settings.dt
+                for k in range(1, max(1, int(round(min(duration, seconds) / dt))) + 1):
+                    if motion is not None:
+                        motion(world, k * dt)
+                    world.step(dt)
+            except Exception:   # a scene that cannot run is each run's error to record, not the driver's
+                pass
+        if len(seen) >= most:
+            return
 
 
 def start_method():
@@ -101,8 +124,9 @@ def pool_rows(study, todo, version, workers):
     from concurrent.futures import ProcessPoolExecutor
 
     warm(study)
-    ctx = multiprocessing.get_context(start_method())
-    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(study,))
+    method = start_method()
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(method), initializer=_init_worker,
+                               initargs=(study, method == "fork"))
     todo = iter(todo)
     pending = set()
     _fill(pool, pending, todo, version, workers)

@@ -106,6 +106,18 @@ def print_table(study, rows, stream):
         print("  ".join(x.rjust(w) for x, w in zip(b, widths)), file=stream)
 
 
+def short(label, reciprocal=False):
+    """A grid value for a chart: four significant digits (with ``reciprocal``, ``1/n`` for the
+    reciprocal of a whole number: a step size), or the text."""
+    try:
+        x = float(label)
+    except (TypeError, ValueError):
+        return str(label)
+    if reciprocal and 0 < x < 1 and abs(1 / x - round(1 / x)) < 1e-9 * (1 / x):
+        return f"1/{round(1 / x)}"
+    return f"{x:.4g}"
+
+
 def plot(study, rows, path):
     """``work_precision``: ``y`` against ``x`` (cell means, log-log), one line per value of the
     ``series`` axis through the values of the ``points`` axis (bench_accuracy's chart).
@@ -129,7 +141,7 @@ def plot(study, rows, path):
             y = [max(r.get(ys, math.nan), 1e-16) for r in rs]
             ax.loglog(x, y, marker="o", label=s)
             for xi, yi, r in zip(x, y, rs):
-                ax.annotate(str(r[p["points"]]), (xi, yi), textcoords="offset points", xytext=(3, 3), fontsize=6)
+                ax.annotate(short(r[p["points"]], reciprocal=True), (xi, yi), textcoords="offset points", xytext=(3, 3), fontsize=6)
         ax.set_xlabel(f"{p['x']} (mean per cell)")
         ax.set_ylabel(f"{p['y']} (mean per cell; below 1e-16 drawn at 1e-16)")
         ax.set_title(f"{study.name}: {study.description}"[:100], fontsize=9)
@@ -150,14 +162,15 @@ def plot(study, rows, path):
                         r.get(value, math.nan)
             im = ax.imshow(grid, origin="lower", cmap="viridis", aspect="auto",
                            vmin=0 if value == "success_rate" else None, vmax=1 if value == "success_rate" else None)
-            ax.set_xticks(range(len(labels[p["x"]])), labels[p["x"]], fontsize=7)
-            ax.set_yticks(range(len(labels[p["y"]])), labels[p["y"]], fontsize=7)
+            ax.set_xticks(range(len(labels[p["x"]])), [short(x) for x in labels[p["x"]]], fontsize=7)
+            ax.set_yticks(range(len(labels[p["y"]])), [short(y) for y in labels[p["y"]]], fontsize=7)
             ax.set_xlabel(p["x"], fontsize=8)
             ax.set_ylabel(p["y"], fontsize=8)
-            ax.set_title(", ".join(f"{a} = {v}" for a, v in zip(others, combo)) or value, fontsize=8)
+            ax.set_title(", ".join(f"{a} = {short(v)}" for a, v in zip(others, combo)) or value, fontsize=8)
             for (i, j), v in np.ndenumerate(grid):
                 if np.isfinite(v):
-                    ax.text(j, i, f"{v:.2g}", ha="center", va="center", fontsize=7, color="w")
+                    light = im.norm(v) > 0.5 if np.isfinite(im.norm(v)) else False
+                    ax.text(j, i, f"{v:.2g}", ha="center", va="center", fontsize=7, color="k" if light else "w")
         fig.colorbar(im, ax=list(axs[0]), label=value)
     fig.savefig(path, dpi=90, bbox_inches="tight")
     plt.close(fig)
