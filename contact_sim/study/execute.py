@@ -166,10 +166,14 @@ def ray_rows(study, todo, version, workers, address):
                                       "(or pip install ray)") from None
     started = False
     if not ray.is_initialized():
-        if address == "local":
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
-        else:
-            ray.init(address=address, log_to_driver=False)
+        try:
+            if address == "local":
+                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(address=address, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            raise StudyError(f"--cluster {address}", f"cannot connect to a Ray cluster ({exc}); start one with "
+                                                     "`ray start --head`, or use --cluster local") from None
         started = True
     try:
         cpus = max(1, int(ray.cluster_resources().get("CPU", workers)))
