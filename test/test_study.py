@@ -131,6 +131,28 @@ def test_success_predicate_at_a_time():
     assert run_one(s, 0, 0)["wall_time"] > 0
 
 
+def test_keyframes_and_grip_drives_pose_the_kinematic_bodies():
+    scene = copy.deepcopy(BALL)
+    scene["bodies"].append({"name": "pusher", "kind": "kinematic", "shape": {"type": "box", "size": [0.1, 0.1, 0.1]},
+                            "position": [5, 0, 1]})
+    s = load_study({"scene": scene, "duration": 0.5, "record": [{"final_pose": {"bodies": ["pusher"]}}],
+                    "drive": {"type": "keyframes", "bodies": {"pusher": [[0, 5, 0, 1], [1, 6, 0, 3]]}},
+                    "grid": {"duration": [0.5, 2.0]}})
+    half, after = run_one(s, 0, 0), run_one(s, 1, 0)
+    assert half["pusher.x"] == pytest.approx(5.5, abs=1e-12) and half["pusher.z"] == pytest.approx(2.0, abs=1e-12)
+    assert after["pusher.x"] == 6.0 and after["pusher.z"] == 3.0      # held after the last keyframe
+    scene["bodies"].append({"name": "other", "kind": "kinematic", "shape": {"type": "box", "size": [0.02, 0.1, 0.1]},
+                            "position": [5.2, 0, 1]})
+    scene["bodies"][-2]["shape"]["size"] = [0.02, 0.1, 0.1]
+    s = load_study({"scene": scene, "duration": 1.0, "record": [{"final_pose": {"bodies": ["pusher", "other"]}}],
+                    "drive": {"type": "grip", "pads": ["pusher", "other"], "half_width": 0.05, "overlap": 0.002,
+                              "close_time": 0.5, "lift": 0.3, "lift_time": 0.25}})
+    r = run_one(s, 0, 0)      # closed to 5.1 ∓ (0.05 + 0.01 − 0.002), raised 0.3 m
+    assert r["pusher.x"] == pytest.approx(5.1 - 0.058, abs=1e-12) and r["other.x"] == pytest.approx(5.1 + 0.058,
+                                                                                                   abs=1e-12)
+    assert r["pusher.z"] == pytest.approx(1.3, abs=1e-12) and r["other.z"] == pytest.approx(1.3, abs=1e-12)
+
+
 def test_a_raising_run_is_recorded_and_the_study_goes_on(tmp_path):
     """The mass set by a perturbation is -1 kg in the second cell: that cell's runs raise (the
     scene's own error is the row's), the first cell's finish."""

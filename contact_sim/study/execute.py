@@ -90,7 +90,7 @@ def warm(study, seconds=1.0, most=16):
                 dt = world.settings.dt
                 for k in range(1, max(1, int(round(min(duration, seconds) / dt))) + 1):
                     if motion is not None:
-                        motion(world, k * dt)
+                        motion(world, (k - 1) * dt)
                     world.step(dt)
             except Exception:   # a scene that cannot run is each run's error to record, not the driver's
                 pass
@@ -203,7 +203,9 @@ def cell_text(value):
     reading them back gives the same bits; None as empty."""
     if value is None:
         return ""
-    if isinstance(value, float) or hasattr(value, "dtype"):
+    if isinstance(value, numbers.Integral):      # bool, int, numpy integers: as whole numbers
+        return str(int(value))
+    if isinstance(value, numbers.Real):
         v = float(value)
         return repr(v) if math.isfinite(v) else str(v)
     return str(value)

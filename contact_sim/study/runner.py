@@ -99,8 +99,8 @@ def simulate(world, scene, study, duration, drive):
     ok = None
     t0 = time.perf_counter()
     for k in range(1, n + 1):
-        if motion is not None:
-            motion(world, k * dt)
+        if motion is not None:     # posed for the step's start; the step moves them on at the poses' velocity
+            motion(world, (k - 1) * dt)
         world.step(dt)
         for r in recorders:
             r.step(world, dt)
@@ -130,6 +130,10 @@ def holds(world, terms):
 # ---------------------------------------------------------------------------- drives
 def make_drive(drive, world, scene):
     """``motion(world, t)`` posing the kinematic bodies at time ``t`` (s), or None without a drive.
+    ``simulate`` poses them at the start of each step (stamp ``t`` = the world's time); the step
+    moves them on at the finite difference of the last two poses, so after each step a body on a
+    straight stretch of its path is where the drive puts it at the world's new time (at a corner,
+    one step late).
 
     ``grip``: two box pads close along ``axis`` from their initial positions over ``close_time``
     until each is ``overlap`` (m) past the faces of an object ``half_width`` (m) either side of the

@@ -473,7 +473,7 @@ def check_path(study, toks, path, where):
     if head == "gravity" and len(toks) == 1 and (idx is None or idx < 3):
         return
     if head == "settings":
-        if len(toks) == 1:
+        if len(toks) == 1 and idx is None:
             return
         name = toks[1][0]
         if name == "penalty" and len(toks) == 3 and toks[2][0] in Penalty.rules():
