@@ -171,7 +171,7 @@ def test_a_raising_run_is_recorded_and_the_study_goes_on(tmp_path):
 # ---------------------------------------------------------------------------- errors
 @pytest.mark.parametrize("change, message", [
     ({"grid": {"settings.nope": [1]}}, "study.grid['settings.nope']: 'settings.nope': unknown setting"),
-    ({"grid": {"bodies.anvil.mass": [1]}}, "study.grid['bodies.anvil.mass']: 'bodies.anvil.mass': write bodies.NAME"),
+    ({"grid": {"bodies.anvil.mass": [1]}}, "study.grid['bodies.anvil.mass']: 'bodies.anvil.mass': write bodies.NAME.FIELD with NAME one of the scene's bodies (ground, ball, box;"),
     ({"grid": {"bodies.ball.position[3]": [1]}}, "index [3] out of range for position"),
     ({"grid": {"materials.steel.friction": [1]}}, "write materials.NAME.FIELD with NAME a material of the scene (rubber)"),
     ({"grid": {"colour": [1]}}, "study.grid['colour']: 'colour': unknown parameter path"),

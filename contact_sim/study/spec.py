@@ -490,9 +490,10 @@ def check_path(study, toks, path, where):
                                     f"{', '.join(Material.rules())}")
         return
     if head == "bodies":
-        if len(toks) < 3 or toks[1][0] not in study.body_names:
-            raise StudyError(where, f"{path!r}: write bodies.NAME.FIELD with NAME a body of the scene "
-                                    f"({', '.join(study.body_names)})")
+        declared = [b.get("name") for b in study.scene.get("bodies") or [] if isinstance(b, dict)]
+        if len(toks) < 3 or toks[1][0] not in declared:
+            raise StudyError(where, f"{path!r}: write bodies.NAME.FIELD with NAME one of the scene's bodies "
+                                    f"({', '.join(map(str, declared))}; a robot's links cannot be addressed)")
         field, i = toks[2]
         if field not in BODY_KEYS - {"name", "shape", "collision"} and field != "shape":
             raise StudyError(where, f"{path!r}: unknown body field {field!r} "
