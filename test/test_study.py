@@ -308,6 +308,16 @@ def test_summary_means_and_quantiles(tmp_path):
     with open(tmp_path / "summary.csv") as fh:
         head = fh.readline().strip().split(",")
     assert head[:5] == ["cell", "materials.rubber.restitution", "runs", "failed", "success_rate"]
+    assert not (tmp_path / "plot.png").exists()       # one axis: no plot unless the study names one
+
+
+def test_two_axes_get_a_success_heat_map_by_default(tmp_path):
+    s = small_study(replicates=1, grid={"materials.rubber.restitution": [0.5, 0.9], "settings.dt": [0.01, 0.005]})
+    assert load_study(s).plot == {"type": "heatmap", "x": "materials.rubber.restitution", "y": "settings.dt",
+                                  "value": "success_rate"}
+    run_study(s, str(tmp_path), workers=1, progress=False, stream=False)
+    assert (tmp_path / "plot.png").read_bytes()[:4] == b"\x89PNG"
+    assert load_study({**s, "plot": False}).plot is None
 
 
 @pytest.fixture

@@ -353,7 +353,13 @@ class Study:
         return axes
 
     def _plot(self, p):
-        if p is None:
+        if p is None:       # two swept axes: a heat-map of the success rate (or the first figure's mean)
+            if len(self.axes) != 2:
+                return None
+            figures = [f for f in figure_columns(self) if f != "success"] + ["cost"]
+            return {"type": "heatmap", "x": self.axes[0][0], "y": self.axes[1][0],
+                    "value": "success_rate" if self.success is not None else f"{figures[0]}_mean"}
+        if p is False:
             return None
         where = "study.plot"
         if not isinstance(p, dict) or p.get("type") not in PLOT_TYPES:
