@@ -63,6 +63,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_panda.py
 	$(PY) bench/bench_node.py --panda
 	$(PY) bench/bench_collide.py
+	$(PY) bench/bench_study.py
 	$(PY) -m pytest -q -m "hard or stability" -s -p no:cacheprovider | grep -o "HARD .*" | sed "s/^HARD //" > bench/results/hard_cases.txt
 	$(PY) bench/report.py
 

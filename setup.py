@@ -56,6 +56,9 @@ setup(
     extras_require={
         # the ROS node needs the ROS 2 Jazzy wheels (requirements/ros.txt) or a sourced ROS install
         "plot": ["matplotlib>=3.6"],
+        # contact-sim study --cluster: studies as Ray tasks (imported only then; never by the engine or the node);
+        # [client]: --cluster ray://HOST:PORT
+        "cluster": ["ray[client]>=2.9"],
         "test": ["pytest>=7", "pytest-timeout>=2.1", "hypothesis>=6.100", "matplotlib>=3.6", "python-fcl>=0.7", "rtree>=1.0"],
         # make docs: the documentation site (mkdocs.yml; docs/)
         "docs": ["mkdocs>=1.6", "mkdocs-material>=9.5", "mkdocstrings[python]>=0.26"],

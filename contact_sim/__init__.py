@@ -13,18 +13,20 @@ The engine depends on numpy, numba, scipy, trimesh, PyYAML and yourdfpy; it neve
 """
 from .collision import DetectionStats, collide, vertex_inside
 from .contacts import FEATURES, Contacts
-from .errors import BoundsError, ContactSimError, EngineError, SceneError
+from .errors import BoundsError, ContactSimError, EngineError, SceneError, StudyError
 from .scene import default_scene_path, list_scenes, load_scene, resolve_scene
 from .settings import Material, Settings
 from .cylinder import Cylinder
 from .shapes import Box, Convex, Plane, Sphere, TriMesh
 from .stats import StepStats
+from .study import list_studies, load_study, resolve_study, run_study
 from .world import Body, World
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Body", "BoundsError", "Box", "ContactSimError", "Contacts", "Convex", "Cylinder", "DetectionStats", "EngineError",
-    "FEATURES", "Material", "Plane", "SceneError", "Settings", "Sphere", "StepStats", "TriMesh", "World", "collide",
-    "default_scene_path", "list_scenes", "load_scene", "resolve_scene", "vertex_inside",
+    "FEATURES", "Material", "Plane", "SceneError", "Settings", "Sphere", "StepStats", "StudyError", "TriMesh", "World",
+    "collide", "default_scene_path", "list_scenes", "list_studies", "load_scene", "load_study", "resolve_scene",
+    "resolve_study", "run_study", "vertex_inside",
 ]

@@ -1,5 +1,5 @@
 """Command line: ``contact-sim run [SCENE]``, ``contact-sim describe SCENE``, ``contact-sim scenes``,
-``contact-sim bench NAME``. Also ``python -m contact_sim``."""
+``contact-sim study STUDY``, ``contact-sim studies``, ``contact-sim bench NAME``. Also ``python -m contact_sim``."""
 import argparse
 import os
 import sys
@@ -143,6 +143,28 @@ def cmd_scenes(args):
     return 0
 
 
+def cmd_study(args):
+    from .study import load_study, run_study
+
+    study = load_study(args.study)
+    out = args.out or os.path.join("study_results", study.name)
+    if args.limit is not None and args.limit < 1:
+        raise ContactSimError(f"--limit: must be >= 1, got {args.limit}")
+    print(f"study {study.name}: {len(study)} runs ({study.cells} cells × {study.replicates}), rows in "
+          f"{os.path.join(out, 'runs.csv')}", flush=True)
+    run_study(study, out, workers=args.workers, cluster=args.cluster, progress=not args.no_progress, limit=args.limit)
+    print(f"summary written to {os.path.join(out, 'summary.csv')}")
+    return 0
+
+
+def cmd_studies(args):
+    from .study import list_studies
+
+    for name in list_studies():
+        print(name)
+    return 0
+
+
 def cmd_bench(args):
     import runpy
 
@@ -179,6 +201,20 @@ def build_parser():
     d.set_defaults(func=cmd_describe)
     s = sub.add_parser("scenes", help="list the shipped scenes")
     s.set_defaults(func=cmd_scenes)
+    st = sub.add_parser("study", help="run a study: a scene over a grid of parameters and perturbations, summarised")
+    st.add_argument("study", help="study file, or the name of a shipped study (contact-sim studies)")
+    st.add_argument("--out", metavar="DIR", help="where runs.csv, summary.csv and plot.png go "
+                                                 "(default study_results/NAME); run again to resume")
+    st.add_argument("--workers", type=int, default=None, help="processes on this machine (default: every core; "
+                                                              "1 runs in this process)")
+    st.add_argument("--cluster", metavar="auto|local|ray://HOST:PORT", default=None,
+                    help="run as Ray tasks: auto (the running cluster), local (a new local Ray), or a Ray client "
+                         "address (pip install 'contact_sim[cluster]')")
+    st.add_argument("--limit", type=int, default=None, help="only the first N runs")
+    st.add_argument("--no-progress", action="store_true", help="no progress bar")
+    st.set_defaults(func=cmd_study)
+    ss = sub.add_parser("studies", help="list the shipped studies")
+    ss.set_defaults(func=cmd_studies)
     b = sub.add_parser("bench", help="run a benchmark from bench/ (detect, response, node, accuracy); `make bench` runs all")
     b.add_argument("name")
     b.add_argument("rest", nargs=argparse.REMAINDER)

@@ -23,3 +23,13 @@ class EngineError(ContactSimError, RuntimeError):
     """A step that failed on valid input (an exception inside the engine, or a non-finite
     result): an engine bug to report, not bad input. The world is as it was before the step.
     A ``ContactSimError`` too, so one ``except`` keeps a caller's world alive (the node's)."""
+
+
+class StudyError(ContactSimError):
+    """A study file failed validation; ``path`` is its location in the study
+    (``study.grid['settings.dt'][2]``), ``reason`` what is wrong with it."""
+
+    def __init__(self, path, reason):
+        self.path = path
+        self.reason = reason
+        super().__init__(f"{path}: {reason}" if path else reason)

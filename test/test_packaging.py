@@ -26,7 +26,8 @@ def test_package_xml_is_format3_ament_python(repo):
 # import name -> rosdep key of what the engine and the node import; None: optional, not declared
 ROSDEP = {"numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml", "trimesh": "python3-trimesh-pip",
           "tqdm": "python3-tqdm", "matplotlib": None, "numba": "python3-numba",
-          "yourdfpy": None}   # no rosdep key: pip installs it (setup.py install_requires; a comment in package.xml)
+          "yourdfpy": None,   # no rosdep key: pip installs it (setup.py install_requires; a comment in package.xml)
+          "ray": None}        # optional: the cluster extra (contact-sim study --cluster), imported only then
 
 
 def imported_packages(repo):

@@ -109,3 +109,17 @@ def test_the_constants_module_is_the_bottom_of_the_graph_and_says_what_each_cons
         lines = [l for l in fh.read().splitlines() if re.match(r"[A-Z_0-9]+ = ", l)]
     assert len(lines) > 30
     assert [l.split(" =")[0] for l in lines if "#" not in l] == []
+
+
+def test_the_engine_and_the_node_do_not_import_ray():
+    """Ray is the optional cluster extra of studies (``contact-sim study --cluster``): importing
+    the engine, its studies or the node's conversions must not import it (it is imported only
+    inside the Ray executor)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, contact_sim, contact_sim.study, contact_sim.cli, msg_adapters.conversions; "
+            "assert 'ray' not in sys.modules, 'ray was imported'")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                       env=dict(os.environ, PYTHONPATH=ROOT))
+    assert r.returncode == 0, r.stderr
