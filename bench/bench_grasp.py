@@ -37,9 +37,9 @@ pybullet: the object's base position and the finger links' frames), never from t
 
 Each engine on its own terms (defaults unless the scenario needs a value; all printed):
 
-* contact_sim: ``Settings(dt=1/240, kinematic_stiffness=1e5)`` (compliant contacts with the
-  kinematic fingers, 1e5 N/m, critically damped: the grip force per finger is about 1e5 × over;
-  this branch's default ``kinematic_stiffness`` is 0, rigid), material μ = 1, e = 0. The fingers are
+* contact_sim: ``Settings(dt=1/240)``, its defaults (compliant contacts with the kinematic
+  fingers: ``kinematic_stiffness`` 1e5 N/m, critically damped, so the grip force per finger is
+  about 1e5 × over), material μ = 1, e = 0. The fingers are
   kinematic bodies posed every step by ``set_poses`` at the step's end time. (Read back after the
   step, on this tree, such a body is one step's motion beyond that pose — the pose plus its
   velocity × dt — so the fingers lead the schedule by a step; the measures use the read-back
@@ -95,7 +95,7 @@ LIFT = 0.10             # m
 SHAKE_AMP, SHAKE_HZ = 0.05, 2.0
 MASS = 0.2              # kg
 MU = 1.0
-K_FINGER = 1e5          # N/m: contact_sim's kinematic stiffness; MuJoCo's finger kp
+K_FINGER = 1e5          # N/m: MuJoCo's finger kp, contact_sim's default kinematic_stiffness
 FINGER_FORCE = 100.0    # N: MuJoCo finger forcerange, pybullet finger force limit
 ARM_FORCE = 1000.0      # N: pybullet hand-joint force limit
 HAND_MASS, FINGER_MASS = 1.0, 0.1   # kg (MuJoCo, pybullet)
@@ -125,10 +125,13 @@ class ContactSimGrasp:
 
     name = "contact_sim"
 
-    def __init__(self, over, shape="cube", kinematic_stiffness=K_FINGER):
+    def __init__(self, over, shape="cube", kinematic_stiffness=None):
         import contact_sim as cs
         self.over = over
-        self.w = w = cs.World(settings=cs.Settings(dt=DT, kinematic_stiffness=kinematic_stiffness),
+        st = cs.Settings(dt=DT) if kinematic_stiffness is None else \
+            cs.Settings(dt=DT, kinematic_stiffness=kinematic_stiffness)
+        kinematic_stiffness = st.kinematic_stiffness
+        self.w = w = cs.World(settings=st,
                               materials={"default": cs.Material(friction=MU, restitution=0.0)})
         w.add_body("floor", cs.Plane(), kind="static")
         geom = cs.Box([2 * HALF] * 3) if shape == "cube" else cs.Cylinder(HALF, 2 * HALF)
@@ -395,7 +398,7 @@ class Recorder:
         }
 
 
-def run_contact_sim(over, shape="cube", kinematic_stiffness=K_FINGER):
+def run_contact_sim(over, shape="cube", kinematic_stiffness=None):
     """The scenario in contact_sim alone (the test's entry): returns ``Recorder.result()``."""
     e = ContactSimGrasp(over, shape, kinematic_stiffness)
     rec = Recorder(e)
