@@ -48,7 +48,7 @@ from .response import toi as toi_mod
 from .response import compiled_step, correction, impact, penalty_friction, prepare, resting, swept
 from .response.cache import merge_records, record
 from .response.context import StepContext
-from .response.energy import kinematic_work
+from .response.energy import kinematic_work, pose_work
 
 
 def describe_models(world):
@@ -66,6 +66,7 @@ def step(world, dt):
         _penalty_step(world, dt, m)
     else:
         _impulse_step(world, dt, m)
+    world.s.jump[:] = 0.0   # the poses' moves are the step's to count (energy.pose_work)
     world.time += dt
 
 
@@ -88,6 +89,8 @@ def _impulse_step(world, dt, m):
     ctx = StepContext.start(world, dt, m)
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
+        if ctx.first and ctx.k and world.s.jump.any():   # the springs poses compressed: the bodies' work
+            ctx.kinematic_work += pose_work(world, ctx.contacts, prepare.stiffnesses(world, ctx.contacts, m)[0])
         if ctx.k and compiled_step.run(ctx):   # the stages below in one compiled call (next_step, no push)
             break
         _velocity_stage(ctx)             # relative velocities; the speculative contacts that can close

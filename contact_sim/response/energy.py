@@ -37,6 +37,33 @@ def kinematic_work(world, c, pos=None):
     return total
 
 
+def pose_work(world, c, stiffness):
+    """Work (J) the kinematic bodies did on the compliant contacts ``c`` (their ``stiffness (K,)``,
+    N/m per point, 0 rigid) when poses moved them at once since the last step (``s.jump``: the
+    centre's move and the rotation vector of each): a contact ``d`` deep now was ``d + Δs`` deep
+    before, ``Δs`` the separation the move made at its point (the relative velocity's formula,
+    with the moves for velocities), and its spring gained ``½ k (d⁺² − (d + Δs)⁺²)``. A pose, a
+    robot's joint positions, puts a kinematic body where it is given; the springs it compresses
+    on the way store what the body did as work, which ``StepStats.kinematic_work`` counts with
+    the work through the step's impulses. Only contacts with a dynamic body store anything."""
+    jump = world.s.jump
+    if len(c) == 0 or not stiffness.any() or not jump.any():
+        return 0.0
+    dyn = world.kind == DYNAMIC
+    moved = (world.kind == KINEMATIC) & jump.any(axis=1)
+    on = (stiffness > 0) & (moved[c.body_a] | moved[c.body_b]) & (dyn[c.body_a] | dyn[c.body_b])
+    if not on.any():
+        return 0.0
+    a, b, p, n = c.body_a[on], c.body_b[on], c.point[on], c.normal[on]
+    step = np.where(moved[:, None], jump, 0.0)
+    u = np.zeros((len(a), 3))
+    for side, sign in ((a, 1.0), (b, -1.0)):   # (u_a − u_b) at the point, as prepare's relative velocity
+        u += sign * (step[side, :3] + cross(step[side, 3:], p - world.s.pos[side]))
+    before = np.maximum(c.depth[on] + np.einsum("ij,ij->i", n, u), 0.0)
+    now = np.maximum(c.depth[on], 0.0)
+    return float(0.5 * np.sum(stiffness[on] * (now * now - before * before)))
+
+
 @njit
 def _touches(kind, a, b, which):
     """Whether a contact ``a, b (K,)`` has a body of kind ``which``."""
