@@ -1,8 +1,7 @@
 """The grasp benchmark's contact_sim scenario (``bench/bench_grasp.py``) meets its physics targets:
 a 5 cm, 0.2 kg cube squeezed by kinematic fingers 0.5, 1 or 5 mm past its faces (a standing 5 cm
-cylinder 1 mm) is lifted 10 cm
-and shaken ±5 cm at 2 Hz without dropping, slipping more than 1 mm, or ever moving faster than
-the fingers by more than 0.1 m/s. Only contact_sim runs here (the peers are the bench's business).
+cylinder 1 mm) is lifted 10 cm and shaken ±5 cm at 2 Hz without dropping, slipping more than 1
+mm, or ever moving faster than the fingers by more than 0.1 m/s. Only contact_sim runs here (the peers are the bench's business).
 """
 import os
 import sys
