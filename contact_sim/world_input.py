@@ -45,7 +45,9 @@ class BodyInput:
         """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time
         ``stamp`` (s; default the world time). From the second pose on its linear and angular
         velocity are the finite differences of successive poses over their stamps, so responses
-        see how fast it really moves. Stamps must increase. Bad input changes nothing; a position
+        see how fast it really moves. The body is placed at once, and the next step carries it on
+        at that velocity: a trajectory ``p(t)`` is followed by giving ``p(t)`` stamped ``t`` (the
+        world's time) before each step. Stamps must increase. Bad input changes nothing; a position
         beyond ``settings.max_position`` or a pose implying a speed beyond ``max_speed`` /
         ``max_angular_speed`` raises ``BoundsError``."""
         self._set_poses([name], [position], [orientation], stamp, single=True)
