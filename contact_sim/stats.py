@@ -21,7 +21,10 @@ class StepStats:
     toi: str = ""                  # the time-of-impact mode used
     response: str = ""             # the response model used
     correction_energy: float = 0.0  # potential energy position correction added (J)
-    kinematic_work: float = 0.0    # work done by kinematic bodies' contacts (J), their poses' moves into springs too
+    kinematic_work: float = 0.0    # work done by kinematic bodies' contacts during the step (J)
+    pose_work: float = 0.0         # work the poses given since the last step did on compliant springs,
+                                   # moving kinematic bodies at once (J): already in World.energy()
+                                   # before the step; energy between two steps may grow by both works
     rotation_drift: float = 0.0    # rotational energy change of the free-rotation splitting (J)
     kick_error_bound: float = 0.0  # bound of the torque half-kicks' first-order energy error (J)
     rest_work_bound: float = 0.0   # bound of the resting force's first-order work error (J)

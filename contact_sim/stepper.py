@@ -90,7 +90,7 @@ def _impulse_step(world, dt, m):
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
         if ctx.first and ctx.k and world.s.jump.any():   # the springs poses compressed: the bodies' work
-            ctx.kinematic_work += pose_work(world, ctx.contacts, prepare.stiffnesses(world, ctx.contacts, m)[0])
+            ctx.pose_work = pose_work(world, ctx.contacts, prepare.stiffnesses(world, ctx.contacts, m)[0])
         if ctx.k and compiled_step.run(ctx):   # the stages below in one compiled call (next_step, no push)
             break
         _velocity_stage(ctx)             # relative velocities; the speculative contacts that can close
@@ -209,7 +209,8 @@ def _finish(ctx, correction_energy):
                                  max_penetration=ctx.max_penetration, contacts=len(world.contacts),
                                  impacts=ctx.events, toi=m.toi, response=m.response,
                                  correction_energy=correction_energy,
-                                 kinematic_work=ctx.kinematic_work, rotation_drift=ctx.drift,
+                                 kinematic_work=ctx.kinematic_work, pose_work=ctx.pose_work,
+                                 rotation_drift=ctx.drift,
                                  kick_error_bound=ctx.kick_error, rest_work_bound=ctx.rest_bound)
 
 

@@ -246,7 +246,7 @@ def test_a_ball_squeezed_by_a_compliant_paddle_never_has_more_energy_than_the_pa
     for _ in range(150):
         w.step()
         ls = w.last_solve
-        work += ls.kinematic_work + ls.rest_work_bound + max(ls.correction_energy, 0.0)
+        work += ls.kinematic_work + ls.pose_work + ls.rest_work_bound + max(ls.correction_energy, 0.0)
         assert w.energy() <= e0 + work + 1e-9 * (1 + abs(e0) + abs(work))
     assert work > 1.0                           # the paddle pushed (and drove on into the wall)
     assert np.all(np.isfinite(w.s.vel)) and np.all(np.isfinite(w.s.pos))
@@ -363,7 +363,7 @@ def test_a_ball_born_in_the_ground_and_a_compliant_base_is_not_pushed_into_the_s
     for _ in range(240):
         w.step()
         ls = w.last_solve
-        bound += ls.kinematic_work + ls.rest_work_bound + max(ls.correction_energy, 0.0)
+        bound += ls.kinematic_work + ls.pose_work + ls.rest_work_bound + max(ls.correction_energy, 0.0)
         assert w.energy() <= e0 + bound + 1e-9 * (1 + abs(e0) + abs(bound))
     assert np.all(np.isfinite(w.s.pos)) and np.all(np.isfinite(w.s.vel))
 
@@ -371,7 +371,7 @@ def test_a_ball_born_in_the_ground_and_a_compliant_base_is_not_pushed_into_the_s
 def test_a_pose_that_presses_a_compliant_floor_counts_its_springs_work():
     """A 1 kg ball at rest on a compliant kinematic floor (``kinematic_stiffness`` k, sunk ``m g /
     k``); the floor is posed 1 mm up at once: its spring goes from ``d₀ = m g / k`` to ``d₀ + 1
-    mm`` before the step, work the floor did (``energy.pose_work``, in ``kinematic_work``): exactly
+    mm`` before the step, work the floor did (``energy.pose_work``, ``StepStats.pose_work``): exactly
     ``½ k ((d₀ + 1 mm)² − d₀²)``; the bodies' energy with the springs' never grows by more than the
     floor's reported work, up and down (it grew 31 mJ with none reported before)."""
     k = 1e5
@@ -388,5 +388,5 @@ def test_a_pose_that_presses_a_compliant_floor_counts_its_springs_work():
         w.step()
         ls = w.last_solve
         if i == 0:   # the spring's own work; the step's impulses then move nothing kinematic yet
-            assert ls.kinematic_work == pytest.approx(0.5 * k * ((d0 + 1e-3) ** 2 - d0 ** 2), rel=1e-9)
-        assert w.energy() - e0 <= ls.kinematic_work + ls.rest_work_bound + 1e-12
+            assert ls.pose_work == pytest.approx(0.5 * k * ((d0 + 1e-3) ** 2 - d0 ** 2), rel=1e-9)
+        assert w.energy() - e0 <= ls.kinematic_work + ls.pose_work + ls.rest_work_bound + 1e-12

@@ -44,7 +44,8 @@ class Run:
                 s = world.s
                 assert all(np.isfinite(a).all() for a in (s.pos, s.vel, s.quat, s.omega))
                 ls = world.last_solve
-                self.allowance += max(ls["correction_energy"], 0.0) + max(ls["kinematic_work"], 0.0)
+                self.allowance += max(ls["correction_energy"], 0.0) + max(ls["kinematic_work"], 0.0) \
+                    + max(ls["pose_work"], 0.0)
                 if self.springs:   # the step's own bounds on what the springs' force may add
                     self.allowance += ls["rest_work_bound"] + ls["kick_error_bound"] + max(ls["rotation_drift"], 0.0)
                 self.max_pen = max(self.max_pen, ls["max_penetration"])

@@ -74,6 +74,7 @@ class StepContext:
     pseudo: tuple = None           # (vp, wp) (N,3) split-impulse pseudo-velocities
     warm_out: tuple = None         # what the contact cache keeps of the last resting solve
     kinematic_work: float = 0.0    # work of the kinematic bodies' contacts (J), sub-step by sub-step
+    pose_work: float = 0.0         # work of the poses given since the last step on the springs (J)
     drift: float = 0.0             # free rotation's energy drift (J)
     rest_bound: float = 0.0        # bound of the resting force's first-order work error (J)
     kick_error: float = 0.0        # bound of the torque half-kicks' first-order energy error (J)

@@ -44,8 +44,8 @@ def pose_work(world, c, stiffness):
     before, ``Δs`` the separation the move made at its point (the relative velocity's formula,
     with the moves for velocities), and its spring gained ``½ k (d⁺² − (d + Δs)⁺²)``. A pose, a
     robot's joint positions, puts a kinematic body where it is given; the springs it compresses
-    on the way store what the body did as work, which ``StepStats.kinematic_work`` counts with
-    the work through the step's impulses. Only contacts with a dynamic body store anything."""
+    on the way store what the body did as work (``StepStats.pose_work``; the work through the
+    step's impulses is ``kinematic_work``). Only contacts with a dynamic body store anything."""
     jump = world.s.jump
     if len(c) == 0 or not stiffness.any() or not jump.any():
         return 0.0
