@@ -66,7 +66,9 @@ def step(world, dt):
         _penalty_step(world, dt, m)
     else:
         _impulse_step(world, dt, m)
-    world.s.jump[:] = 0.0   # the poses' moves are the step's to count (energy.pose_work)
+    s = world.s
+    s.stepped[:, :3] = s.pos   # where this step left the bodies: a pose given before the next moves a
+    s.stepped[:, 3:] = s.quat  # kinematic one at once (energy.pose_work)
     world.time += dt
 
 
@@ -89,8 +91,8 @@ def _impulse_step(world, dt, m):
     ctx = StepContext.start(world, dt, m)
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
-        if ctx.first and ctx.k and world.s.jump.any():   # the springs poses compressed: the bodies' work
-            ctx.pose_work = pose_work(world, ctx.contacts, prepare.stiffnesses(world, ctx.contacts, m)[0])
+        if ctx.first and ctx.k and m.response == "impulse" and world.body_masks().any_kinematic:
+            ctx.pose_work = pose_work(world, ctx.contacts, m)   # what poses given since stored in springs
         if ctx.k and compiled_step.run(ctx):   # the stages below in one compiled call (next_step, no push)
             break
         _velocity_stage(ctx)             # relative velocities; the speculative contacts that can close

@@ -78,7 +78,7 @@ class _State:
     kinematic bodies; copied whole by ``World.snapshot``, ``reset`` and input refused atomically."""
 
     NAMES = ("pos", "vel", "quat", "omega", "principal_q", "principal_moments", "stamp", "posed", "pose_pos",
-             "pose_quat", "jump")
+             "pose_quat", "stepped")
 
     def __init__(self):
         self.pos = np.zeros((0, 3))
@@ -91,12 +91,11 @@ class _State:
         self.posed = np.zeros(0, bool)        # has a pose been given yet
         self.pose_pos = np.zeros((0, 3))      # centre of mass and orientation at that last pose: the
         self.pose_quat = np.zeros((0, 4))     # finite differences start there, not where the body drifted to
-        self.jump = np.zeros((0, 6))          # how far poses moved a kinematic body at once since the last
-        #                                       step (centre, m; rotation vector, rad): energy.pose_work
+        self.stepped = np.zeros((0, 7))       # centre and orientation where the last step left each body: a
+        #                                       pose given since moved a kinematic body at once (energy.pose_work)
 
-    #: the arrays a step writes (it spends ``jump``); the others change only when poses are given or
-    #: bodies added
-    MOTION = ("pos", "vel", "quat", "omega", "jump")
+    #: the arrays a step writes; the others change only when poses are given or bodies added
+    MOTION = ("pos", "vel", "quat", "omega", "stepped")
 
     def copy(self):
         c = _State.__new__(_State)   # not __init__: its empty arrays would be replaced at once
@@ -340,7 +339,7 @@ class World(BodyInput):
         s.posed = np.append(s.posed, False)
         s.pose_pos = np.vstack([s.pose_pos, com_world])
         s.pose_quat = np.vstack([s.pose_quat, q])
-        s.jump = np.vstack([s.jump, np.zeros(6)])
+        s.stepped = np.vstack([s.stepped, np.concatenate([com_world, q])])
         self.kind = np.append(self.kind, np.int8(KINDS.index(kind)))
         self.particle = np.append(self.particle, model == "particle")
         self.mass = np.append(self.mass, body_mass)

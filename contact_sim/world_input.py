@@ -27,17 +27,6 @@ def _rows(check, value, m, path, row_path, settings, row_rule):
         raise
 
 
-def _record_jump(s, idx, com, q):
-    """Add to ``s.jump`` the move of the kinematic bodies ``idx (M,)`` from where they are to the
-    centres ``com (M,3)`` and orientations ``q (M,4)`` given now. A pose moves a body at once: the
-    springs of its compliant contacts take that move before any step, and the next step counts
-    their work as the body's (``energy.pose_work``)."""
-    q0 = s.quat[idx]
-    q = np.where(np.sum(q * q0, axis=1, keepdims=True) < 0, -q, q)   # the shorter way round
-    s.jump[idx, :3] += com - s.pos[idx]
-    s.jump[idx, 3:] += quat.to_rotvec(quat.mul(q, quat.conj(q0)))
-
-
 class BodyInput:
     """``set_pose(s)``, ``restart_pose_history``, ``set_state(s)`` of ``World``."""
 
@@ -118,7 +107,6 @@ class BodyInput:
         if j.size:
             s.omega[ij] = omega
             s.vel[ij] = vel
-        _record_jump(s, idx, com_world, q)
         s.pos[idx] = com_world
         s.quat[idx] = q
         s.pose_pos[idx] = com_world
@@ -181,11 +169,6 @@ class BodyInput:
         origin = parts.get("position")
         if origin is None:
             origin = s.pos[idx] - quat.rotate(s.quat[idx], self.com_local[idx])
-        q = parts.get("orientation", s.quat[idx])
-        moved = self.kind[idx] == KINEMATIC
-        if moved.any():
-            com = origin + quat.rotate(q, self.com_local[idx])
-            _record_jump(s, idx[moved], com[moved], q[moved])
         if "orientation" in parts:
             s.quat[idx] = parts["orientation"]
         s.pos[idx] = origin + quat.rotate(s.quat[idx], self.com_local[idx])

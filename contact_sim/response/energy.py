@@ -8,6 +8,7 @@ from ..free_motion import _qrot
 from ..jit import njit
 from ..kinds import DYNAMIC, KINEMATIC, STATIC
 from ..vec import cross
+from . import compliance, prepare
 
 
 def potential_change(world, dx):
@@ -37,31 +38,64 @@ def kinematic_work(world, c, pos=None):
     return total
 
 
-def pose_work(world, c, stiffness):
-    """Work (J) the kinematic bodies did on the compliant contacts ``c`` (their ``stiffness (K,)``,
-    N/m per point, 0 rigid) when poses moved them at once since the last step (``s.jump``: the
-    centre's move and the rotation vector of each): a contact ``d`` deep now was ``d + Δs`` deep
-    before, ``Δs`` the separation the move made at its point (the relative velocity's formula,
-    with the moves for velocities), and its spring gained ``½ k (d⁺² − (d + Δs)⁺²)``. A pose, a
-    robot's joint positions, puts a kinematic body where it is given; the springs it compresses
-    on the way store what the body did as work (``StepStats.pose_work``; the work through the
-    step's impulses is ``kinematic_work``). Only contacts with a dynamic body store anything."""
-    jump = world.s.jump
-    if len(c) == 0 or not stiffness.any() or not jump.any():
+def pose_work(world, c, m):
+    """Work (J) the kinematic bodies did on the compliant contacts ``c`` (stiffness from
+    ``prepare.stiffnesses`` under the models ``m``) when poses moved them at once since the last
+    step left them (``s.stepped``). A contact ``d`` deep now was ``d + Δs`` deep before, ``Δs`` the
+    separation the move made at its point (the relative velocity's formula with the moves for
+    velocities: each body's centre move and the rotation vector of its turn), and its spring gained
+    ``½ k (d⁺² − (d + Δs)⁺²)``. A pose, a robot's joint positions, puts a kinematic body where it
+    is given; the springs it compresses on the way store what the body did as work
+    (``StepStats.pose_work``; the work through the step's impulses is ``kinematic_work``). Only
+    contacts with a dynamic body store anything."""
+    if len(c) == 0 or not compliance.possible(world):
         return 0.0
-    dyn = world.kind == DYNAMIC
-    moved = (world.kind == KINEMATIC) & jump.any(axis=1)
-    on = (stiffness > 0) & (moved[c.body_a] | moved[c.body_b]) & (dyn[c.body_a] | dyn[c.body_b])
-    if not on.any():
-        return 0.0
-    a, b, p, n = c.body_a[on], c.body_b[on], c.point[on], c.normal[on]
-    step = np.where(moved[:, None], jump, 0.0)
-    u = np.zeros((len(a), 3))
-    for side, sign in ((a, 1.0), (b, -1.0)):   # (u_a − u_b) at the point, as prepare's relative velocity
-        u += sign * (step[side, :3] + cross(step[side, 3:], p - world.s.pos[side]))
-    before = np.maximum(c.depth[on] + np.einsum("ij,ij->i", n, u), 0.0)
-    now = np.maximum(c.depth[on], 0.0)
-    return float(0.5 * np.sum(stiffness[on] * (now * now - before * before)))
+    k, _ = prepare.stiffnesses(world, c, m)
+    s = world.s
+    cc = np.ascontiguousarray
+    return _pose_work(cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+                      cc(c.normal, dtype=float), cc(c.depth, dtype=float), k, world.kind, s.pos, s.quat, s.stepped)
+
+
+@njit(cache=True)
+def _pose_work(a, b, point, normal, depth, stiffness, kind, pos, quat, stepped):
+    """``pose_work``'s loop: contacts ``a, b (K,)``, ``point, normal (K,3)``, ``depth, stiffness
+    (K,)``; bodies ``kind (N,)``, centres ``pos (N,3)``, orientations ``quat (N,4)`` x,y,z,w, and
+    ``stepped (N,7)`` the centres and orientations the last step left."""
+    total = 0.0
+    for c in range(a.shape[0]):
+        k = stiffness[c]
+        if k <= 0.0 or (kind[a[c]] != DYNAMIC and kind[b[c]] != DYNAMIC):
+            continue
+        sep = 0.0   # n · (u_a − u_b): the separation the moves made at the point
+        for side in range(2):
+            i = a[c] if side == 0 else b[c]
+            if kind[i] != KINEMATIC:
+                continue
+            # the turn: q · conj(q_stepped) as a rotation vector (the shorter way round)
+            x1, y1, z1, w1 = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+            x0, y0, z0, w0 = -stepped[i, 3], -stepped[i, 4], -stepped[i, 5], stepped[i, 6]
+            rw = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
+            rx = w1 * x0 + w0 * x1 + y1 * z0 - z1 * y0
+            ry = w1 * y0 + w0 * y1 + z1 * x0 - x1 * z0
+            rz = w1 * z0 + w0 * z1 + x1 * y0 - y1 * x0
+            if rw < 0.0:
+                rw, rx, ry, rz = -rw, -rx, -ry, -rz
+            sv = math.sqrt(rx * rx + ry * ry + rz * rz)
+            f = 2.0 * math.atan2(sv, rw) / sv if sv > 1e-300 else 2.0
+            tx, ty, tz = f * rx, f * ry, f * rz
+            px, py, pz = point[c, 0] - pos[i, 0], point[c, 1] - pos[i, 1], point[c, 2] - pos[i, 2]
+            ux = pos[i, 0] - stepped[i, 0] + ty * pz - tz * py
+            uy = pos[i, 1] - stepped[i, 1] + tz * px - tx * pz
+            uz = pos[i, 2] - stepped[i, 2] + tx * py - ty * px
+            u = normal[c, 0] * ux + normal[c, 1] * uy + normal[c, 2] * uz
+            sep += u if side == 0 else -u
+        if sep == 0.0:
+            continue
+        now = max(depth[c], 0.0)
+        before = max(depth[c] + sep, 0.0)
+        total += 0.5 * k * (now * now - before * before)
+    return total
 
 
 @njit
