@@ -274,7 +274,7 @@ class BouncingBallError:
 def bouncing_height(t, h0, radius, e, g):
     """Centre height ``(T,)`` at times ``t (T,)`` (s) of a ball dropped from rest at centre height
     ``h0`` (m) onto ``z = 0``, bouncing with restitution ``e`` under gravity ``g`` (m/s²), each
-    flight in closed form (the same answer as ``bench/exact.py``)."""
+    flight in closed form (``bench/exact.py`` takes it from here)."""
     t = np.asarray(t, float)
     z = np.empty_like(t)
     t1 = np.sqrt(2 * (h0 - radius) / g)
