@@ -34,3 +34,23 @@ def njit(func=None, **options):
     options.setdefault("cache", True)
     decorate = _numba.njit(**options)
     return decorate(func) if func is not None else decorate
+
+
+class _PlainObjmode:
+    """``objmode`` without numba: the block already runs as Python (``objmode(x="float64")`` and
+    bare ``objmode`` both work as context managers)."""
+
+    def __call__(self, *args, **types):
+        return self
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+#: numba's ``objmode``: a block inside a kernel that runs as Python (for the few calls a kernel
+#: hands to SciPy, e.g. the sparse active set of an island too large for the dense one); the
+#: block's outputs are declared with their numba types, ``with objmode(ok="boolean"):``
+objmode = _numba.objmode if _numba is not None else _PlainObjmode()

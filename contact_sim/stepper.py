@@ -19,12 +19,11 @@
 5. positions of penetrating contacts are corrected by split-impulse pseudo-velocities, which move
    bodies and are then discarded (no energy is added; ``response.correction``).
 
-``_impulse_step`` reads as this list: one line per named stage around a ``StepContext``
-(``response.context``, Box2D's step context), which holds what the stages share. A ``next_step``
-step of the impulse response (one sub-step: impacts, resting contact, the correction's plan) runs
-the stages after detection as one compiled call (``response.compiled_step``), the same kernels in
-the same order, bit for bit; where the stages would take another branch (a kinematic body's push
-cap, a solve too large for the dense active set) it declines and the stages run.
+``_impulse_step`` reads as this list: detection, then one compiled call per sub-step for the
+stages after it (``response.substep``: 1's preparation, 2, 3, 5's plan, and the advance), whatever
+the models; the time-of-impact search (4) runs between its solves and its advance when the models
+ask for exact times of impact. Each stage's kernel lives in its stage's module (``prepare``,
+``impact``, ``resting``, ``correction``, ``free_motion``), every solve is ``solver.solve_rows``.
 
 Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
 (friction on) regularised Coulomb friction (``response.penalty_friction``).
@@ -45,7 +44,7 @@ from .collision import detect_world
 from .collision.vec3 import rotations
 from .response import solver
 from .response import toi as toi_mod
-from .response import compiled_step, correction, impact, penalty_friction, prepare, resting, swept
+from .response import correction, penalty_friction, prepare, substep, swept
 from .response.cache import merge_records, record
 from .response.context import StepContext
 from .response.energy import kinematic_work, pose_work
@@ -84,29 +83,24 @@ def _detect(world, margin, R=None, reach=None, floor=0.0):
 # ---------------------------------------------------------------------------- impulse / kinematic
 def _impulse_step(world, dt, m):
     """One step of the impulse (or kinematic) response, as named stages around a ``StepContext``
-    (Box2D's step context): per sub-step (the step splits at times of impact) detect, prepare the
-    contacts, solve impacts and resting contact, plan position correction (first sub-step), find
-    the next time of impact, store the impulses and advance; then apply the position correction and
-    keep what the next step reuses."""
+    (Box2D's step context): per sub-step (the step splits at times of impact) detect, then the
+    stages after detection in one compiled call (``response.substep``: prepare the contacts, solve
+    impacts and resting contact, plan position correction on the first sub-step, store the
+    impulses and advance; with exact times of impact the time of impact is found between the
+    solves and the advance); then apply the position correction and keep what the next step reuses."""
     ctx = StepContext.start(world, dt, m)
+    limit = world.settings.max_impacts_per_step
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
         if ctx.first and ctx.k and m.response == "impulse" and world.body_masks().any_kinematic:
             ctx.pose_work = pose_work(world, ctx.contacts, m)   # what poses given since stored in springs
-        if ctx.k and compiled_step.run(ctx):   # the stages below in one compiled call (next_step, no push)
+        whole = not (ctx.exact_toi or m.continuous) or ctx.events >= limit
+        substep.run(ctx, whole)          # prepare, impacts, correction plan, resting (, store, advance)
+        if whole:
             break
-        _velocity_stage(ctx)             # relative velocities; the speculative contacts that can close
-        if ctx.k:
-            prepare.prepare_contacts(ctx)  # rows, coefficients, approach speeds; which touch, close, bounce
-            impact.impact_solve(ctx)     # compression with friction, then restitution (its own stage)
-            resting.resting_solve(ctx)   # warm-started constant force over the rest of the step
-            if ctx.first:
-                correction.plan(ctx)     # split-impulse pseudo-velocities against penetration
-        ctx.first = False
         tau = _time_of_impact(ctx)       # the first instant a pair apart touches, else the rest of the step
         frac = tau / ctx.t_left
-        _store_impulses(ctx, frac)       # the sub-step's contacts with their impulses
-        _advance_stage(ctx, tau, frac)   # free motion with the resting force (kick, drift, kick)
+        substep.finish(ctx, tau, frac)   # the sub-step's impulses; free motion with the resting force
         if frac >= 1.0:
             break
         ctx.t_left -= tau
@@ -116,8 +110,8 @@ def _impulse_step(world, dt, m):
 
 def _detect_stage(ctx):
     """``ctx.contacts``: the contacts within the margin (with speculative contacts, the
-    look-ahead: ``ctx.look_ahead = (t_left, margin)`` then says which of them ``_velocity_stage`` keeps);
-    the sub-step's other fields are reset."""
+    look-ahead: ``ctx.look_ahead = (t_left, margin)`` then says which of them the sub-step keeps:
+    the separated ones whose gap can close within the rest of the step)."""
     world = ctx.world
     margin = world.settings.contact_margin
     det_margin, reach, floor = prepare.speculative_reach(world, ctx.t_left) if ctx.speculative else (margin, None, 0.0)
@@ -129,22 +123,8 @@ def _detect_stage(ctx):
     c = swept.mark_swept(_detect(world, det_margin, ctx.R, reach, floor), ctx.swept_pair)   # the sweep's hit: feature swept
     ctx.swept_pair = None
     ctx.look_ahead = (ctx.t_left, margin) if ctx.speculative and det_margin > margin else None
-    ctx.contacts, ctx.rel_vel = c, None
-    ctx.rest_impulse = ctx.rest_mask = ctx.dv_rest = ctx.dw_rest = None
-
-
-def _velocity_stage(ctx):
-    """``ctx.rel_vel (K,3)``: the contact points' relative velocities, keeping of the speculative
-    contacts (``ctx.look_ahead``) only the separated ones whose gap can close within the rest of the
-    step (the compiled step does this itself; when it found none that can, ``ctx.contacts`` is empty)."""
-    world, m, c = ctx.world, ctx.models, ctx.contacts
-    if ctx.look_ahead is not None and len(c):
-        rel_vel, near = prepare.relative_velocity(world, c, m, closing=ctx.look_ahead)
-        if near is not None:
-            c, rel_vel = c.select(near), rel_vel[near]
-    else:
-        rel_vel = prepare.relative_velocity(world, c, m)
-    ctx.contacts, ctx.rel_vel = c, rel_vel
+    ctx.contacts = c
+    ctx.touching = ctx.rest_mask = ctx.dv_rest = None
 
 
 def _time_of_impact(ctx):
@@ -171,36 +151,6 @@ def _time_of_impact(ctx):
     return ev
 
 
-def _store_impulses(ctx, frac):
-    """The sub-step's contacts with their impulses (impacts, and the resting force over the
-    fraction ``frac`` of the rest of the step it lasted) into the step's records."""
-    if not ctx.k:
-        return
-    lam = ctx.impulse
-    if ctx.rest_impulse is not None:
-        lam += ctx.rest_impulse * frac
-    rec = record(ctx.contacts, ctx.rows, lam, ctx.vn0)
-    local = ctx.local
-    if ctx.speculative:   # speculative contacts that did nothing are not contacts of this step
-        used = ctx.touching | (lam[:, 0] > 0)
-        if not used.all():
-            rec, local = rec.select(used), local[used]
-    ctx.records.append((rec, local))
-    # the kinematic bodies' work, with their points' velocities at this sub-step's start, where the
-    # contact points are: at the step's end a turning, moving body's centre has moved away from them
-    # (a robot arm turning at 90 rad/s: 20 % of the work missed)
-    ctx.kinematic_work += kinematic_work(ctx.world, rec)
-
-
-def _advance_stage(ctx, tau, frac):
-    """Free motion over ``tau``, with the resting force's velocity change over the fraction
-    ``frac`` of the rest of the step as two half-kicks around the drift."""
-    if ctx.dv_rest is None:
-        ctx.drift += ctx.world._advance_free(tau)
-    else:
-        ctx.drift += _advance(ctx, tau, 0.5 * ctx.dv_rest * frac, 0.5 * ctx.dw_rest * frac)
-
-
 def _finish(ctx, correction_energy):
     """What the step leaves: the contact cache for the next step, ``world.contacts`` (one row per
     contact point over the sub-steps) and ``world.last_solve``."""
@@ -214,16 +164,6 @@ def _finish(ctx, correction_energy):
                                  kinematic_work=ctx.kinematic_work, pose_work=ctx.pose_work,
                                  rotation_drift=ctx.drift,
                                  kick_error_bound=ctx.kick_error, rest_work_bound=ctx.rest_bound)
-
-
-def _advance(ctx, tau, half_dv, half_dw):
-    """Free motion over ``tau`` with a constant contact force whose velocity change over ``tau`` is
-    ``2·half_dv (N,3)`` (angular ``2·half_dw``): kick half, drift exactly, kick half (one kernel,
-    ``free_motion.advance``). Returns the free rotation's drift (J); the half-kicks' error bound
-    goes to ``ctx.kick_error``."""
-    drift, kick_error = ctx.world._advance_free(tau, half_dv, half_dw)
-    ctx.kick_error += kick_error
-    return drift
 
 
 # ---------------------------------------------------------------------------- penalty
@@ -271,7 +211,7 @@ def _penalty_step(world, dt, m):
         used = inside | (res.impulse[:, 0] > 0.0)   # a speculative contact that did nothing is none
         rec = record(c, rows, res.impulse, vn0)
         world.contacts = rec if used.all() else rec.select(used)
-        work = kinematic_work(world, world.contacts)   # before the bodies move (_store_impulses)
+        work = kinematic_work(world, world.contacts)   # before the bodies move (substep._record)
         # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
         # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step
         touched = np.zeros(len(world), bool)

@@ -39,8 +39,8 @@ def warm_up():
                        angular_velocity=(0.0, 0.0, 0.0) if name == "sphere" else (0.3, 0.2, 0.1))
     for _ in range(5):
         world.step(0.01)
-    # the compiled step (``response.compiled_step``), which worlds of more than a few bodies take
-    # (this one, with ``auto``, would get exact times of impact and the Python stages)
+    # the sub-step's whole exit (``response.substep``), which worlds of more than a few bodies take
+    # (the one above, with ``auto``, gets exact times of impact: the split exit)
     rest = cs.World(settings=cs.Settings(toi="next_step"))
     rest.add_body("ground", shapes["plane"], kind="static")
     rest.add_body("box", shapes["box"], density=1000.0, position=(0.0, 0.0, 0.15))

@@ -67,7 +67,7 @@ def test_a_box_pressed_into_a_wall_by_a_compliant_pusher_feels_the_springs_force
 
 
 def test_the_same_press_under_exact_times_of_impact():
-    """The Python stages (fractional time of impact) give the compiled step's answer."""
+    """The sub-step's split exit (fractional time of impact) gives the whole exit's answer."""
     k = 1e4
     w = _pusher_world(k, toi="fractional")
     _press(w, 0.01)

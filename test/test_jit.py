@@ -53,7 +53,7 @@ def test_a_deep_copied_world_steps_with_the_kernels_already_compiled():
     import copy
     import pickle
 
-    from contact_sim.response import compiled_step
+    from contact_sim.response import substep
 
     w = cs.World(settings=cs.Settings(toi="next_step"))
     w.add_body("ground", cs.Plane(), kind="static")
@@ -61,8 +61,8 @@ def test_a_deep_copied_world_steps_with_the_kernels_already_compiled():
     w.step(0.01)
     twin = copy.deepcopy(w)
     assert not twin.gravity.flags.writeable and not pickle.loads(pickle.dumps(w)).gravity.flags.writeable
-    versions = len(getattr(compiled_step._step, "signatures", ()))
+    versions = len(getattr(substep._substep, "signatures", ()))
     twin.step(0.01)
     assert not twin.gravity.flags.writeable
-    assert len(getattr(compiled_step._step, "signatures", ())) == versions
+    assert len(getattr(substep._substep, "signatures", ())) == versions
     assert np.array_equal(twin.s.pos, (w.step(0.01), w.s.pos)[1])

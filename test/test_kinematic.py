@@ -1,4 +1,6 @@
 """Kinematic bodies: velocity from successive poses and stamps; bad poses change nothing."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -116,13 +118,16 @@ def test_set_poses_refuses_the_whole_batch(names, positions, orientations, messa
 
 
 def test_push_cap_scales_to_the_budget_of_the_fastest_body():
-    """``energy.push_cap``: a velocity change within every body's budget is kept (f = 1); one beyond
+    """``energy.push_cap_kernel``: a velocity change within every body's budget is kept (f = 1); one beyond
     it is scaled so that the body over budget ends exactly on it (``½m(|v₀| + 2u)² + ½m(2u)²`` plus
     its rotation before), the formula solved here by hand for a translation-only change."""
     import numpy as np
 
     import contact_sim as cs
-    from contact_sim.response.energy import push_cap
+    from contact_sim.response.energy import push_cap_kernel
+
+    def push_cap(w, bodies, u, v0, w0, vel, omega):
+        return push_cap_kernel(bodies, u, w.mass, w.particle, w.s.quat, w.inertia_body, v0, w0, v0, w0, vel, omega)
 
     w = cs.World()
     w.add_body("a", cs.Sphere(0.1), mass=2.0)
@@ -200,19 +205,17 @@ def squeeze_at_a_wall():
     return w
 
 
-@pytest.mark.parametrize("compiled", [True, False])
-def test_a_ball_squeezed_between_a_paddle_and_a_box_at_a_wall_rebounds_within_the_push_budget(compiled, monkeypatch):
+@pytest.mark.parametrize("toi", ["next_step", "fractional"])
+def test_a_ball_squeezed_between_a_paddle_and_a_box_at_a_wall_rebounds_within_the_push_budget(toi):
     """A paddle at u = 0.5 m/s pushes a ball (e = 0.2, μ = 0.4) into a box standing at a static wall:
     no impulse holds all three contacts, and the restitution stage's solve grew without bound. With a
     static body in the impact there is no frame for the energetic cap, so the push cap bounds the
     rebound as it bounds the compression: in every step each dynamic body ends no faster than
-    ``√((|v₀| + 2u)² + (2u)²)`` (its budget, ``energy.push_cap``) plus gravity's ``g·dt``. Before,
-    the ball left at 25 m/s. Both paths: the compiled step and the Python stages."""
-    from contact_sim.response import compiled_step
-
-    if not compiled:
-        monkeypatch.setattr(compiled_step, "applies", lambda ctx: False)
+    ``√((|v₀| + 2u)² + (2u)²)`` (its budget, ``energy.push_cap_kernel``) plus gravity's ``g·dt``. Before,
+    the ball left at 25 m/s. Both sub-step paths: whole (``next_step``) and split at times of impact
+    (``fractional``)."""
     w = squeeze_at_a_wall()
+    w.settings = dataclasses.replace(w.settings, toi=toi)
     u, dt, squeezed = 0.5, 0.01, 0
     for _ in range(150):
         v0 = np.linalg.norm(w.s.vel[2:4], axis=1)

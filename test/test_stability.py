@@ -153,7 +153,7 @@ def test_box_rests_on_a_mesh_for_ten_seconds(support):
 @pytest.mark.parametrize("seed", [2, 3, 4, 5, 6, 7, 8, 9])
 def test_kinematic_paddle_sweeps_through_a_pile(seed, stiffness):
     # rigid kinematic contacts (kinematic_stiffness 0): seeds 3-5 threw bodies out at 41-180 m/s
-    # before the push cap (energy.push_cap), and seed 6 threw one 2.7 m up before the correction
+    # before the push cap (energy.push_cap_kernel), and seed 6 threw one 2.7 m up before the correction
     # cap (correction.plan): a body squeezed between the paddle and a wall, or a chain ending at
     # one, has no impulse that holds every contact, and Gauss-Seidel's impulses grew with every
     # sweep. Compliant ones (the default): the same bounds, the paddle's work counted where its

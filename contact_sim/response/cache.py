@@ -37,19 +37,11 @@ class ContactCache:
             self.warm = (new_index[a][keep], new_index[b][keep]) + tuple(x[keep] for x in self.warm[2:])
 
 
-def local_points(world, c, R, point=None):
-    """Contact points ``(K,3)`` (``c.point`` or the given ``point (K,3)``) in body A's frame (what
-    identifies a contact across steps); ``R (N,3,3)`` the bodies' rotation matrices."""
-    p = c.point if point is None else point
-    out = np.empty((len(p), 3))
-    _local_points(np.ascontiguousarray(c.body_a, dtype=np.int64), np.ascontiguousarray(p, dtype=float), world.s.pos,
-                  R, out)
-    return out
-
-
 @njit
-def _local_points(a, point, pos, R, out):
-    """``out[k] = R[a[k]]ᵀ (point[k] − pos[a[k]])``."""
+def local_points(a, point, pos, R, out):
+    """Contact points ``point (K,3)`` of the contacts' A bodies ``a (K,)`` in A's frame (what
+    identifies a contact across steps): ``out[k] = R[a[k]]ᵀ (point[k] − pos[a[k]])``, ``R (N,3,3)``
+    the bodies' rotation matrices."""
     for k in range(a.shape[0]):
         i = a[k]
         dx, dy, dz = point[k, 0] - pos[i, 0], point[k, 1] - pos[i, 1], point[k, 2] - pos[i, 2]
@@ -103,29 +95,14 @@ def _match(a0, b0, p0, a1, b1, p1, ext, fraction, out):
             out[i] = o
 
 
-def warm_start(world, a, b, local, t_left, rows, mu):
-    """The resting solve's warm start ``(K,3)`` in ``rows``' (n, t1, t2) basis: the previous step's
-    resting impulses per unit time of the contacts ``(a, b (K,), local (K,3))`` that match one of
-    its contacts (same pair, nearest point: ``match``), times ``t_left``, projected on each contact's
-    tangent plane and friction cone (``mu (K,)``, ``project_warm``); ``None`` when nothing matches
-    (or every match is zero). One compiled pass."""
-    old = world.contact_cache.warm
-    if old is None or len(old[0]) == 0 or len(a) == 0:
-        return None
-    a0, b0, p0, values = old
-    c = np.ascontiguousarray
-    out = np.empty((len(a), 3))
-    if not _warm_start(c(a0, dtype=np.int64), c(b0, dtype=np.int64), c(p0, dtype=float), c(a, dtype=np.int64),
-                       c(b, dtype=np.int64), c(local, dtype=float), toi_mod._extents(world), MATCH_FRACTION,
-                       c(values, dtype=float), float(t_left), c(rows.dirs), c(mu, dtype=float), out):
-        return None
-    return out
-
-
 @njit
-def _warm_start(a0, b0, p0, a1, b1, p1, ext, fraction, values, t_left, dirs, mu, out):
-    """``warm_start``'s kernel: ``_match``, the matched values ``(K,4)`` times ``t_left`` (zero
-    where none matches) and ``_project_warm`` into ``out (K,3)``; whether any is non-zero."""
+def warm_start(a0, b0, p0, a1, b1, p1, ext, fraction, values, t_left, dirs, mu, out):
+    """The resting solve's warm start ``out (K,3)`` in the rows' (n, t1, t2) basis (``dirs
+    (K,3,3)``): the previous step's resting impulses per unit time (the cache ``a0, b0 (K0,)``,
+    ``p0 (K0,3)``, ``values (K0,4)``) of the contacts ``(a1, b1 (K,), p1 (K,3))`` that match one of
+    them (same pair, nearest point: ``_match``, within ``fraction`` of the smaller body's extent
+    ``ext (N,)``), times ``t_left``, projected on each contact's tangent plane and friction cone
+    (``mu (K,)``, ``_project_warm``). Returns whether any warm impulse is non-zero."""
     k1 = a1.shape[0]
     hit = np.full(k1, -1, np.int64)
     _match(a0, b0, p0, a1, b1, p1, ext, fraction, hit)
@@ -165,17 +142,11 @@ def record(c, rows, lam, vn0):
     return c
 
 
-def warm_record(lam, rows):
-    """``(K,4)``: impulses ``lam (K,3)`` in ``rows``' (n, t1, t2) basis as the normal impulse and the
-    world tangential impulse vector (basis-free, so the next step's rows can take it whatever
-    tangents they pick)."""
-    out = np.empty((len(lam), 4))
-    _warm_record(np.ascontiguousarray(lam, dtype=float), np.ascontiguousarray(rows.dirs), out)
-    return out
-
-
 @njit
-def _warm_record(lam, dirs, out):
+def warm_record(lam, dirs, out):
+    """``out (K,4)``: impulses ``lam (K,3)`` in the rows' (n, t1, t2) basis (``dirs (K,3,3)``) as the
+    normal impulse and the world tangential impulse vector (basis-free, so the next step's rows can
+    take it whatever tangents they pick)."""
     for c in range(lam.shape[0]):
         out[c, 0] = lam[c, 0]
         for x in range(3):

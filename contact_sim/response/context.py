@@ -1,10 +1,10 @@
 """What the stages of one step share (Box2D's ``b2StepContext``): ``StepContext``.
 
-The step (``stepper._impulse_step``) is a list of named stages, each a function of the context:
-detect → prepare contacts → impact solve → resting solve (warm started) → position correction →
-time of impact → store impulses → advance, repeated per sub-step when a time of impact splits
-the step. A stage reads what the earlier ones wrote here and writes its own fields; nothing is
-carried between steps except ``World.contact_cache``.
+The step (``stepper._impulse_step``) is a list of named stages: detect → the sub-step's compiled
+stages (``response.substep``: prepare, impacts, correction plan, resting, store, advance) → time of
+impact between its solves and its advance when the models ask for it, repeated per sub-step when a
+time of impact splits the step. A stage reads what the earlier ones wrote here and writes its own
+fields; nothing is carried between steps except ``World.contact_cache``.
 
 Shapes: ``N`` bodies, ``K`` contacts of the current sub-step.
 """
@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import solver
 from ..constants import IMPACT_SPEED_FRACTION
 
 
@@ -34,34 +33,15 @@ class StepContext:
     # ---- the current sub-step (written by the stages, in order)
     t_left: float = 0.0            # time left in the step
     R: np.ndarray = None           # (N,3,3) the bodies' rotation matrices at the sub-step's start (detect)
-    contacts: object = None        # Contacts of the sub-step (detect)
+    contacts: object = None        # Contacts of the sub-step (detect; the sub-step drops the speculative
+                                   # ones that cannot close)
     look_ahead: tuple = None       # (t_left, margin): the speculative contacts to filter (detect)
-    rel_vel: np.ndarray = None     # (K,3) relative velocity of the contact points (velocity stage)
-    rows: object = None            # solver.Rows (prepare)
-    local: np.ndarray = None       # (K,3) points in A's frame: the contacts' identity across steps
-    e_material: np.ndarray = None  # (K,) restitution of the two materials combined
-    restitution: np.ndarray = None  # (K,) restitution, 0 where the rebound would rest
-    mu_s: np.ndarray = None        # (K,) static friction (zero without friction)
-    mu_d: np.ndarray = None        # (K,) dynamic friction (zero without friction)
-    friction: bool = False         # the solves take friction (the models' friction, not kinematic)
-    stiffness: np.ndarray = None   # (K,) N/m of the compliant contacts, 0 for rigid ones (compliance)
-    zeta: np.ndarray = None        # (K,) their damping ratio
-    soft: np.ndarray = None        # (K,) bool: the compliant contacts, or (0,) when none is
-    vn0: np.ndarray = None         # (K,) normal velocity at preparation (the approach speed)
+    pos0: np.ndarray = None        # (N,3) the centres at the sub-step's start, with a kinematic body
+                                   # (its work is taken where the contact points are)
     touching: np.ndarray = None    # (K,) bool: within the margin (or the time of impact's tolerance)
-    spec_target: np.ndarray = None  # (K,) normal velocity that closes a speculative gap exactly
-    closing: np.ndarray = None     # (K,) bool: speculative contacts that would overlap by the end
-    impact: np.ndarray = None      # (K,) bool: touching contacts that approach fast enough to bounce
-    bounced: np.ndarray = None     # (K,) bool: impact, or a closing one that bounces (e > 0)
-    counts: object = None          # prepare.Counts: how many touch, impact, close, bounce; the deepest depth
-    impulse: np.ndarray = None     # (K,3) impulses of the sub-step (n, t1, t2), on A
-    vn1: np.ndarray = None         # (K,) normal velocity after the impact solve
-    push_ref: tuple = None         # (vel, omega) (N,3) at the impact stage's start, with a kinematic
-                                   # body: what the push cap measures every solve of the sub-step from
-    rest_impulse: np.ndarray = None  # (K,3) the resting solve's impulse over the rest of the step
-    rest_mask: np.ndarray = None   # (K,) bool: the contacts that rest
+    rest_mask: np.ndarray = None   # (K,) bool: the contacts that rest, None when no resting solve ran
     dv_rest: np.ndarray = None     # (N,3) velocity change of the resting force over the rest of the step
-    dw_rest: np.ndarray = None     # (N,3) angular velocity change of the same
+    pending: tuple = None          # what substep.finish stores and advances after a time of impact
     # ---- accumulated over the step
     first: bool = True             # the first sub-step (position correction is planned there)
     events: int = 0                # times of impact handled
@@ -99,20 +79,3 @@ class StepContext:
     def k(self):
         """Contacts of the current sub-step."""
         return 0 if self.contacts is None else len(self.contacts)
-
-    def solve(self, rows, vel, omega, **kw):
-        """``solver.solve_auto`` with the settings' solver choice, iterations and tolerance."""
-        st = self.settings
-        return solver.solve_auto(rows, vel, omega, iterations=st.solver_iterations, tolerance=st.solver_tolerance,
-                                 method=st.solver_method, direct_max=st.direct_max_contacts, **kw)
-
-    def note(self, res, residual=True):
-        """A solve's sweeps (and residual) into the step's statistics; one that stopped at
-        ``settings.solver_iterations`` with an impulse still changing by more than
-        ``settings.solver_tolerance`` marks the step unconverged."""
-        st = self.settings
-        self.iterations = max(self.iterations, res.iterations)
-        if residual:
-            self.residual = max(self.residual, res.residual)
-        if res.iterations >= st.solver_iterations and res.residual > st.solver_tolerance:
-            self.unconverged = True

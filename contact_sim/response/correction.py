@@ -1,6 +1,6 @@
 """Position correction: split-impulse pseudo-velocities that push penetrating bodies apart.
 
-Planned once per step from its first contacts (``plan``), applied as a displacement at the end of
+Planned once per step from its first contacts (``plan``, a kernel of the sub-step's pipeline), applied as a displacement at the end of
 the step (``apply``) and then thrown away: they move positions only, so no energy is added (the
 potential energy the separation adds is reported as ``StepStats.correction_energy``)."""
 import numpy as np
@@ -8,6 +8,7 @@ import numpy as np
 from .. import quat
 from ..jit import njit
 from .energy import potential_change
+from .solver import solve_rows
 
 
 @njit(cache=True)
@@ -39,21 +40,24 @@ def penetrating(depth, soft, a, b, dynamic):
     return out[:n]
 
 
-def plan(ctx):
-    """``ctx.pseudo = (vp, wp) (N,3)``: pseudo-velocities removing ``settings.split_beta`` of each
-    penetration over the step (normal rows only, non-negative), or ``None`` when nothing penetrates
-    deeper than ``settings.split_slop``."""
-    world, c = ctx.world, ctx.contacts
-    st = world.settings
-    if len(c) == 0 or ctx.counts.deepest <= st.split_slop:
-        return
-    pen = penetrating(c.depth, ctx.soft, c.body_a, c.body_b, world.body_masks().dynamic)
-    if pen.size == 0:
-        return
-    vp = np.zeros_like(world.s.vel)
-    wp = np.zeros_like(world.s.omega)
-    ctx.solve(ctx.rows.select(pen), vp, wp, target_n=st.split_beta * c.depth[pen] / ctx.dt)
-    cap(ctx, pen, vp, wp)
+@njit
+def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, split_beta, dt, method, direct_max,
+         max_iterations, tolerance, vp, wp):
+    """Pseudo-velocities ``vp, wp (N,3)`` (zeros in) removing ``split_beta`` of each penetration of
+    the contacts ``penetrating`` picks over the step ``dt`` (normal rows only, non-negative: the
+    step's solve, ``solver.solve_rows``); rows as ``rows.Rows``' arrays. Returns the penetrating
+    contacts' indices (empty: nothing to correct)."""
+    pen = penetrating(depth, soft, a, b, dynamic)
+    p = pen.shape[0]
+    if p:
+        target = np.empty(p)
+        for i in range(p):
+            target[i] = split_beta * depth[pen[i]] / dt
+        zeros = np.zeros(p)
+        solve_rows(method, a[pen], b[pen], dirs[pen], ang_a[pen], ang_b[pen], iang_a[pen], iang_b[pen], ima[pen],
+                   imb[pen], K[pen], target, zeros, zeros, zeros, False, np.zeros((p, 3)), False, dynamic, direct_max,
+                   max_iterations, tolerance, vp, wp, np.zeros((p, 3)))
+    return pen
 
 
 def cap(ctx, pen, vp, wp):

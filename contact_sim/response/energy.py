@@ -107,29 +107,6 @@ def _touches(kind, a, b, which):
     return False
 
 
-def impact_frame(world, a, b):
-    """The frame an impact's kinetic energy is measured in, for the contacts ``a, b (K,)``: ``None``
-    (the world's) when no kinematic body takes part; the rigid motion ``(v, ω, x) (3,)`` of the one
-    kinematic body that does, with no static body in the impact; ``False`` otherwise (no frame).
-    The kernel, ``frame_of``, is the one the compiled step calls.
-
-    Against a moving kinematic body a rebound gains kinetic energy in the world frame (a paddle at
-    v sends a resting ball off at 2v with e = 1): capped there, the rebound was lost. In the frame
-    that moves with the body's rigid motion (each dynamic body's velocity less that field's at its
-    centre, its spin less ω) every contact velocity is what it was, so the impulses are the same and
-    Stronge's bound holds there; a static body or a second kinematic one moves differently, and no
-    frame serves (the push cap, ``push_cap``, bounds the impact then)."""
-    s = world.s
-    out = np.empty((3, 3))
-    code = frame_of(world.kind, np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64),
-                    s.vel, s.omega, s.pos, out)
-    if code == NO_KINEMATIC:
-        return None
-    if code == NO_FRAME:
-        return False
-    return out[0], out[1], out[2]
-
-
 #: ``frame_of``'s answers: no kinematic body in the impact (the world's frame), one kinematic body's
 #: frame, or no frame (a static body or a second kinematic one)
 NO_KINEMATIC, FRAME, NO_FRAME = range(3)
@@ -137,8 +114,17 @@ NO_KINEMATIC, FRAME, NO_FRAME = range(3)
 
 @njit
 def frame_of(kind, a, b, vel, omega, pos, out):
-    """``impact_frame``'s kernel: ``NO_KINEMATIC``, ``NO_FRAME``, or ``FRAME`` with ``out (3,3)`` the
-    kinematic body's ``v, ω, x`` (rows)."""
+    """The frame an impact's kinetic energy is measured in, for the contacts ``a, b (K,)``:
+    ``NO_KINEMATIC`` (the world's) when no kinematic body takes part; ``FRAME``, with ``out (3,3)``
+    the rigid motion ``v, ω, x`` (rows) of the one kinematic body that does, with no static body in
+    the impact; ``NO_FRAME`` otherwise.
+
+    Against a moving kinematic body a rebound gains kinetic energy in the world frame (a paddle at
+    v sends a resting ball off at 2v with e = 1): capped there, the rebound was lost. In the frame
+    that moves with the body's rigid motion (each dynamic body's velocity less that field's at its
+    centre, its spin less ω) every contact velocity is what it was, so the impulses are the same and
+    Stronge's bound holds there; a static body or a second kinematic one moves differently, and no
+    frame serves (the push cap, ``push_cap_kernel``, bounds the impact then)."""
     k = -1
     static = False
     for c in range(a.shape[0]):
@@ -217,34 +203,6 @@ def restitution_cap_in(idx, mass, particle, quat, inertia_body, kinetic0, vel_c,
     return f
 
 
-def kinetic_energy(world, idx, frame=None):
-    """Kinetic energy (J, a float) of the bodies ``idx (k,)``, linear plus rotational, in ``frame``
-    (``impact_frame``; default the world's)."""
-    s = world.s
-    c = np.ascontiguousarray
-    return float(kinetic_in(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
-                            c(world.inertia_body), s.vel, s.omega, s.pos, _frame_array(frame), frame is not None))
-
-
-def energetic_cap(world, idx, kinetic0, vel_c, omega_c, frame=None):
-    """Scale the restitution stage's velocity change back so that the impact ends with no more
-    kinetic energy than it started with (``kinetic0``, J, over the bodies ``idx (k,)``, in ``frame``:
-    ``impact_frame``, default the world's); ``vel_c, omega_c (k,3)`` their velocities after
-    compression; returns the factor applied (1 when nothing was needed). The kernel,
-    ``restitution_cap_in``, is the one the compiled step calls."""
-    s = world.s
-    c = np.ascontiguousarray
-    return float(restitution_cap_in(c(idx, dtype=np.int64), c(world.mass, dtype=float), c(world.particle), s.quat,
-                                    c(world.inertia_body), float(kinetic0), c(vel_c, dtype=float),
-                                    c(omega_c, dtype=float), s.vel, s.omega, s.pos, _frame_array(frame),
-                                    frame is not None))
-
-
-def _frame_array(frame):
-    """``impact_frame``'s ``(v, ω, x)`` as the kernels' ``(3,3)`` (zeros for none)."""
-    return np.zeros((3, 3)) if frame is None else np.array(frame, dtype=float)
-
-
 @njit
 def _spin_product(quat, inertia_body, i, ux, uy, uz, wx, wy, wz):
     """``uᵀ R I Rᵀ w`` for body ``i``: the body-frame vectors ``Rᵀu, Rᵀw`` (the conjugate turn)
@@ -262,7 +220,7 @@ def _spin_product(quat, inertia_body, i, ux, uy, uz, wx, wy, wz):
 def kinetic(idx, mass, particle, quat, inertia_body, vel, omega):
     """Kinetic energy (J) of the bodies ``idx (k,)``: ``½ Σ m|v|² + ½ Σ ωᵀI_wω`` (no rotation for
     particles); ``quat (N,4)``, ``inertia_body (N,3,3)``, ``vel, omega (N,3)``. A loop, not numpy's
-    pairwise sums, so that the compiled step and the Python stages add in one order."""
+    pairwise sums, so that every caller adds in one order."""
     lin = 0.0
     rot = 0.0
     for i in idx:
@@ -317,24 +275,6 @@ def restitution_cap(idx, mass, particle, quat, inertia_body, kinetic0, vel_c, om
     return f
 
 
-def kinematic_push(world, a, b, point):
-    """What a solve over the contacts ``a, b (K,)`` at ``point (K,3)`` may give where kinematic bodies
-    push: ``(dynamic bodies (k,), speed u of the fastest kinematic contact point)``, or ``None``
-    when no contact has a kinematic body (between dynamic and static bodies the compression and
-    the resting force only take energy away). The kernels, ``push_speed`` and ``dynamic_bodies``,
-    are the ones the compiled step calls."""
-    bm = world.body_masks()
-    if not bm.any_kinematic:
-        return None
-    s = world.s
-    c = np.ascontiguousarray
-    a, b = c(a, dtype=np.int64), c(b, dtype=np.int64)
-    u = push_speed(a, b, c(point, dtype=float), bm.kinematic, s.pos, s.vel, s.omega)
-    if u < 0.0:
-        return None
-    return dynamic_bodies(a, b, bm.dynamic), u
-
-
 @njit
 def push_speed(a, b, point, kinematic, pos, vel, omega):
     """The speed (m/s) of the fastest kinematic contact point among the contacts ``a, b (K,)`` at
@@ -366,38 +306,24 @@ def dynamic_bodies(a, b, dynamic):
     return np.flatnonzero(mark & dynamic)
 
 
-def push_cap(world, bodies, u, vel0, omega0, vel, omega, ref=None):
-    """Scale a solve's velocity change back so that no body of ``bodies (k,)`` ends with more
-    kinetic energy than a body pushed inelastically by a kinematic one whose contact point moves
-    at ``u`` can have: ``½m(|v₀| + 2u)²`` of translation and ``½m(2u)²`` more rotation than it had.
-    ``vel0, omega0 (k,3)`` the bodies' velocities before the solve; ``vel, omega (N,3)`` after it,
-    set to ``vel0 + f·(vel[bodies] − vel0)`` (angular alike) with the largest ``f ≤ 1`` that
-    keeps every body within that; returns ``f`` (scale the solve's impulses by it). ``ref``
-    ``(vel (k,3), omega (k,3))``: the velocities the budget is measured from, when the solve is one
-    of several in a stage (default ``vel0, omega0``): each of an impact's rounds measured from its
-    own start let a body gain up to ``2u`` a round, and 128 rounds threw a body squeezed between a
-    paddle at 0.5 m/s and a wall out at 12 m/s in one step. The kernel, ``push_cap_kernel``, is the
-    one the compiled step calls.
+@njit
+def push_cap_kernel(bodies, u, mass, particle, quat, inertia_body, vel0, omega0, vref, wref, vel, omega):
+    """The push cap: scale a solve's velocity change back so that no body of ``bodies (k,)`` ends
+    with more kinetic energy than a body pushed inelastically by a kinematic one whose contact
+    point moves at ``u`` (``push_speed``) can have: ``½m(|v₀| + 2u)²`` of translation and ``½m(2u)²``
+    more rotation than it had. ``vel0, omega0 (k,3)`` the bodies' velocities before the solve;
+    ``vref, wref (k,3)`` those the budget is measured from (the sub-step's start: each of an
+    impact's rounds measured from its own start let a body gain up to ``2u`` a round, and 128
+    rounds threw a body squeezed between a paddle at 0.5 m/s and a wall out at 12 m/s in one step);
+    ``vel, omega (N,3)`` after the solve, set to ``vel0 + f·(vel[bodies] − vel0)`` (angular alike)
+    with the largest ``f ≤ 1`` that keeps every body within that. Returns ``f`` (scale the solve's
+    impulses by it). The kinetic energy of body ``i`` along the scale ``f`` is ``K0 + b f + a f²``;
+    the factor is the smallest root that meets a budget, within ``[0, 1]``.
 
     A body squeezed between a kinematic paddle and a wall (or a chain of bodies ending at one) has
     no impulse that holds every contact: Gauss–Seidel's impulses then grow with every sweep, and a
     40-body pile swept by a paddle at 0.5 m/s threw bodies out at 40–500 m/s. Capped, such a body
     moves on at about the paddle's speed and the position correction resolves the overlap."""
-    if len(bodies) == 0:
-        return 1.0
-    c = np.ascontiguousarray
-    vr, wr = (vel0, omega0) if ref is None else ref
-    return float(push_cap_kernel(c(bodies, dtype=np.int64), float(u), c(world.mass, dtype=float),
-                                 c(world.particle), world.s.quat, c(world.inertia_body), c(vel0, dtype=float),
-                                 c(omega0, dtype=float), c(vr, dtype=float), c(wr, dtype=float), vel, omega))
-
-
-@njit
-def push_cap_kernel(bodies, u, mass, particle, quat, inertia_body, vel0, omega0, vref, wref, vel, omega):
-    """``push_cap`` on arrays: ``bodies (k,)``, their velocities before the solve ``vel0, omega0
-    (k,3)`` and those the budget is measured from ``vref, wref (k,3)``; ``vel, omega (N,3)`` after
-    the solve, rescaled in place. The kinetic energy of body ``i`` along the scale ``f`` is
-    ``K0 + b f + a f²``; the factor is the smallest root that meets a budget, within ``[0, 1]``."""
     f = 1.0
     for j in range(bodies.shape[0]):
         i = bodies[j]

@@ -72,20 +72,28 @@ def _impacts(vel, inv_mass, a, b, normal, extra, k, order, lam):
         lam[i] = -(1.0 + k[i]) * vn / w
 
 
-def kinematic_impacts(vel, inv_mass, a, b, normal, rel_vel, k, which):
-    """Apply the kinematic response to the contacts ``which (K,) bool`` in place on ``vel (N, 3)``.
+@njit
+def kinematic_impacts(vel, inv_mass, a, b, normal, rel_vel, k, which, lam):
+    """Apply the kinematic response to the contacts ``which (K,) bool`` in place on ``vel (N, 3)``,
+    fastest approach first (the impact stage's kernel, ``impact.impact_stage``, calls it).
 
     ``inv_mass (N,)`` zero for bodies that do not move; ``a, b (K,)`` the contacts' bodies,
     ``normal (K, 3)`` B to A, ``rel_vel (K, 3)`` the contacts' relative velocities before the impact
     (what they hold beyond ``vel[a] − vel[b]``, a driven body's spin, is kept), ``k (K,)`` damping
-    factors. Returns the normal impulses ``(K,)`` on A (B gets their negative), 0 where none acted."""
+    factors. Writes the normal impulses on A (B gets their negative) into ``lam (K,)``, 0 where none
+    acted."""
+    n_k = a.shape[0]
+    extra = np.empty((n_k, 3))
+    for c in range(n_k):
+        lam[c] = 0.0
+        for x in range(3):
+            extra[c, x] = rel_vel[c, x] - (vel[a[c], x] - vel[b[c], x])
     idx = np.flatnonzero(which)
-    lam = np.zeros(len(a))
-    if idx.size == 0:
-        return lam
-    extra = np.ascontiguousarray(rel_vel - (vel[a] - vel[b]))
-    vn = np.einsum("ij,ij->i", normal[idx], rel_vel[idx])
-    order = idx[np.argsort(vn, kind="stable")]      # fastest approach first
-    _impacts(vel, np.ascontiguousarray(inv_mass, float), a, b, np.ascontiguousarray(normal), extra,
-             np.ascontiguousarray(k, float), order.astype(np.int64), lam)
-    return lam
+    if idx.shape[0] == 0:
+        return
+    vn = np.empty(idx.shape[0])
+    for j in range(idx.shape[0]):
+        c = idx[j]
+        vn[j] = normal[c, 0] * rel_vel[c, 0] + normal[c, 1] * rel_vel[c, 1] + normal[c, 2] * rel_vel[c, 2]
+    order = idx[np.argsort(vn, kind="mergesort")]      # fastest approach first
+    _impacts(vel, inv_mass, a, b, normal, extra, k, order, lam)

@@ -23,42 +23,7 @@ from ..settings import COMBINE_RULES, combine_pair
 from . import models as _models
 from . import solver
 from . import toi as toi_mod
-from .cache import local_points
-from ..constants import REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, SPECULATIVE_MAX_FRACTION
-
-
-def prepare_contacts(ctx):
-    """Rows, contact points in A's frame, coefficients, and the sub-step's contact classes from the
-    approach speed ``vn0``: touching (within the margin, or the time of impact's tolerance), impact
-    (touching and approaching faster than ``IMPACT_SPEED_FRACTION·|g|·dt``), closing (speculative:
-    apart, and overlapping by the end unless slowed) and bounced (impact, or closing with e > 0).
-    A rebound slower than ``REST_REBOUND_FRACTION·|g|·dt`` rests instead (e = 0)."""
-    world, m = ctx.world, ctx.models
-    c = ctx.contacts
-    k = len(c)
-    R = ctx.R   # the detection's rotation matrices: the bodies have not moved since
-    ctx.rows = rows(world, c, inv_inertia(world, m, R), ctx.rel_vel, m)
-    ctx.local = local_points(world, c, R)
-    e, ctx.mu_s, ctx.mu_d = coefficients(world, c, m)
-    ctx.friction = m.friction and m.response != "kinematic"
-    ext = toi_mod._extents(world) if ctx.exact_toi else np.zeros(0)
-    cc = np.ascontiguousarray
-    a, b = cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64)
-    ctx.stiffness, ctx.zeta = stiffnesses(world, c, m)
-    ctx.soft = ctx.stiffness > 0.0 if ctx.stiffness.any() else _NO_SOFT
-    ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.bounced = (
-        np.empty(k), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool), np.empty(k, bool))
-    ctx.spec_target = np.empty(k)
-    ctx.e_material = cc(e, dtype=float)
-    ctx.restitution = ctx.e_material.copy()
-    ctx.counts = classify(
-        a, b, cc(c.normal, dtype=float), cc(c.depth, dtype=float), cc(ctx.rel_vel, dtype=float),
-        cc(ctx.gravity, dtype=float), ext, ctx.exact_toi, toi_mod.TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt,
-        world.settings.contact_margin, m.resting, REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, ctx.speculative,
-        ctx.t_left, ctx.soft, ctx.restitution, ctx.vn0, ctx.touching, ctx.impact, ctx.closing, ctx.spec_target,
-        ctx.bounced)
-    if ctx.first:
-        ctx.max_penetration = max(ctx.max_penetration, ctx.counts.deepest)
+from ..constants import SPECULATIVE_MAX_FRACTION
 
 
 @njit
@@ -268,7 +233,7 @@ def inv_inertia(world, m, R):
 
 def coefficients(world, c, m):
     """Per-contact restitution, static and dynamic friction ``(K,)`` combined by ``settings.combine``
-    (friction zero unless the models' friction acts): ``coefficient_rows``, the compiled step's too."""
+    (friction zero unless the models' friction acts): ``coefficient_rows``, the sub-step's too."""
     k = len(c)
     out = np.empty((3, k))   # one block, three rows
     cc = np.ascontiguousarray
@@ -279,12 +244,9 @@ def coefficients(world, c, m):
     return out[0], out[1], out[2]
 
 
-_NO_SOFT = np.zeros(0, np.bool_)
-
-
 def stiffnesses(world, c, m):
     """Per contact of ``c``: stiffness (N/m, 0 rigid) and damping ratio ``(K,)``
-    (``compliance.stiffness_rows``, the compiled step's too); rigid throughout under the kinematic
+    (``compliance.stiffness_rows``, the sub-step's too); rigid throughout under the kinematic
     response and the resting stage off (a compliant row lives in the resting solve)."""
     k = len(c)
     out = np.zeros((2, k))
@@ -299,7 +261,7 @@ def stiffnesses(world, c, m):
 
 @njit
 def coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d):
-    """``coefficients`` in a loop, for the compiled step: ``a, b (K,)`` the contacts' bodies, the
+    """``coefficients`` in a loop, for the sub-step: ``a, b (K,)`` the contacts' bodies, the
     bodies' materials ``(N,)``, ``rule`` the index of ``settings.combine`` in ``COMBINE_RULES``;
     writes ``e, mu_s, mu_d (K,)`` (friction zero unless ``kinetic``), static friction at least the
     dynamic (``settings.combine_pair``: the one place the rules are written)."""

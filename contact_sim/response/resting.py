@@ -13,87 +13,114 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .pgs import _row_velocity
+from ..constants import MATCH_FRACTION
 from .cache import warm_record, warm_start
 from .compliance import soft_rows
-from .energy import kinematic_push, push_cap
+from .energy import dynamic_bodies, push_cap_kernel, push_speed
+from .pgs import _row_velocity
+from .solver import solve_rows
 
 
-def resting_solve(ctx):
-    """Writes ``ctx.rest_impulse (K,3)``, ``ctx.rest_mask (K,) bool`` (the contacts that rest),
-    ``ctx.dv_rest, ctx.dw_rest (N,3)`` (the force's velocity change over ``ctx.t_left``) and what
-    the contact cache keeps (``ctx.warm_out``); the bodies' velocities are not changed here (the
-    advance stage applies the force as two half-kicks)."""
-    m = ctx.models
-    if not m.resting or not (ctx.counts.touching or not ctx.exact_toi) \
-            or (ctx.counts.bounced and np.all(ctx.vn1 > ctx.impact_speed)):
-        return
-    world = ctx.world
-    s = world.s
-    c = ctx.contacts
-    t_left = ctx.t_left
-    v_end = s.vel + ctx.gravity * t_left
-    w_end = s.omega.copy()
+@njit
+def _min(x, y):
+    """numpy's ``minimum`` of two floats (the second on a tie: ``min(-0.0, 0.0)`` is ``0.0``)."""
+    return x if x < y else y
+
+
+@njit
+def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, local, vn0, vn1, touching, bounced,
+               soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, gravity_rows, dynamic,
+               kinematic, mass, particle, pos, quat, inertia_body, vel, omega, vel_ref, omega_ref, a0, b0, p0, values,
+               has_old, ext, method, direct_max, max_iterations, tolerance, resting, lam_r, dv, dw, wv):
+    """The resting solve of a sub-step over the time ``t`` left in the step, on its ``K`` contacts
+    (rows as ``rows.Rows``' arrays; ``local (K,3)`` the points in A's frame, the warm start's key;
+    the contact cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``, read when ``has_old``).
+
+    Which contacts rest: all but those that just rebounded (``bounced`` and leaving faster than
+    ``impact_speed``), and beside a compliant contact every one (its row, ``v⁺ ≥ −vn1``, never
+    pulling, lets a rebounding contact leave and keeps the spring from driving the pair back
+    through each other: a ball squeezed by a compliant paddle into a box it had just bounced off
+    went 4 cm into the box at 4 m/s). With exact times of impact only touching or slowly
+    approaching ones (a fast one within the margin gets its impact time). Marks them in
+    ``resting (K,) bool``; writes their impulses into ``lam_r (K,3)`` (zeros in), the force's
+    velocity change over ``t`` into ``dv, dw (N,3)`` (the bodies' velocities are not changed: the
+    advance applies it as two half-kicks) and the cache's values of the resting contacts into the
+    first rows of ``wv (K,4)``. Returns ``(n_rest, sweeps, residual, unconverged, work_bound)``."""
+    k = a.shape[0]
+    n = vel.shape[0]
+    kr = 0
+    for c in range(k):
+        leaving = bounced[c] and vn1[c] > impact_speed and soft.shape[0] == 0
+        resting[c] = not leaving and (not exact_toi or touching[c] or vn0[c] >= -gdt)
+        kr += resting[c]
+    ri = np.flatnonzero(resting)
+    # every contact rests (the usual case): the arrays as they are, no gathers
+    whole = kr == k
+    sa, sb = (a, b) if whole else (a[ri], b[ri])
+    sdirs, sang_a, sang_b = (dirs, ang_a, ang_b) if whole else (dirs[ri], ang_a[ri], ang_b[ri])
+    siang_a, siang_b, sK = (iang_a, iang_b, K) if whole else (iang_a[ri], iang_b[ri], K[ri])
+    sima, simb, slocal = (ima, imb, local) if whole else (ima[ri], imb[ri], local[ri])
+    smu_s, smu_d = (mu_s, mu_d) if whole else (mu_s[ri], mu_d[ri])
+    v_end = np.empty((n, 3))
+    for i in range(n):
+        for x in range(3):
+            v_end[i, x] = vel[i, x] + gravity_rows[i, x] * t
+    w_end = omega.copy()
     v_start_end = v_end.copy()
     w_start_end = w_end.copy()
-    # a contact that just rebounded is leaving: no resting force may hold it back. With exact times
-    # of impact only touching or slowly approaching contacts rest (a fast one within the margin gets
-    # its impact time); with next_step every contact within the margin is a speculative one
-    leaving = ctx.bounced & (ctx.vn1 > ctx.impact_speed)
-    if ctx.soft.shape[0]:
-        # beside a compliant contact it stays in: its row (v⁺ ≥ −vn1, never pulling) lets it leave
-        # and keeps the spring from driving the pair back through each other (a ball squeezed by a
-        # compliant paddle into a box it had just bounced off went 4 cm into the box at 4 m/s)
-        leaving = np.zeros_like(leaving)
-    if ctx.exact_toi:
-        rmask = (ctx.touching | (ctx.vn0 >= -ctx.gdt)) & ~leaving
-    else:
-        rmask = ~leaving
-    # every contact rests (the usual case): read the arrays as they are, no gathers
-    ri = slice(None) if rmask.all() else np.flatnonzero(rmask)
-    r2 = ctx.rows.select(rmask)
-    target = np.minimum(2.0 * np.minimum(c.depth[ri], 0.0) / t_left - ctx.vn1[ri], 0.0)
-    compliance = None
-    if ctx.soft.shape[0]:   # the compliant rows: their spring's target and compliance (compliance.soft_rows)
-        compliance = np.zeros(len(target))
-        ids = np.arange(len(c)) if isinstance(ri, slice) else ri
-        soft_rows(ids, ctx.rows.K, np.ascontiguousarray(c.depth, dtype=float), ctx.vn1, ctx.stiffness, ctx.zeta,
-                  t_left, target, compliance)
-    warm = warm_start(world, c.body_a[ri], c.body_b[ri], ctx.local[ri], t_left, r2, ctx.mu_d[ri])
-    fr = ctx.friction
-    res = ctx.solve(r2, v_end, w_end, target_n=target, mu_s=ctx.mu_s[ri] if fr else None,
-                    mu_d=ctx.mu_d[ri] if fr else None, warm=warm, compliance=compliance)
-    ctx.note(res)
-    # the push cap is the rigid contacts' answer to a squeeze; a compliant one obeys its spring law,
-    # and what it stores is counted (World.contact_energy)
-    if compliance is None:
-        pushed = kinematic_push(world, r2.a, r2.b, c.point[ri])
-    else:
-        rigid = compliance == 0.0
-        pushed = kinematic_push(world, r2.a[rigid], r2.b[rigid], c.point[ri][rigid])
-    if pushed is not None:   # where kinematic bodies push, no body ends faster than a push can make it
-        bodies = pushed[0]
-        ref = None if ctx.push_ref is None else (ctx.push_ref[0][bodies] + ctx.gravity[bodies] * t_left,
-                                                 ctx.push_ref[1][bodies])   # the impact stage's start
-        f = push_cap(world, *pushed, v_start_end[bodies], w_start_end[bodies], v_end, w_end, ref=ref)
+    # the constraints are on the velocity at the end of t: the normal velocity at least
+    # min(depth, 0)/t-ish (the force acts on the displacement (v_start + v_end)/2·t, which may close a
+    # gap exactly, never more, and never asks a pair to separate)
+    target = np.empty(kr)
+    for j in range(kr):
+        c = ri[j]
+        target[j] = _min(2.0 * _min(depth[c], 0.0) / t - vn1[c], 0.0)
+    warm = np.zeros((kr, 3))
+    use_warm = has_old and kr > 0 and warm_start(a0, b0, p0, sa, sb, slocal, ext, MATCH_FRACTION, values, t, sdirs,
+                                                  smu_d, warm)
+    lam = np.zeros((kr, 3))
+    compliance = np.zeros(kr)
+    if soft.shape[0]:   # the compliant rows: their spring's target and compliance (compliance.soft_rows)
+        soft_rows(ri, K, depth, vn1, stiff, zeta, t, target, compliance)
+    it, residual = solve_rows(method, sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK, target,
+                              compliance, smu_s, smu_d, kinetic, warm, use_warm, dynamic, direct_max, max_iterations,
+                              tolerance, v_end, w_end, lam)
+    unconverged = it >= max_iterations and residual > tolerance
+    # where kinematic bodies push, no body ends faster than a push can make it (energy.push_cap_kernel),
+    # measured from the impact stage's start; the push cap is the rigid contacts' answer to a
+    # squeeze, a compliant one obeys its spring law (what it stores is counted: World.contact_energy)
+    ca, cb, cpoint = sa, sb, point if whole else point[ri]
+    if soft.shape[0]:
+        rig = np.flatnonzero(compliance == 0.0)
+        ca, cb, cpoint = ca[rig], cb[rig], cpoint[rig]
+    u = push_speed(ca, cb, cpoint, kinematic, pos, vel, omega)
+    if u >= 0.0:
+        pb = dynamic_bodies(ca, cb, dynamic)
+        vref = vel_ref[pb]
+        for j in range(pb.shape[0]):
+            for x in range(3):
+                vref[j, x] = vref[j, x] + gravity_rows[pb[j], x] * t
+        f = push_cap_kernel(pb, u, mass, particle, quat, inertia_body, v_start_end[pb], w_start_end[pb], vref,
+                            omega_ref[pb], v_end, w_end)
         if f < 1.0:
-            res.impulse = res.impulse * f
-    lam2 = np.zeros((len(c), 3))
-    lam2[ri] = res.impulse
+            for j in range(kr):
+                for x in range(3):
+                    lam[j, x] = lam[j, x] * f
     # the constant-force model is first order in what the force does while the contact point moves
     # during the interval: its work is right to within ½|λ|·|v_point| (and what a solve stopped
     # before convergence leaves: _work_bound)
-    c_ = np.ascontiguousarray
-    ctx.rest_bound += _work_bound(c_(r2.a, dtype=np.int64), c_(r2.b, dtype=np.int64), c_(r2.dirs), c_(r2.ang_a),
-                                  c_(r2.ang_b), c_(s.vel, dtype=float), c_(s.omega, dtype=float), v_end, w_end,
-                                  c_(target, dtype=float), c_(res.impulse, dtype=float))
-    ctx.rest_impulse = lam2
-    ctx.rest_mask = rmask
-    ctx.dv_rest = v_end - v_start_end
-    ctx.dw_rest = w_end - w_start_end
-    # copies: kept across steps, never views of this step's contacts
-    ctx.warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), ctx.local[ri].copy(),
-                    warm_record(res.impulse, r2) / t_left)
+    bound = _work_bound(sa, sb, sdirs, sang_a, sang_b, vel, omega, v_end, w_end, target, lam)
+    warm_record(lam, sdirs, wv[:kr])
+    for j in range(kr):
+        for x in range(4):
+            wv[j, x] = wv[j, x] / t
+        for x in range(3):
+            lam_r[ri[j], x] = lam[j, x]
+    for i in range(n):
+        for x in range(3):
+            dv[i, x] = v_end[i, x] - v_start_end[i, x]
+            dw[i, x] = w_end[i, x] - w_start_end[i, x]
+    return kr, it, residual, unconverged, bound
 
 
 @njit

@@ -25,9 +25,14 @@ Three uses of the same machinery:
 """
 import numpy as np
 
+from ..jit import njit, objmode
+from ..settings import SOLVER_METHODS
 from . import pgs
-from ..constants import DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS
-from .direct import delassus, solve_direct, solve_exact
+from .active_set import SOLVED, TOO_LARGE, islands, solve_islands
+from ..constants import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
+                         DIRECT_REGULARISATION)
+from .direct import _active_set, delassus, solve_direct, solve_exact
+from .pgs import apply_ids, sweeps
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",
@@ -187,86 +192,247 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
 
 def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
                method="auto", direct_max=None, compliance=None):
-    """Contact impulses by the best method for the size: ``direct`` (active set, exact) up to
-    ``direct_max`` contacts (default ``DIRECT_MAX_CONTACTS``; ``settings.direct_max_contacts``),
-    finished by Gauss–Seidel when friction slides; ``jacobi``
-    (mass splitting) or ``gs`` (compiled sequential Gauss–Seidel) above. Same result type as ``solve``.
-    ``compliance (K,)`` (or None: rigid) regularises the normal rows, ``n·v + compliance·λn ≥
-    target_n`` (compliant contact: ``response.compliance``), in every method; ``jacobi`` has no such
-    row and gives compliant rows to ``gs``.
-
-    Contacts between two bodies that cannot move (a kinematic robot link pressed into a static
-    floor) are reported by detection but carry no impulse: nothing can respond, and their rows
-    have no effective mass (``K = 0``), which no solver may divide by."""
+    """Contact impulses by the best method for the size (``solve_rows``, the step's own solve):
+    ``direct`` (active set, exact) up to ``direct_max`` contacts (default ``DIRECT_MAX_CONTACTS``;
+    ``settings.direct_max_contacts``), finished by Gauss–Seidel when friction slides; ``jacobi``
+    (mass splitting) or ``gs`` (compiled sequential Gauss–Seidel) above. Same result type as
+    ``solve``; ``vel, omega (N,3)`` updated in place. ``compliance (K,)`` (or None: rigid)
+    regularises the normal rows, ``n·v + compliance·λn ≥ target_n`` (compliant contact:
+    ``response.compliance``)."""
     k = len(rows.a)
-    if compliance is not None and not np.any(compliance):
-        compliance = None
-    live = rows.movable[rows.a] | rows.movable[rows.b]
-    if not live.all():
-        lam = np.zeros((k, 3))
-        li = np.flatnonzero(live)
-        if li.size:
-            res = solve_auto(rows.select(li), vel, omega, target_n=target_n[li],
-                             mu_s=None if mu_s is None else mu_s[li], mu_d=None if mu_d is None else mu_d[li],
-                             iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[li],
-                             method=method, direct_max=direct_max,
-                             compliance=None if compliance is None else compliance[li])
-            lam[li] = res.impulse
-            return SolveResult(lam, res.iterations, res.residual)
-        return SolveResult(lam, 0, 0.0)
-    if method == "auto":
-        limit = DIRECT_MAX_CONTACTS if direct_max is None else direct_max
-        if DIRECT_FIRST < k <= limit and _largest_island(rows) > DIRECT_ISLAND_MAX:
-            # Gauss–Seidel first, the active set only when it does not converge: one large island
-            # (a pyramid of 55 boxes, 400 contacts) costs tens of ms to factorise and Gauss–Seidel
-            # warm-started usually converges; many small islands (a resting floor) take the compiled
-            # dense kernel, as fast as Gauss–Seidel and exact
+    c = np.ascontiguousarray
+    zeros = np.zeros(k)
+    lam = np.zeros((k, 3))
+    v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
+    w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
+    kinetic = mu_s is not None
+    it, residual = solve_rows(
+        SOLVER_METHODS.index(method), c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs),
+        c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
+        c(rows.imb, dtype=float), c(rows.K), c(target_n, dtype=float),
+        zeros if compliance is None else c(compliance, dtype=float), c(mu_s, dtype=float) if kinetic else zeros,
+        c(mu_d, dtype=float) if kinetic else zeros, kinetic,
+        np.zeros((k, 3)) if warm is None else c(warm, dtype=float), warm is not None,
+        c(rows.movable, dtype=np.bool_), DIRECT_MAX_CONTACTS if direct_max is None else int(direct_max),
+        int(iterations), float(tolerance), v, w, lam)
+    if v is not vel:
+        vel[...] = v
+    if w is not omega:
+        omega[...] = w
+    return SolveResult(lam, int(it), float(residual))
+
+
+#: ``settings.SOLVER_METHODS`` by index, as the kernels take them
+AUTO, DIRECT, GS, JACOBI = (SOLVER_METHODS.index(x) for x in ("auto", "direct", "gs", "jacobi"))
+
+
+@njit
+def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d, kinetic,
+               warm, use_warm, movable, direct_max, iterations, tolerance, vel, omega, lam):
+    """The step's contact solve, every method (``method`` an index of ``settings.SOLVER_METHODS``),
+    on the rows of ``K`` contacts (``rows.Rows``' arrays): ``n·v + compliance·λn ≥ target`` with
+    ``λn ≥ 0`` and Coulomb friction when ``kinetic`` and some ``mu_s > 0``; ``warm (K,3)`` the
+    starting impulses (read when ``use_warm``); ``movable (N,)`` the bodies the solve moves.
+    Writes the impulses into ``lam (K,3)`` (zeros in) and updates ``vel, omega (N,3)``. Returns
+    ``(sweeps, residual)``.
+
+    ``auto``: the exact active set per island (``direct``) up to ``direct_max`` contacts,
+    Gauss–Seidel above; a set of more than ``DIRECT_FIRST`` contacts with an island larger than
+    ``DIRECT_ISLAND_MAX`` tries Gauss–Seidel first (a pyramid of 55 boxes, 400 contacts, costs tens
+    of ms to factorise and Gauss–Seidel warm started usually converges) and the active set only
+    when it does not. Contacts between two bodies that cannot move (a kinematic link pressed into
+    a static floor) carry no impulse: their rows have no effective mass (``K = 0``)."""
+    k = a.shape[0]
+    if k == 0:
+        return 0, 0.0
+    n_live = 0
+    for c in range(k):
+        n_live += movable[a[c]] or movable[b[c]]
+    if n_live < k:
+        if n_live == 0:
+            return 0, 0.0
+        li = np.empty(n_live, np.int64)
+        j = 0
+        for c in range(k):
+            if movable[a[c]] or movable[b[c]]:
+                li[j] = c
+                j += 1
+        lam_l = np.zeros((n_live, 3))
+        it, residual = solve_rows(method, a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li], iang_b[li],
+                                  ima[li], imb[li], K[li], target[li], compliance[li], mu_s[li], mu_d[li], kinetic,
+                                  warm[li], use_warm, movable, direct_max, iterations, tolerance, vel, omega, lam_l)
+        for j in range(n_live):
+            for x in range(3):
+                lam[li[j], x] = lam_l[j, x]
+        return it, residual
+    order, start = islands(a, b, movable, vel.shape[0])
+    if method == AUTO:
+        if DIRECT_FIRST < k <= direct_max and _largest(start) > DIRECT_ISLAND_MAX:
             v0, w0 = vel.copy(), omega.copy()
-            res = solve_auto(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
-                             tolerance=tolerance, warm=warm, method="gs", compliance=compliance)
-            if res.residual <= tolerance:
-                return res
-            vel[...] = v0
-            omega[...] = w0
-        method = "direct" if k <= limit else "gs"
-    if method == "direct":
-        # islands are independent: the solved ones keep their exact impulses (applied), Gauss–Seidel
-        # finishes the others (sliding friction, an inconsistent set) from the start the active set left
-        lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
-                                            apply_solved=True, compliance=compliance)
-        if solved.all():
-            return SolveResult(lam, 1, residual)
-        ui = np.flatnonzero(~solved)
-        res = solve(rows.select(ui), vel, omega, target_n=target_n[ui], mu_s=None if mu_s is None else mu_s[ui],
-                    mu_d=None if mu_d is None else mu_d[ui], iterations=iterations, tolerance=tolerance,
-                    warm=lam[ui], compliance=None if compliance is None else compliance[ui])
-        lam[ui] = res.impulse
-        return SolveResult(lam, res.iterations, max(res.residual, residual))
-    if method == "gs":
-        # islands of one contact (a body touching only static geometry) exactly, by the island kernel;
-        # Gauss–Seidel for the coupled rest and for a single contact that slides
-        lam, solved, _ = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
-                                     apply_solved=True, island_max=1, sparse=False, compliance=compliance)
-        if solved.all():
-            return SolveResult(lam, 1, 0.0)
-        rest = np.flatnonzero(~solved)
-        res = solve(rows.select(rest), vel, omega, target_n=target_n[rest],
-                    mu_s=None if mu_s is None else mu_s[rest], mu_d=None if mu_d is None else mu_d[rest],
-                    iterations=iterations, tolerance=tolerance, warm=None if warm is None else warm[rest],
-                    compliance=None if compliance is None else compliance[rest])
-        lam[rest] = res.impulse
-        return SolveResult(lam, res.iterations, res.residual)
-    if method == "jacobi" and compliance is None:
-        return solve_jacobi(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
-                            tolerance=tolerance, warm=warm)
-    return solve(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, iterations=iterations,
-                 tolerance=tolerance, warm=warm, compliance=compliance)
+            lam_g = np.zeros((k, 3))
+            it, residual = _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
+                                         compliance, mu_s, mu_d, kinetic, warm, use_warm, movable, iterations,
+                                         tolerance, vel, omega, lam_g)
+            if residual <= tolerance:
+                lam[:] = lam_g
+                return it, residual
+            vel[:] = v0
+            omega[:] = w0
+        method = DIRECT if k <= direct_max else GS
+    if method == DIRECT:
+        return _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s,
+                       mu_d, kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam)
+    if method == GS:
+        return _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
+                             mu_s, mu_d, kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam)
+    rigid = True
+    for c in range(k):
+        rigid = rigid and compliance[c] == 0.0
+    if method == JACOBI and rigid:   # mass splitting (numpy, SciPy's sparse scatter): solve_jacobi
+        with objmode(it="int64", residual="float64"):
+            it, residual = _jacobi_py(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
+                                      kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam)
+        return it, residual
+    ids = np.arange(k)
+    return _sweep_ids(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
+                      kinetic, warm, use_warm, iterations, tolerance, vel, omega, lam)
 
 
-def _largest_island(rows):
-    """Contacts in the largest island of ``rows`` (contacts linked through movable bodies)."""
-    start = rows.islands()[1]
-    return int(np.diff(start).max()) if len(start) > 1 else 0
+@njit
+def _largest(start):
+    """Contacts in the largest island (``start (I+1,)`` of ``active_set.islands``)."""
+    m = 0
+    for i in range(start.shape[0] - 1):
+        m = max(m, start[i + 1] - start[i])
+    return m
+
+
+@njit
+def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
+            kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam):
+    """The active set island by island (``active_set.solve_islands``; an island larger than
+    ``DIRECT_ISLAND_MAX`` or whose factorisation failed by the sparse ``direct._active_set``), the
+    solved islands' impulses applied, Gauss–Seidel finishing the others (sliding friction, an
+    inconsistent set) from the start the active set left. Returns ``(sweeps, residual)``."""
+    k = a.shape[0]
+    friction = kinetic and np.any(mu_s > 0.0)
+    zeros = np.zeros(k)
+    mus = mu_s if friction else zeros
+    mud = mu_d if friction else zeros
+    status = np.empty(k, np.int64)
+    residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus,
+                             mud, friction, warm, use_warm, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
+                             DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel, omega, True, lam, status)
+    big = np.flatnonzero(status == TOO_LARGE)
+    if big.shape[0]:
+        lam_b = np.zeros((big.shape[0], 3))
+        with objmode(ok="boolean", res_b="float64"):
+            ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
+                                   mus, mud, friction, warm, use_warm, movable, vel, omega, lam_b)
+        for j in range(big.shape[0]):
+            for x in range(3):
+                lam[big[j], x] = lam_b[j, x]
+        if ok:
+            residual = max(residual, res_b)
+            apply_ids(big, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
+            for j in range(big.shape[0]):
+                status[big[j]] = SOLVED
+    unfinished = np.flatnonzero(status != SOLVED)
+    if unfinished.shape[0] == 0:
+        return 1, residual
+    sweeps_, res = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
+                              mu_s, mu_d, kinetic, lam, True, iterations, tolerance, vel, omega, lam)
+    return sweeps_, max(res, residual)
+
+
+@njit
+def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
+                  kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam):
+    """Islands of one contact (a body touching only static geometry) exactly, by the island
+    kernel; Gauss–Seidel (``pgs.sweeps``) for the coupled rest and for a single contact that
+    slides, from ``warm``. Returns ``(sweeps, residual)``."""
+    k = a.shape[0]
+    friction = kinetic and np.any(mu_s > 0.0)
+    zeros = np.zeros(k)
+    mus = mu_s if friction else zeros
+    mud = mu_d if friction else zeros
+    status = np.empty(k, np.int64)
+    solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus, mud,
+                  friction, warm, use_warm, 1, DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel,
+                  omega, True, lam, status)
+    rest = np.flatnonzero(status != SOLVED)
+    if rest.shape[0] == 0:
+        return 1, 0.0
+    for j in range(rest.shape[0]):
+        for x in range(3):
+            lam[rest[j], x] = 0.0
+    return _sweep_ids(rest, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
+                      kinetic, warm, use_warm, iterations, tolerance, vel, omega, lam)
+
+
+@njit
+def _sweep_ids(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d, kinetic,
+               warm, use_warm, iterations, tolerance, vel, omega, lam):
+    """Gauss–Seidel (``solve``: the warm impulses applied, then ``pgs.sweeps``) on the contacts
+    ``ids (U,)`` from ``warm[ids]`` (zero unless ``use_warm``); writes their impulses into ``lam``.
+    Returns ``(sweeps, residual)``."""
+    u = ids.shape[0]
+    ua, ub = a[ids], b[ids]
+    udirs, uang_a, uang_b, uiang_a, uiang_b, uK = dirs[ids], ang_a[ids], ang_b[ids], iang_a[ids], iang_b[ids], K[ids]
+    uima, uimb = ima[ids], imb[ids]
+    ulam = warm[ids] if use_warm else np.zeros((u, 3))
+    friction = kinetic and np.any(mu_s[ids] > 0.0)
+    zeros = np.zeros(u)
+    if use_warm and np.any(ulam != 0.0):
+        apply_ids(np.arange(u), ua, ub, udirs, uiang_a, uiang_b, uima, uimb, ulam, vel, omega)
+    it, residual = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, target[ids],
+                          compliance[ids], mu_s[ids] if friction else zeros, mu_d[ids] if friction else zeros,
+                          friction, ulam, vel, omega, iterations, tolerance)
+    for i in range(u):
+        for x in range(3):
+            lam[ids[i], x] = ulam[i, x]
+    return it, residual
+
+
+def _rows_of(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, movable):
+    """A ``Rows`` over the kernel's arrays, for the solves that run as Python (the lever arms
+    ``ra, rb`` are not carried: no solver reads them)."""
+    return Rows(a, b, dirs[:, 0], dirs[:, 1], dirs[:, 2], None, None, ang_a, ang_b, iang_a, iang_b, ima, imb, K, dirs,
+                movable)
+
+
+def _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d, friction,
+               warm, use_warm, movable, vel, omega, lam_b):
+    """``solve_rows``' Python block: the sparse active set (``direct._active_set``, SciPy) on the
+    contacts ``big`` together, from the velocities the solved islands left; writes ``lam_b``
+    (their impulses, or Gauss–Seidel's start) and returns ``(converged, residual)``."""
+    from scipy import sparse
+
+    sub = _rows_of(a[big], b[big], dirs[big], ang_a[big], ang_b[big], iang_a[big], iang_b[big], ima[big], imb[big],
+                   K[big], movable)
+    A = None
+    if np.any(compliance[big]):
+        d = np.zeros(3 * big.size)
+        d[0::3] = compliance[big]
+        A = (delassus(sub) + sparse.diags(d)).tocsr()
+    v0 = row_velocity(sub, vel, omega)
+    lam, ok, residual = _active_set(sub, v0, target[big], mu_s[big] if friction else None,
+                                    mu_d[big] if friction else None, warm[big] if use_warm else None, A)
+    lam_b[...] = lam
+    return bool(ok), float(residual)
+
+
+def _jacobi_py(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d, kinetic, warm, use_warm,
+               movable, iterations, tolerance, vel, omega, lam):
+    """``solve_rows``' Python block for ``jacobi``: ``solve_jacobi`` on the kernel's arrays,
+    writing ``lam`` and ``vel, omega`` in place; returns ``(sweeps, residual)``."""
+    rows = _rows_of(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, movable)
+    friction = kinetic and bool(np.any(mu_s > 0))
+    res = solve_jacobi(rows, vel, omega, target_n=target, mu_s=mu_s if friction else None,
+                       mu_d=mu_d if friction else None, iterations=iterations, tolerance=tolerance,
+                       warm=warm.copy() if use_warm else None)
+    lam[...] = res.impulse
+    return int(res.iterations), float(res.residual)
 
 
 def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, tolerance=1e-9, direct_max=None):

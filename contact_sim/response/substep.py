@@ -1,0 +1,359 @@
+"""A sub-step's stages after detection, in one compiled call: the impulse step's one pipeline.
+
+Every sub-step of the impulse (and kinematic) response runs here, whatever the models: the
+velocity stage (the contact points' relative velocities; with speculative contacts the filter of
+the gaps that can close) → prepare (coefficients, stiffnesses, rows, points in A's frame, the
+contact classes: ``prepare.classify``) → impacts (``impact.impact_stage``) → the position
+correction's plan on the first sub-step (``correction.plan``) → resting contact
+(``resting.rest_stage``) → store the impulses → advance (``free_motion.advance``). Each stage's
+kernel lives in its stage's module; ``_substep`` reads as this list. Every solve in them is
+``solver.solve_rows`` (the settings' method: the exact active set per island, Gauss–Seidel, the
+sparse active set for an island too large for the dense one).
+
+With exact times of impact (``fractional``, ``swept``, or ``next_step`` with fast bodies) the
+sub-step's length is known only after the solves: ``run`` then stops before storing, the stepper
+finds the time of impact from the velocities the impacts left, and ``finish`` stores and advances
+over the fraction of the rest of the step that the sub-step lasted. Otherwise (every step of a
+world of more than a few bodies) ``run`` is the whole sub-step.
+
+Run from Python stage by stage, these stages cost more in array calls and argument passing than in
+arithmetic (in a 10-body resting step the kernels were about a quarter of the time): one call,
+with the outputs in a few blocks, is what makes a small step cheap.
+
+Shapes: ``N`` bodies, ``K`` contacts.
+"""
+from operator import is_
+
+import numpy as np
+
+from ..free_motion import advance
+from ..jit import njit
+from ..settings import COMBINE_RULES, SOLVER_METHODS
+from . import correction, prepare
+from . import toi as toi_mod
+from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
+                         REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
+from .cache import local_points
+from .compliance import possible as may_be_compliant, stiffness_rows
+from .energy import kinematic_work
+from .impact import impact_stage
+from .pgs import build_rows
+from .resting import rest_stage
+
+
+def run(ctx, whole):
+    """The stages after detection for the detected ``ctx.contacts`` in one compiled call. With
+    ``whole`` (no time of impact can shorten the sub-step) the sub-step is done: the bodies moved,
+    ``ctx`` holds what the step's end reads. Otherwise the bodies have their velocities after the
+    impacts, ``ctx.touching``, ``ctx.rest_mask``, ``ctx.dv_rest`` say what the time-of-impact
+    search needs, and ``finish`` completes the sub-step."""
+    world, m = ctx.world, ctx.models
+    c = ctx.contacts
+    if not len(c):   # free flight: the stages have nothing to do, the advance is free motion
+        ctx.first = False
+        ctx.pending = ctx.pos0 = None
+        if whole:
+            ctx.drift += world._advance_free(ctx.t_left)
+        else:
+            ctx.touching = np.zeros(0, bool)
+        return
+    st = world.settings
+    s = world.s
+    bm = world.body_masks()
+    cc = np.ascontiguousarray
+    old = world.contact_cache.warm
+    has_old = old is not None and len(old[0]) > 0
+    if not has_old:
+        old = _NO_OLD
+    look = ctx.look_ahead
+    bodies = _body_arrays(world)
+    particles = m.response == "kinematic"
+    # the kinematic bodies' work is taken where the contact points are, at the sub-step's start:
+    # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
+    # missed at the end)
+    ctx.pos0 = s.pos.copy() if bm.any_kinematic else None
+    near, f3, f1, flags, wv, pw, keep, dvw, pen, out = _substep(
+        cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+        cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
+        *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
+        s.pos, s.vel, s.quat, s.omega, *bodies[:4], prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity,
+        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
+        m.response == "impulse" and m.resting and may_be_compliant(world), *bodies[10:12],
+        float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and not particles,
+        cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
+        has_old, bodies[9], float(ctx.t_left), float(ctx.dt), ctx.first, ctx.exact_toi, particles, m.resting, whole,
+        float(st.contact_margin), ctx.speculative, TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt, ctx.gdt,
+        REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, float(st.split_slop), float(st.split_beta),
+        SOLVER_METHODS.index(st.solver_method),
+        DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+        int(st.solver_iterations), float(st.solver_tolerance))
+    if near.shape[0]:   # speculative contacts that cannot close are not the step's
+        c = ctx.contacts = c.select(near)
+    k = len(c)
+    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, rested, n_rest, unconverged = out.tolist()
+    ctx.iterations = max(ctx.iterations, int(sweeps))
+    ctx.residual = max(ctx.residual, residual)
+    ctx.unconverged = ctx.unconverged or bool(unconverged)
+    if ctx.first and k:
+        ctx.max_penetration = max(ctx.max_penetration, deepest)
+    ctx.rest_bound += rest_bound
+    if pen.shape[0]:   # the correction moves the bodies after the step (correction.apply)
+        correction.cap(ctx, pen, pw[0], pw[1])
+    local = f3[0]
+    used, resting, touching = flags
+    if rested:
+        # what the contact cache keeps of the resting solve (copies: never views of the step's
+        # contacts; ``local`` is the kernel's own, no contact's column)
+        if n_rest == k:
+            ctx.warm_out = (c.body_a.copy(), c.body_b.copy(), local, wv)
+        else:
+            ri = np.flatnonzero(resting)
+            ctx.warm_out = (c.body_a[ri].copy(), c.body_b[ri].copy(), local[ri].copy(), wv[:int(n_rest)].copy())
+    ctx.first = False
+    if whole:
+        _record(ctx, c, f3, f1, used, kept, drift, kick_error)
+    else:
+        ctx.touching, ctx.rest_mask = touching, (resting if rested else None)
+        ctx.dv_rest = dvw[0] if rested else None
+        ctx.pending = (c, f3, f1, used, keep, dvw, bool(rested))
+
+
+def finish(ctx, tau, frac):
+    """Store the impulses of the sub-step ``run`` left pending (the impacts', and the resting
+    force's over the fraction ``frac`` of the rest of the step it lasted) and advance the bodies
+    by ``tau`` (s), with the resting force's velocity change over ``frac`` as two half-kicks."""
+    world = ctx.world
+    if ctx.pending is None:   # no contact: free motion
+        ctx.drift += world._advance_free(tau)
+        return
+    s, bm = world.s, world.body_masks()
+    c, f3, f1, used, keep, dvw, rested = ctx.pending
+    ctx.pending = None
+    kept, drift, kick_error = _finish(
+        float(frac), float(tau), keep, dvw, rested, np.ascontiguousarray(c.normal, dtype=float), ctx.speculative,
+        ctx.touching, s.pos, s.vel, s.quat, s.omega, *_body_arrays(world)[:3], world._gravity, bm.dynamic,
+        bm.rotating, bm.kinematic, f1[0], f3[1], f3[2], used)
+    _record(ctx, c, f3, f1, used, kept, drift, kick_error)
+
+
+def _record(ctx, c, f3, f1, used, kept, drift, kick_error):
+    """The sub-step's contacts with their impulses into the step's records, the kinematic bodies'
+    work through them, the free rotation's drift and the half-kicks' error bound."""
+    ctx.drift += drift
+    ctx.kick_error += kick_error
+    if not len(c):
+        return
+    local = f3[0]
+    c.normal_impulse, c.friction_impulse, c.impulse = f1[0], f3[1], f3[2]
+    c.relative_normal_velocity = f1[1]
+    if kept < len(c):   # speculative contacts that did nothing are not contacts of this step
+        c, local = c.select(used), local[used]
+    ctx.records.append((c, local))
+    if ctx.pos0 is not None:
+        ctx.kinematic_work += kinematic_work(ctx.world, c, ctx.pos0)
+
+
+def _body_arrays(world):
+    """The per-body arrays ``_substep`` reads that a step never replaces, in its argument order:
+    ``(principal_q, principal_moments, inertia_body, inv_mass, mass, particle, restitution,
+    friction, static_friction, extents, stiffness, damping_ratio)``, contiguous and of the kernel's
+    types. Kept on the world while the very same arrays are there (a body added or removed, or a
+    material assigned, replaces them) and only when they needed no conversion, so an edit in place
+    is still seen."""
+    s = world.s
+    raw = (s.principal_q, s.principal_moments, world.inertia_body, world.inv_mass, world.mass, world.particle,
+           world.restitution, world.friction, world.static_friction, world.kind, world.stiffness,
+           world.damping_ratio)
+    hit = world._derived.get("step_bodies")
+    if hit is not None and all(map(is_, hit[0], raw)):
+        return hit[1]
+    cc = np.ascontiguousarray
+    arrays = (cc(raw[0], dtype=float), cc(raw[1], dtype=float), cc(raw[2], dtype=float), cc(raw[3], dtype=float),
+              cc(raw[4], dtype=float), cc(raw[5]), cc(raw[6], dtype=float), cc(raw[7], dtype=float),
+              cc(raw[8], dtype=float), toi_mod._extents(world), cc(raw[10], dtype=float), cc(raw[11], dtype=float))
+    # the extents are derived (from the shapes, which change with world.kind): the others must be the raw arrays
+    if all(map(is_, arrays[:9] + arrays[10:], raw[:9] + raw[10:])):
+        world._derived["step_bodies"] = (raw, arrays)
+    return arrays
+
+
+_NO_OLD = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
+_NO_LOOK = (0.0, 0.0)
+
+
+@njit
+def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
+             inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass,
+             particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule,
+             kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, whole, margin,
+             speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta,
+             method, direct_max, max_iterations, tolerance):
+    """``run``'s kernel, a sub-step of ``t`` (s) left of a step of ``dt``. Contacts ``a, b (K,)``,
+    ``point, normal (K,3)``, ``depth (K,)``; with ``look`` only the speculative ones whose gap can
+    close within ``look_dt`` are kept (``look_base`` the contact margin, ``g`` gravity's magnitude);
+    bodies ``kind (N,)``, as ``free_motion.advance`` and ``pgs.build_rows`` take them, ``R
+    (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass (N,)``, ``particle (N,) bool``,
+    their materials ``restitution, friction, static_friction (N,)`` combined by ``rule``
+    (``prepare.coefficient_rows``), their ``stiffness, damping_ratio (N,)`` and ``k_kinematic``
+    (``compliance.stiffness_rows``, read when ``may_soften``); the contact cache ``a0, b0 (K0,)``,
+    ``p0 (K0,3)``, ``values (K0,4)``; ``particles`` the kinematic response; ``method`` an index of
+    ``settings.SOLVER_METHODS``.
+
+    Returns ``(near, f3, f1, flags, wv, pw, keep, dvw, pen, out)``: ``near (K,)`` the contacts the
+    filter kept when it dropped some, else ``(0,)`` (the other outputs are of the kept ones); ``f3
+    (3,K,3)`` the points in A's frame, the friction impulses and the impulses; ``f1 (2,K)`` the
+    normal impulses and the approach speeds; ``flags (3,K)`` the contacts that count, those the
+    resting solve took, those touching; ``wv (K,4)`` the cache's values of the resting ones (its
+    first rows); ``pw (2,N,3)`` the correction's pseudo-velocities; ``keep (4,K,3)``, ``dvw
+    (2,N,3)``: what ``_finish`` reads (the impacts' and the resting impulses, the tangents, the
+    resting force's velocity change), filled when not ``whole``; ``pen`` the contacts the
+    correction pushes apart; ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps,
+    used, resting solve ran, contacts resting, a solve stopped unconverged]``. The outputs are
+    allocated here, in blocks: from Python each allocation and argument, and here each array
+    handed back, costs more than the arithmetic."""
+    k, n = a.shape[0], pos.shape[0]
+    # ---- velocity stage: the points' relative velocities, the look-ahead's filter
+    rel_vel = np.empty((k, 3))
+    near = np.empty(k if look else 0, np.bool_)
+    kept = prepare._relative_velocity(a, b, point, pos, vel, omega, kind, particles, rel_vel, normal, depth, g, look_dt,
+                                      look_base, near)
+    if look and kept < k:
+        a, b, point, normal, depth, rel_vel = a[near], b[near], point[near], normal[near], depth[near], rel_vel[near]
+        k = kept
+    else:
+        near = near[:0]
+    f3, f1, flags, wv, pw = np.empty((3, k, 3)), np.empty((2, k)), np.empty((3, k), np.bool_), np.empty((k, 4)), \
+        np.zeros((2, n, 3))
+    keep, dvw = np.zeros((4, k if not whole else 0, 3)), np.zeros((2, n, 3))
+    local, friction_impulse, impulse = f3[0], f3[1], f3[2]
+    normal_impulse, vn0, used, rest_mask, touching = f1[0], f1[1], flags[0], flags[1], flags[2]
+    vp, wp = pw[0], pw[1]
+    out = np.zeros(10)
+    # ---- prepare: coefficients, stiffnesses, rows, points in A's frame, classes
+    e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
+    prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
+    stiff, zeta = np.zeros(k), np.zeros(k)
+    n_soft = 0
+    if may_soften and k:
+        n_soft = stiffness_rows(a, b, depth, margin, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff,
+                                zeta)
+    soft = stiff > 0.0 if n_soft else np.zeros(0, np.bool_)
+    vec, mat, num = np.empty((4, k, 3)), np.empty((6, k, 3, 3)), np.empty((2, k))   # the rows (rows.build_rows' blocks)
+    t1, t2, ra, rb = vec[0], vec[1], vec[2], vec[3]
+    ang_a, ang_b, iang_a, iang_b, K, dirs = mat[0], mat[1], mat[2], mat[3], mat[4], mat[5]
+    ima, imb = num[0], num[1]
+    build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, rel_vel, dynamic, not particles, t1, t2, ra, rb, ang_a,
+               ang_b, iang_a, iang_b, ima, imb, K, dirs)
+    local_points(a, point, pos, R, local)
+    classes = np.empty((3, k), np.bool_)
+    imp, closing, bounced = classes[0], classes[1], classes[2]
+    spec_target = np.empty(k)
+    e_material = e.copy()   # classify zeroes e where a rebound rests; a later impact round rules again
+    counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, ext, exact_toi, toi_tolerance, simultaneous,
+                              margin, resting, rebound_speed, impact_speed, speculative, t, soft, e, vn0, touching,
+                              imp, closing, spec_target, bounced)
+    # ---- impacts: compression with friction, then restitution, capped; the push cap's budget is
+    # measured from the velocities at the sub-step's start in every solve of it
+    vel_ref, omega_ref = vel.copy(), omega.copy()
+    lam_i = np.zeros((k, 3))
+    vn1 = np.empty(k)
+    it_i, residual_i, unconverged = impact_stage(a, b, point, normal, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
+                                                 rel_vel, touching, closing, bounced, spec_target, e, e_material, soft,
+                                                 vn0, counts.impact, counts.closing, particles, resting, rebound_speed,
+                                                 impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, inv_mass,
+                                                 mass, particle, pos, quat, inertia_body, method, direct_max,
+                                                 max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam_i, vn1)
+    # ---- the position correction's plan (first sub-step): split-impulse pseudo-velocities for
+    # the penetrating contacts; the cap on how far they move stays in Python (correction.cap)
+    pen = np.zeros(0, np.int64)
+    if first and k and counts.deepest > split_slop:
+        pen = correction.plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, split_beta,
+                              dt, method, direct_max, max_iterations, tolerance, vp, wp)
+    # ---- resting contact: the constant force over the rest of the step, warm started, on every
+    # contact but those that just rebounded (none when every contact rebounded)
+    rested = resting and k > 0 and (counts.touching > 0 or not exact_toi) \
+        and not (counts.bounced > 0 and np.all(vn1 > impact_speed))
+    lam_r = np.zeros((k, 3))
+    dv, dw = dvw[0], dvw[1]
+    kr, it_r, residual_r, rest_bound = 0, 0, 0.0, 0.0
+    if rested:
+        kr, it_r, residual_r, stopped, rest_bound = rest_stage(
+            a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, local, vn0, vn1, touching, bounced,
+            soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, gravity_rows, dynamic, kinematic,
+            mass, particle, pos, quat, inertia_body, vel, omega, vel_ref, omega_ref, a0, b0, p0, values, has_old, ext,
+            method, direct_max, max_iterations, tolerance, rest_mask, lam_r, dv, dw, wv)
+        unconverged = unconverged or stopped
+    else:
+        rest_mask[:] = False
+    out[0], out[1], out[2], out[5] = max(residual_i, residual_r), counts.deepest, rest_bound, max(it_i, it_r)
+    out[7], out[8], out[9] = rested, kr, unconverged
+    if not whole:   # a time of impact may shorten the sub-step: _finish stores and advances
+        for c in range(k):
+            for x in range(3):
+                keep[0, c, x], keep[1, c, x] = lam_i[c, x], lam_r[c, x]
+                keep[2, c, x], keep[3, c, x] = t1[c, x], t2[c, x]
+        out[6] = k
+        return near, f3, f1, flags, wv, pw, keep, dvw, pen, out
+    # ---- store the impulses, advance: the whole rest of the step
+    out[6] = _store(1.0, lam_i, lam_r, rested, t1, t2, normal, speculative, touching, normal_impulse,
+                    friction_impulse, impulse, used)
+    out[3], out[4] = _move(1.0, t, dvw, rested, pos, vel, quat, omega, principal_q, moments, inertia_body, gravity,
+                           dynamic, rotating, kinematic)
+    return near, f3, f1, flags, wv, pw, keep, dvw, pen, out
+
+
+@njit
+def _finish(frac, tau, keep, dvw, rested, normal, speculative, touching, pos, vel, quat, omega, principal_q, moments,
+            inertia_body, gravity, dynamic, rotating, kinematic, normal_impulse, friction_impulse, impulse, used):
+    """``finish``'s kernel: store what ``_substep`` kept (``keep (4,K,3)``: the impacts' and the
+    resting impulses, the tangents) over the fraction ``frac`` and advance by ``tau`` (s).
+    Returns ``(used, drift, kick_error)``."""
+    kept = _store(frac, keep[0], keep[1], rested, keep[2], keep[3], normal, speculative, touching, normal_impulse,
+                  friction_impulse, impulse, used)
+    drift, kick_error = _move(frac, tau, dvw, rested, pos, vel, quat, omega, principal_q, moments, inertia_body,
+                              gravity, dynamic, rotating, kinematic)
+    return kept, drift, kick_error
+
+
+@njit
+def _store(frac, lam_i, lam_r, rested, t1, t2, normal, speculative, touching, normal_impulse, friction_impulse, impulse,
+           used):
+    """The sub-step's impulses on A: the impacts' ``lam_i (K,3)`` plus the resting ones ``lam_r``
+    over the fraction ``frac`` of the rest of the step the sub-step lasted, in (n, t1, t2) to the
+    world's vectors; ``used (K,)`` the contacts that count (a speculative one that did nothing is
+    no contact of the step). Returns how many count."""
+    kept = 0
+    for c in range(lam_i.shape[0]):
+        if rested:
+            ln, l1, l2 = lam_i[c, 0] + lam_r[c, 0] * frac, lam_i[c, 1] + lam_r[c, 1] * frac, \
+                lam_i[c, 2] + lam_r[c, 2] * frac
+        else:
+            ln, l1, l2 = lam_i[c, 0], lam_i[c, 1], lam_i[c, 2]
+        normal_impulse[c] = ln
+        for x in range(3):
+            friction_impulse[c, x] = l1 * t1[c, x] + l2 * t2[c, x]
+            impulse[c, x] = ln * normal[c, x] + friction_impulse[c, x]
+        used[c] = not speculative or touching[c] or ln > 0.0
+        kept += used[c]
+    return kept
+
+
+@njit
+def _move(frac, tau, dvw, rested, pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
+          kinematic):
+    """Free motion over ``tau`` (``free_motion.advance``), with the resting force's velocity change
+    over the fraction ``frac`` (``dvw (2,N,3)``, when ``rested``) as two half-kicks around the
+    drift. Returns ``(drift, kick_error)`` (J; the error bound 0 without kicks)."""
+    n = pos.shape[0]
+    if rested:
+        half_dv, half_dw = np.empty((n, 3)), np.empty((n, 3))
+        for i in range(n):
+            for x in range(3):
+                half_dv[i, x] = 0.5 * dvw[0, i, x] * frac
+                half_dw[i, x] = 0.5 * dvw[1, i, x] * frac
+    else:
+        half_dv, half_dw = np.zeros((0, 3)), np.zeros((0, 3))
+    drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
+                                kinematic, half_dv, half_dw, rested, tau, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE,
+                                MAX_SUBSTEPS)
+    return drift, (kick_error if rested else 0.0)
