@@ -217,11 +217,15 @@ def test_cli_study_errors_exit_2(tmp_path, capsys):
     assert main(["study", str(bad), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
     assert "contact-sim: error: study.grid['settings.dt'][1]: -1: settings.dt: must be > 0" in capsys.readouterr().err
     assert main(["study", "nonesuch", "--no-progress"]) == 2
-    assert "no shipped study of that name (shipped: accuracy, grasp)" in capsys.readouterr().err
+    assert "no shipped study of that name (shipped: accuracy_bouncing_ball, accuracy_incline, " \
+           "accuracy_penalty_rest, accuracy_rod_impact, accuracy_sliding_block, accuracy_two_spheres, grasp)" \
+           in capsys.readouterr().err
     assert main(["study", "grasp", "--workers", "0", "--out", str(tmp_path / "o"), "--no-progress"]) == 2
     assert "--workers: must be >= 1, got 0" in capsys.readouterr().err
     assert main(["studies"]) == 0
-    assert capsys.readouterr().out.split() == ["accuracy", "grasp"]
+    assert capsys.readouterr().out.split() == ["accuracy_bouncing_ball", "accuracy_incline", "accuracy_penalty_rest",
+                                               "accuracy_rod_impact", "accuracy_sliding_block",
+                                               "accuracy_two_spheres", "grasp"]
 
 
 # ---------------------------------------------------------------------------- rows, resume, executors
@@ -339,14 +343,14 @@ def test_rows_on_ray_equal_the_process_pools_bit_for_bit(tmp_path, ray_local):
 
 # ---------------------------------------------------------------------------- the shipped studies
 def test_shipped_accuracy_study_matches_the_exact_bounce(tmp_path, capsys):
-    assert main(["study", "accuracy", "--out", str(tmp_path), "--workers", "1", "--limit", "3", "--no-progress"]) == 0
+    assert main(["study", "accuracy_bouncing_ball", "--out", str(tmp_path), "--workers", "1", "--limit", "3", "--no-progress"]) == 0
     rows = read_rows(tmp_path / "runs.csv")
     assert [r["settings.dt"] for r in rows.values()] == [repr(1 / 30), repr(1 / 60), repr(1 / 120)]
     assert all(r["settings"] == "impulse + fractional" and float(r["error"]) < 1e-12 for r in rows.values())
     out = capsys.readouterr().out
     assert "impulse + fractional" in out and (tmp_path / "plot.png").read_bytes()[:4] == b"\x89PNG"
     # next-step detection at 1/30 s is far off, as bench_accuracy measures (0.104)
-    s = load_study("accuracy")
+    s = load_study("accuracy_bouncing_ball")
     cell = [k for k in range(s.cells) if [p[1] for p in s.cell_params(k)] == ["impulse + next_step", 1 / 30]][0]
     assert float(run_one(s, cell, 0)["error"]) == pytest.approx(0.10407043483658382, rel=1e-6)
 

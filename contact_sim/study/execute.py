@@ -46,7 +46,8 @@ def code_version():
 
 # ---------------------------------------------------------------------------- executors
 def inline_rows(study, todo, version):
-    """Each run in this process, one after the other (``--workers 1``)."""
+    """Each run in this process, one after the other (``--workers 1``; ``run_study`` calls
+    ``warm`` first)."""
     for _rid, cell, rep in todo:
         yield run_one(study, cell, rep, version)
 
@@ -71,9 +72,9 @@ def warm(study, seconds=1.0, most=16):
     """Run, without recording, up to ``seconds`` simulated seconds of one cell per distinct
     combination of the grid's non-numeric values (a *model* axis; at most ``most``): the kernels
     those runs use are compiled into numba's on-disk cache the first time (once, in the driver,
-    before any worker starts) and loaded into this process, which forked workers inherit — so no
-    worker compiles, and a run's ``cost`` does not include loading its kernels (except kernels
-    first needed later than ``seconds`` into a run)."""
+    before any worker starts or, with ``--workers 1``, before the first run) and loaded into this
+    process, which forked workers inherit — so no worker compiles, and a run's ``cost`` does not
+    include loading its kernels (except kernels first needed later than ``seconds`` into a run)."""
     seen = set()
     for cell in range(study.cells):
         key = tuple(label for _path, label, value in study.cell_params(cell)
@@ -269,6 +270,8 @@ def run_study(study, out, workers=None, cluster=None, progress=True, limit=None,
     if cluster is not None:
         rows = ray_rows(study, todo(), version, workers, cluster)
     elif workers == 1 or count <= 1:
+        if count:
+            warm(study)     # as a pool's driver does: no run's cost includes loading its model's kernels
         rows = inline_rows(study, todo(), version)
     else:
         rows = pool_rows(study, todo(), version, min(workers, count))

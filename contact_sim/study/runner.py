@@ -12,8 +12,11 @@ import warnings
 
 import numpy as np
 
+from .. import dynamics, quat
 from ..scene import load_scene
-from ..settings import Material, combine
+from ..settings import combine
+from .references import (bouncing_height, head_on, incline_acceleration, penalty_rest_depth, rod_impact,
+                         sliding_stop_distance)
 from .spec import POSE_COLUMNS, figure_columns, get_path, parse_path, run_id, run_seed, set_path
 
 #: the columns that measure the machine, not the physics (left out when rows are compared)
@@ -89,7 +92,9 @@ def run_one(study, cell, rep, code_version=""):
 def simulate(world, scene, study, duration, drive):
     """Step ``world`` for ``duration`` s at its ``settings.dt`` (at least one step), driving its
     kinematic bodies by ``drive`` before each step; returns the recorded figures, the success
-    predicate's value (1 or 0) and ``cost`` (wall seconds of stepping per simulated second)."""
+    predicate's value (1 or 0) and ``cost``: wall seconds of the steps (and the drive's poses) per
+    simulated second — the recorders' own work between steps is not timed, so a figure recorded
+    does not change the cost measured (``bench/bench_accuracy.py`` timed only the steps too)."""
     dt = world.settings.dt
     n = max(1, int(round(duration / dt)))
     motion = make_drive(drive, world, scene)
@@ -97,16 +102,17 @@ def simulate(world, scene, study, duration, drive):
     success = study.success
     at_step = min(n, max(1, int(math.ceil(success["at"] / dt - 1e-9)))) if success else -1
     ok = None
-    t0 = time.perf_counter()
+    wall = 0.0
     for k in range(1, n + 1):
+        t0 = time.perf_counter()
         if motion is not None:     # posed for the step's start; the step moves them on at the poses' velocity
             motion(world, (k - 1) * dt)
         world.step(dt)
+        wall += time.perf_counter() - t0
         for r in recorders:
             r.step(world, dt)
         if k == at_step:
             ok = holds(world, success["terms"])
-    wall = time.perf_counter() - t0
     out = {}
     for r in recorders:
         out.update(r.finish(world))
@@ -241,6 +247,37 @@ class FinalPose:
         return out
 
 
+# ---------------------------------------------------------------------------- reference recorders
+# Each compares a run with a closed form of ``references.py`` and records ``error``: the relative
+# error bench/bench_accuracy.py reports for its scene (unitless, so one threshold reads the same in
+# every scene). The scene's parameters are read from the world the run built (its grid cell's
+# values applied); ``spec.py`` checks a reference's bodies and ground when the study is loaded, and
+# a recorder raises ``ValueError`` (the run's ``exception``) where its closed form does not apply.
+def _coefficient(world, a, b, field):
+    """Material coefficient ``field`` (restitution, friction) of the contact between bodies ``a``
+    and ``b``: their materials' combined by ``settings.combine``, as the step combines them."""
+    x = getattr(world.materials[world.body(a).material], field)
+    y = getattr(world.materials[world.body(b).material], field)
+    return float(combine(x, y, world.settings.combine))
+
+
+def _ground(world, scene):
+    """The ground of a reference scene — the first static plane the scene declares — as its name,
+    world-frame unit normal ``(3,)`` (out of the solid) and offset (m): the surface is
+    ``{x : normal·x = offset}``."""
+    name = next(b["name"] for b in scene["bodies"] if isinstance(b, dict) and b.get("kind") == "static"
+                and (b.get("shape") or {}).get("type") == "plane")
+    g = world.body(name)
+    n = quat.rotate(g.orientation, g.shape.normal)
+    return name, n, float(g.shape.offset + n @ g.position)
+
+
+def _spin(body):
+    """Spin angular momentum ``R I Rᵀ ω (3,)`` (kg m²/s) of a ``Body`` about its centre of mass."""
+    r = quat.to_matrix(body.orientation)
+    return r @ body.inertia @ r.T @ body.angular_velocity
+
+
 class BouncingBallError:
     """``error``: the largest ``|z − z_exact(t)|`` over every step, divided by the drop height —
     a ball (``body``) dropped from rest onto the scene's ground plane with the restitution of its
@@ -249,16 +286,10 @@ class BouncingBallError:
 
     def __init__(self, world, scene, opts):
         self.body = opts["body"]
-        spec = next(b for b in scene["bodies"] if b["name"] == self.body)
-        ground = next(b for b in scene["bodies"] if (b.get("shape") or {}).get("type") == "plane")
-        mats = scene.get("materials") or {}
-
-        def restitution(b):
-            m = mats.get(b.get("material")) or {}
-            return float(m.get("restitution", Material().restitution))
-
-        e = float(combine(restitution(spec), restitution(ground), world.settings.combine))
-        self.h0, self.radius, self.e = float(world.body(self.body).position[2]), float(spec["shape"]["radius"]), e
+        ground, _n, _off = _ground(world, scene)
+        e = _coefficient(world, self.body, ground, "restitution")
+        ball = world.body(self.body)
+        self.h0, self.radius, self.e = float(ball.position[2]), float(ball.shape.radius), e
         self.g = -float(world.gravity[2])
         self.t, self.z = [], []
 
@@ -271,27 +302,193 @@ class BouncingBallError:
         return {"error": float(np.max(np.abs(np.array(self.z) - exact)) / self.h0)}
 
 
-def bouncing_height(t, h0, radius, e, g):
-    """Centre height ``(T,)`` at times ``t (T,)`` (s) of a ball dropped from rest at centre height
-    ``h0`` (m) onto ``z = 0``, bouncing with restitution ``e`` under gravity ``g`` (m/s²), each
-    flight in closed form (``bench/exact.py`` takes it from here)."""
-    t = np.asarray(t, float)
-    z = np.empty_like(t)
-    t1 = np.sqrt(2 * (h0 - radius) / g)
-    first = t <= t1
-    z[first] = h0 - 0.5 * g * t[first] ** 2
-    tb, ub = t1, e * g * t1
-    todo = ~first
-    while todo.any() and ub > 1e-12:
-        flight = 2 * ub / g
-        here = todo & (t <= tb + flight)
-        s = t[here] - tb
-        z[here] = radius + ub * s - 0.5 * g * s * s
-        todo &= ~here
-        tb, ub = tb + flight, e * ub
-    z[todo] = radius
-    return z
+class TwoSpheresError:
+    """``error``: the largest distance of either sphere's centre (``bodies``: two spheres moving
+    head-on, along the line of their centres, no gravity) from its closed-form position
+    (``head_on``: one collision, restitution of their materials combined) over every step, divided
+    by the initial distance of the centres (bench_accuracy's two-spheres measure). A centre's
+    distance counts both its error along the line and any drift off it."""
+
+    def __init__(self, world, scene, opts):
+        self.names = list(opts["bodies"])
+        a, b = (world.body(n) for n in self.names)
+        line = b.position - a.position
+        self.d = line / np.linalg.norm(line)
+        for body in (a, b):
+            off = body.velocity - (body.velocity @ self.d) * self.d
+            if np.linalg.norm(off) > 1e-12 * max(np.linalg.norm(body.velocity), 1.0):
+                raise ValueError(f"two_spheres reference: {body.name!r} moves off the line of the centres "
+                                 "(the closed form is a head-on collision)")
+        x1, x2, v1, v2 = a.position @ self.d, b.position @ self.d, a.velocity @ self.d, b.velocity @ self.d
+        if v1 <= v2:
+            raise ValueError("two_spheres reference: the spheres do not approach each other")
+        e = _coefficient(world, a.name, b.name, "restitution")
+        self.args = (x1, x2, v1, v2, a.mass, b.mass, float(a.shape.radius), float(b.shape.radius), e)
+        self.p0 = (a.position.copy(), b.position.copy())
+        self.t, self.p = [], ([], [])
+
+    def step(self, world, dt):
+        self.t.append(world.time)
+        for name, out in zip(self.names, self.p):
+            out.append(world.body(name).position)
+
+    def finish(self, world):
+        exact = head_on(np.array(self.t), *self.args)[:2]
+        worst = 0.0
+        for p, p0, s in zip(self.p, self.p0, exact):
+            p = np.array(p)
+            moved = p - p0
+            off = moved - np.outer(moved @ self.d, self.d)       # drift off the line (0 when on it)
+            worst = max(worst, float(np.max(np.hypot(p @ self.d - s, np.linalg.norm(off, axis=1)))))
+        return {"error": worst / (self.args[1] - self.args[0])}
 
 
+class RodImpactError:
+    """``error``: the larger relative error of the linear velocity and of the spin angular momentum
+    of ``body`` (a box falling without spin onto the ground ``z = 0``, gravity along −z, hitting it
+    with one corner) against their values just after the impact (``rod_impact``: the lecture's
+    impulse formula), taken at the first step at or after ``after`` s past the exact time of
+    impact (bench_accuracy's rod measure: 30 ms, before the far end lands) with gravity since
+    the impact removed from the velocity. The run must last that long."""
+
+    def __init__(self, world, scene, opts):
+        self.name, self.after = opts["body"], float(opts["after"])
+        ground, n, offset = _ground(world, scene)
+        g = np.asarray(world.gravity, float)
+        if not (np.array_equal(n, [0.0, 0.0, 1.0]) and offset == 0.0 and g[0] == g[1] == 0.0 and g[2] < 0):
+            raise ValueError("rod_impact reference: the closed form takes the ground z = 0 (normal +z) and gravity "
+                             "along -z")
+        rod = world.body(self.name)
+        if np.any(rod.angular_velocity != 0):
+            raise ValueError(f"rod_impact reference: {self.name!r} spins before the impact (the closed form "
+                             "takes a body falling without spin)")
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * rod.shape.half
+        q = rod.orientation
+        com = rod.position + quat.rotate(q, rod.center_of_mass)
+        inv_i = dynamics.world_inverse_inertia(q[None], np.linalg.inv(rod.inertia)[None])[0]
+        e = _coefficient(world, self.name, ground, "restitution")
+        self.tc, self.v_plus, self.l_plus = rod_impact(rod.position + quat.rotate(q, corners), com, rod.velocity,
+                                                       rod.mass, inv_i, e, -g[2])
+        self.gravity = g
+        self.at_step = int(np.ceil((self.tc + self.after) / world.settings.dt))
+        self.steps, self.error = 0, None
+
+    def step(self, world, dt):
+        self.steps += 1
+        if self.steps == self.at_step:
+            rod = world.body(self.name)
+            v = rod.velocity - self.gravity * (world.time - self.tc)
+            self.error = max(np.linalg.norm(v - self.v_plus) / np.linalg.norm(self.v_plus),
+                             np.linalg.norm(_spin(rod) - self.l_plus) / np.linalg.norm(self.l_plus))
+
+    def finish(self, world):
+        if self.error is None:
+            raise ValueError(f"the run ended at t = {world.time:.3g} s, before the impact + {self.after:g} s "
+                             f"(t = {self.tc + self.after:.3g} s) where the rod_impact reference measures: "
+                             "lengthen the study's duration")
+        return {"error": float(self.error)}
+
+
+class SlidingBlockError:
+    """``error``: ``|d − v0²/(2 μ g)| / (v0²/(2 μ g))`` — the distance ``d`` (m) ``body`` slid along
+    its launch velocity ``v0`` over level ground by the end of the run, against the stop distance
+    under Coulomb friction ``μ`` (the block's and ground's dynamic friction, combined) with ``g``
+    the gravity pressing it down (bench_accuracy's sliding-block measure). The run must last until
+    the block stops (``v0/(μ g)`` s)."""
+
+    def __init__(self, world, scene, opts):
+        self.name = opts["body"]
+        ground, n, _off = _ground(world, scene)
+        g = np.asarray(world.gravity, float)
+        g_n = -(g @ n)
+        if g_n <= 0 or np.linalg.norm(g + g_n * n) > 1e-12 * np.linalg.norm(g):
+            raise ValueError("sliding_block reference: the ground must be level (its normal against gravity)")
+        block = world.body(self.name)
+        v0 = block.velocity
+        speed = float(np.linalg.norm(v0))
+        if speed == 0 or abs(v0 @ n) > 1e-12 * speed:
+            raise ValueError(f"sliding_block reference: {self.name!r} must be launched along the ground")
+        mu = _coefficient(world, self.name, ground, "friction")
+        self.along, self.p0 = v0 / speed, block.position.copy()
+        self.expect = sliding_stop_distance(speed, mu, g_n)
+        self.stops = speed / (mu * g_n)
+
+    def step(self, world, dt):
+        pass
+
+    def finish(self, world):
+        if world.time < self.stops:
+            raise ValueError(f"the run ended at t = {world.time:.3g} s, before the block stops (v0/(μ g) = "
+                             f"{self.stops:.3g} s): lengthen the study's duration")
+        slid = (world.body(self.name).position - self.p0) @ self.along
+        return {"error": float(abs(slid - self.expect) / self.expect)}
+
+
+class InclineError:
+    """``error``: ``|a − g (sin θ − μ cos θ)| / (g (sin θ − μ cos θ))`` — the acceleration
+    ``a = 2 s / t²`` (m/s²) of ``body``, from the distance ``s`` it slid down the ground plane
+    (incline θ: the angle of its normal from ``−gravity``) from rest in the run's ``t`` s, against
+    the closed form with the dynamic friction ``μ`` of the block and the slope combined
+    (bench_accuracy's incline measure). A block that sticks (``tan θ <= μ``) has no relative error:
+    the run raises."""
+
+    def __init__(self, world, scene, opts):
+        self.name = opts["body"]
+        ground, n, _off = _ground(world, scene)
+        g = np.asarray(world.gravity, float)
+        g_n = -(g @ n)
+        tangential = g + g_n * n
+        if g_n <= 0:
+            raise ValueError("incline reference: gravity must press the block onto the slope")
+        theta = float(np.arctan2(np.linalg.norm(tangential), g_n))
+        mu = _coefficient(world, self.name, ground, "friction")
+        if np.tan(theta) <= mu:
+            raise ValueError(f"incline reference: the block sticks (tan θ = {np.tan(theta):.3g} <= μ = {mu:g}): its "
+                             "acceleration is 0 and a relative error of it undefined")
+        block = world.body(self.name)
+        if np.any(block.velocity != 0) or np.any(block.angular_velocity != 0):
+            raise ValueError(f"incline reference: {self.name!r} must start at rest (a = 2 s / t²)")
+        self.down = tangential / np.linalg.norm(tangential)
+        self.p0 = block.position.copy()
+        self.expect = incline_acceleration(theta, mu, float(np.linalg.norm(g)))
+
+    def step(self, world, dt):
+        pass
+
+    def finish(self, world):
+        a = 2 * (world.body(self.name).position - self.p0) @ self.down / world.time ** 2
+        return {"error": float(abs(a - self.expect) / self.expect)}
+
+
+class PenaltyRestError:
+    """``error``: ``|depth − m g / k| / (m g / k)`` — the penetration (m) of ``body`` (a sphere on
+    the ground plane) at the end of the run against the rest depth of the penalty spring
+    (``settings.penalty.stiffness`` k, N/m; ``g`` the gravity along the ground's normal)
+    (bench_accuracy's penalty-rest measure)."""
+
+    def __init__(self, world, scene, opts):
+        self.name = opts["body"]
+        _ground_name, self.n, self.offset = _ground(world, scene)
+        ball = world.body(self.name)
+        self.radius = float(ball.shape.radius)
+        g_n = -(np.asarray(world.gravity, float) @ self.n)
+        self.expect = penalty_rest_depth(ball.mass, g_n, world.settings.penalty.stiffness)
+
+    def step(self, world, dt):
+        pass
+
+    def finish(self, world):
+        depth = self.radius - (world.body(self.name).position @ self.n - self.offset)
+        return {"error": float(abs(depth - self.expect) / self.expect)}
+
+
+def reference(world, scene, opts):
+    """The recorder of ``record: [{reference: {type: NAME, ...}}]``: ``REFERENCES[NAME]``."""
+    return REFERENCES[opts["type"]](world, scene, opts)
+
+
+#: the reference recorders by the name a study file gives (``spec.REFERENCES`` validates their options)
+REFERENCES = {"bouncing_ball": BouncingBallError, "two_spheres": TwoSpheresError, "rod_impact": RodImpactError,
+              "sliding_block": SlidingBlockError, "incline": InclineError, "penalty_rest": PenaltyRestError}
 RECORDERS = {"max_penetration": MaxPenetration, "energy_drift": EnergyDrift, "contacts": ContactFigures,
-             "final_pose": FinalPose, "reference": BouncingBallError}
+             "final_pose": FinalPose, "reference": reference}

@@ -30,8 +30,23 @@ TOP_KEYS = {"name", "description", "scene", "set", "duration", "seed", "replicat
             "success", "summary", "plot"}
 #: the figures a run can record (``record:``), each a name or ``{name: options}``
 RECORDS = ("final_pose", "max_penetration", "energy_drift", "contacts", "wall_time", "reference")
-#: named exact answers a run's trajectory is compared with (``record: [{reference: NAME}]``)
-REFERENCES = ("bouncing_ball",)
+#: named exact answers a run is compared with (``record: [{reference: {type: NAME, ...}}]``, closed
+#: forms in ``references.py``, recorders in ``runner.py``): their options (default; None: required),
+#: the role of their body, the shape it must have, and whether they need a static ground plane
+#: (else: gravity 0). Each records ``error``, relative (bench/bench_accuracy.py's measure).
+REFERENCES = {
+    "bouncing_ball": {"options": {"body": "ball"}, "role": "the ball (a dynamic sphere)", "shape": "sphere",
+                      "ground": True},
+    "two_spheres": {"options": {"bodies": None}, "role": "the two spheres (dynamic spheres)", "shape": "sphere",
+                    "ground": False},
+    "rod_impact": {"options": {"body": None, "after": 0.03}, "role": "the rod (a dynamic box)", "shape": "box",
+                   "ground": True},
+    "sliding_block": {"options": {"body": None}, "role": "the sliding block (a dynamic box)", "shape": "box",
+                      "ground": True},
+    "incline": {"options": {"body": None}, "role": "the block (a dynamic box)", "shape": "box", "ground": True},
+    "penalty_rest": {"options": {"body": None}, "role": "the ball (a dynamic sphere)", "shape": "sphere",
+                     "ground": True},
+}
 #: named distributions of ``perturb:`` and their parameters (defaults; None: required)
 DISTRIBUTIONS = {"normal": {"mean": 0.0, "std": None}, "uniform": {"low": None, "high": None}}
 #: named motions of the kinematic bodies (``drive:``) and their parameters (defaults; None: required)
@@ -271,16 +286,69 @@ class Study:
                     raise StudyError(where, f"final_pose takes {{bodies: [names of the scene's bodies]}}, got {opts!r}")
                 out.append(("final_pose", {"bodies": list(bodies)}))
             elif name == "reference":
-                opts = {"type": opts} if isinstance(opts, str) else opts
-                if not isinstance(opts, dict) or opts.get("type") not in REFERENCES:
-                    raise StudyError(where, f"reference takes the name of an exact answer "
-                                            f"({', '.join(REFERENCES)}), got {opts!r}")
-                body = opts.get("body", "ball")
-                if body not in self.body_names:
-                    raise StudyError(f"{where}.body", f"no body {body!r} in the scene")
-                out.append(("reference", {"type": opts["type"], "body": body}))
+                if any(n == "reference" for n, _ in out):
+                    raise StudyError(where, "one reference per study (its figure is error)")
+                out.append(("reference", self._reference(opts, where)))
             else:
                 out.append((name, {}))
+        return out
+
+    def _reference(self, opts, where):
+        """``{reference: NAME}`` or ``{reference: {type: NAME, body: BODY, ...}}``: an exact answer
+        of ``REFERENCES``, its options (defaults filled in) and its bodies checked against the
+        base scene — each a dynamic body of the shape the closed form takes — and the ground or
+        gravity it needs."""
+        opts = {"type": opts} if isinstance(opts, str) else opts
+        if not isinstance(opts, dict):
+            raise StudyError(where, f"reference takes {{type: NAME, ...}} or NAME (NAME one of "
+                                    f"{', '.join(REFERENCES)}), got {opts!r}")
+        kind = opts.get("type")
+        if kind not in REFERENCES:
+            raise StudyError(f"{where}.type", f"unknown exact answer {kind!r} (known: {', '.join(REFERENCES)})")
+        spec = REFERENCES[kind]
+        unknown = set(opts) - set(spec["options"]) - {"type"}
+        if unknown:
+            raise StudyError(f"{where}.{sorted(unknown)[0]}", f"unknown key of a {kind} reference "
+                                                              f"(known: {', '.join(sorted(spec['options']))})")
+        out = {"type": kind}
+        for key, default in spec["options"].items():
+            if key not in opts and default is None:
+                raise StudyError(f"{where}.{key}", f"required: {spec['role']}")
+            out[key] = copy.deepcopy(opts.get(key, default))
+        declared = {b.get("name"): b for b in self.scene.get("bodies") or [] if isinstance(b, dict)}
+
+        def check_body(name, at):
+            if name not in self.body_names:
+                raise StudyError(at, f"no body {name!r} in the scene ({', '.join(map(str, self.body_names))})")
+            b = declared.get(name)
+            if b is None:
+                raise StudyError(at, f"{name!r} is a robot's link; a {kind} reference measures a body the scene "
+                                     "declares")
+            if b.get("kind", "dynamic") != "dynamic":
+                raise StudyError(at, f"{name!r} is {b.get('kind')}; a {kind} reference measures a dynamic "
+                                     f"{spec['shape']}")
+            shape = (b.get("shape") or {}).get("type")
+            if shape != spec["shape"]:
+                raise StudyError(at, f"{name!r} is a {shape}; a {kind} reference measures a dynamic {spec['shape']}")
+
+        if "bodies" in out:
+            names = out["bodies"]
+            if not isinstance(names, list) or len(names) != 2 or names[0] == names[1] or \
+                    not all(isinstance(n, str) for n in names):
+                raise StudyError(f"{where}.bodies", f"must name two different dynamic {spec['shape']}s of the scene, "
+                                                    f"got {names!r}")
+            for n in names:
+                check_body(n, f"{where}.bodies")
+        else:
+            check_body(out["body"], f"{where}.body")
+        if "after" in out and _number(out["after"], f"{where}.after") <= 0:
+            raise StudyError(f"{where}.after", f"must be > 0 (seconds after the exact impact), got {out['after']!r}")
+        if spec["ground"] and not any(b.get("kind") == "static" and (b.get("shape") or {}).get("type") == "plane"
+                                      for b in declared.values()):
+            raise StudyError(where, f"a {kind} reference needs a static plane in the scene (the ground)")
+        if not spec["ground"] and any(float(x) != 0 for x in self.scene.get("gravity", [0.0, 0.0, -9.81])):
+            raise StudyError(where, f"a {kind} reference needs gravity 0 (its closed form has no force but the "
+                                    "collision)")
         return out
 
     def _success(self, s):
