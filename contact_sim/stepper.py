@@ -25,8 +25,9 @@ the models; the time-of-impact search (4) runs between its solves and its advanc
 ask for exact times of impact. Each stage's kernel lives in its stage's module (``prepare``,
 ``impact``, ``resting``, ``correction``, ``free_motion``), every solve is ``solver.solve_rows``.
 
-Penalty response replaces 2–3 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
-(friction on) regularised Coulomb friction (``response.penalty_friction``).
+Penalty response replaces 2–5 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
+(friction on) regularised Coulomb friction (``response.penalty``), in one compiled call too
+(``substep.run_penalty``).
 
 ``world.contacts`` gets the contacts of the step with the impulses applied to A (normal and
 friction parts), ``world.last_solve`` a ``StepStats`` with the solver's iterations, residual,
@@ -35,19 +36,15 @@ energy terms the step declares.
 """
 import numpy as np
 
-from . import quat
-from .contacts import Contacts
-from .kinds import DYNAMIC
 from .stats import StepStats
 from .response import models as _models
 from .collision import detect_world
 from .collision.vec3 import rotations
-from .response import solver
 from .response import toi as toi_mod
-from .response import correction, penalty_friction, prepare, substep, swept
-from .response.cache import merge_records, record
+from .response import correction, prepare, substep, swept
+from .response.cache import merge_records
 from .response.context import StepContext
-from .response.energy import kinematic_work, pose_work
+from .response.energy import pose_work
 
 
 def describe_models(world):
@@ -168,67 +165,19 @@ def _finish(ctx, correction_energy):
 
 # ---------------------------------------------------------------------------- penalty
 def _penalty_step(world, dt, m):
-    """Penalty response: a spring ``k·depth`` and damper ``−c·v_n`` along each contact normal (never
-    pulling), integrated implicitly (backward Euler): the force uses the depth and normal velocity
-    at the *end* of the step, ``F = k·(d − dt·v_n⁺) − c·v_n⁺``, which makes the impulse of each
-    contact ``λ = dt·F`` the solution of ``v_n⁺ + γλ = k·d/(dt·k + c)`` with compliance
-    ``γ = 1/(dt·(dt·k + c))`` (the soft-constraint form of Catto's soft step and ODE's CFM/ERP).
-    Stable for every stiffness and step (the explicit spring exploded above sqrt(k/m)·dt = 2, which
-    the old defaults crossed for a 1 kg body at the default dt); rest is still exactly k·depth = m g.
-    Bodies in contact move by ``x += dt·v⁺`` (symplectic Euler), free bodies ballistically."""
-    st = world.settings
-    s = world.s
+    """Penalty response (``response.penalty``): a spring ``k·depth`` and damper ``−c·v_n`` along each
+    contact normal (never pulling), with regularised Coulomb friction, both integrated implicitly;
+    bodies in contact move by ``x += dt·v⁺`` (symplectic Euler), free bodies ballistically. Detect,
+    then the stages after detection in one compiled call (``substep.run_penalty``)."""
+    ctx = StepContext.start(world, dt, m)
     # speculative contacts: a point apart now that can reach the other body within the step (a
     # spinning box's corner swinging into the ground) is in the solve, so its spring acts on the
     # depth it reaches by the end of the step; seen only once inside, its first step in compressed
     # the spring with nothing resisting, energy from no work
-    margin, reach, floor = prepare.speculative_reach(world, dt) if st.speculative else (0.0, None, 0.0)
-    c = _detect(world, margin, reach=reach, floor=floor)
-    k = len(c)
-    max_pen = max(float(c.depth.max()), 0.0) if k else 0.0
-    sweeps = 0   # of the friction solve
-    if k:
-        rel_vel = prepare.relative_velocity(world, c, m)
-        rows = prepare.rows(world, c, prepare.inv_inertia(world, m, quat.to_matrix(s.quat)), rel_vel, m)
-        vn0 = np.einsum("ij,ij->i", c.normal, rel_vel)
-        stiff = st.penalty.stiffness
-        # the damper acts on a point inside; one apart meets the spring alone, λ = dt·k·max(depth at
-        # the end, 0), which is zero unless the point gets inside within the step
-        inside = c.depth >= 0.0
-        damp = np.where(inside, st.penalty.damping, 0.0)
-        gamma = 1.0 / (dt * (dt * stiff + damp))
-        target = stiff * c.depth / (dt * stiff + damp)
-        g = prepare.gravity(world)
-        v_end = s.vel + g * dt          # the velocity the step would end with without contact
-        w_end = s.omega.copy()
-        res = solver.solve_soft(rows, v_end, w_end, target_n=target, compliance=gamma,
-                                iterations=st.solver_iterations, tolerance=st.solver_tolerance,
-                                direct_max=st.direct_max_contacts)
-        if m.friction:   # regularised Coulomb friction, implicit (response.penalty_friction)
-            sweeps = penalty_friction.solve_with_friction(rows, v_end, w_end, res.impulse, target, gamma,
-                                                          prepare.coefficients(world, c, m)[2],
-                                                          st.penalty.friction_velocity, st.solver_iterations)
-        used = inside | (res.impulse[:, 0] > 0.0)   # a speculative contact that did nothing is none
-        rec = record(c, rows, res.impulse, vn0)
-        world.contacts = rec if used.all() else rec.select(used)
-        work = kinematic_work(world, world.contacts)   # before the bodies move (substep._record)
-        # bodies in contact: x += dt·v⁺ (the kick, then half of gravity's kick shifted so that the
-        # exact ballistic drift below ends at that position); free bodies keep the exact ballistic step
-        touched = np.zeros(len(world), bool)
-        touched[c.body_a[used]] = True
-        touched[c.body_b[used]] = True
-        shift = np.where((touched & (world.kind == DYNAMIC))[:, None], 0.5 * world.gravity * dt, 0.0)
-        s.vel += (v_end - g * dt - s.vel) + shift
-        s.omega[...] = w_end
-        drift = world._advance_free(dt)
-        s.vel -= shift
-        iters, residual = res.iterations, res.residual
-    else:
-        world.contacts = Contacts.empty()
-        drift = world._advance_free(dt)
-        iters, residual, work = 0, 0.0, 0.0
-    # the friction solve stopped by the sweep limit, not its tolerance, counts as unconverged too
-    unconverged = (iters >= st.solver_iterations and residual > st.solver_tolerance) or sweeps >= st.solver_iterations
-    world.last_solve = StepStats(iterations=iters, residual=residual, unconverged=unconverged, max_penetration=max_pen,
-                                 contacts=len(world.contacts), toi=m.toi, response=m.response,
-                                 kinematic_work=work, rotation_drift=drift)
+    margin, reach, floor = prepare.speculative_reach(world, dt) if world.settings.speculative else (0.0, None, 0.0)
+    ctx.R = np.empty((len(world), 3, 3))
+    rotations(world.s.quat, ctx.R)
+    ctx.contacts = _detect(world, margin, ctx.R, reach, floor)
+    ctx.warm_out = world.contact_cache.warm   # the springs take no warm start: the cache is kept as it is
+    substep.run_penalty(ctx)
+    _finish(ctx, 0.0)

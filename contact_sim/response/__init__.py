@@ -6,9 +6,11 @@
 * ``toi``     — time of impact: closed forms, bracket + Brent, swept test;
 * ``models``  — ``auto`` model choice, ``describe`` and preflight warnings;
 * ``kinematic`` — the kinematic response ``v − (1+k)(N·v)N``; ``swept`` — swept-volume time of impact;
-  ``penalty_friction`` — regularised Coulomb friction of the penalty response.
+  ``penalty`` — the penalty response's springs, dampers and regularised Coulomb friction.
 
-The step pipeline that uses them is ``contact_sim.stepper``.
+``substep`` sequences the stages' kernels (``prepare``, ``impact``, ``resting``, ``correction``,
+``penalty``) as one compiled call per sub-step; ``contact_sim.stepper`` runs detection, the time of
+impact and the sub-steps.
 """
 from .models import (ContactModelWarning, MassRatioWarning, PenaltyFrictionWarning, PenaltyStiffnessWarning,
                      TunnellingWarning,

@@ -283,7 +283,7 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, hint, movable, d
 def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, compliance, mu, v_reg,
                          lam, vel, omega, iterations, tolerance):
     """Sequential Gauss–Seidel over the penalty response's soft normal rows and their regularised
-    Coulomb friction (``penalty_friction.solve_with_friction``), in place: per contact, the normal
+    Coulomb friction (``penalty.penalty_stage``), in place: per contact, the normal
     row ``n·v + γ λn ≥ target ⟂ λn ≥ 0``, then the friction damper ``μλn/v_reg`` integrated
     implicitly, ``(K_tt + γ_t) Δλt = −(v_t + γ_t λt)`` with ``γ_t = v_reg/(μλn)``, capped at
     ``μλn`` along the sliding velocity the point would have without this contact's friction.

@@ -36,7 +36,7 @@ from .pgs import apply_ids, sweeps
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",
-           "solve_direct", "solve_jacobi", "solve_soft"]
+           "solve_direct", "solve_jacobi", "solve_rows"]
 
 
 
@@ -222,8 +222,10 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
     return SolveResult(lam, int(it), float(residual))
 
 
-#: ``settings.SOLVER_METHODS`` by index, as the kernels take them
+#: ``settings.SOLVER_METHODS`` by index, as the kernels take them; ``SOFT``: the penalty response's
+#: frictionless compliant rows (``solve_rows``)
 AUTO, DIRECT, GS, JACOBI = (SOLVER_METHODS.index(x) for x in ("auto", "direct", "gs", "jacobi"))
+SOFT = len(SOLVER_METHODS)
 
 
 @njit
@@ -240,8 +242,12 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
     Gauss–Seidel above; a set of more than ``DIRECT_FIRST`` contacts with an island larger than
     ``DIRECT_ISLAND_MAX`` tries Gauss–Seidel first (a pyramid of 55 boxes, 400 contacts, costs tens
     of ms to factorise and Gauss–Seidel warm started usually converges) and the active set only
-    when it does not. Contacts between two bodies that cannot move (a kinematic link pressed into
-    a static floor) carry no impulse: their rows have no effective mass (``K = 0``)."""
+    when it does not. ``SOFT`` (the penalty response's normal rows, frictionless, ``compliance > 0``:
+    the implicit spring–damper, stable at any stiffness): the exact active set on ``A +
+    diag(compliance)`` up to ``direct_max`` contacts when every island solves, else Gauss–Seidel
+    from zero (the compliance only improves its conditioning). Contacts between two bodies that
+    cannot move (a kinematic link pressed into a static floor) carry no impulse: their rows have no
+    effective mass (``K = 0``)."""
     k = a.shape[0]
     if k == 0:
         return 0, 0.0
@@ -266,6 +272,9 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
                 lam[li[j], x] = lam_l[j, x]
         return it, residual
     order, start = islands(a, b, movable, vel.shape[0])
+    if method == SOFT:
+        return _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, movable,
+                     direct_max, iterations, tolerance, vel, omega, lam)
     if method == AUTO:
         if DIRECT_FIRST < k <= direct_max and _largest(start) > DIRECT_ISLAND_MAX:
             v0, w0 = vel.copy(), omega.copy()
@@ -343,6 +352,41 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     sweeps_, res = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
                               mu_s, mu_d, kinetic, lam, True, iterations, tolerance, vel, omega, lam)
     return sweeps_, max(res, residual)
+
+
+@njit
+def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, movable, direct_max,
+          iterations, tolerance, vel, omega, lam):
+    """``solve_rows``' ``SOFT`` method: the active set on every island (the sparse one for an island
+    too large for the dense kernel), applied only when every island solved; otherwise Gauss–Seidel
+    on all the rows from zero. Returns ``(sweeps, residual)``."""
+    k = a.shape[0]
+    zeros = np.zeros(k)
+    warm = np.zeros((k, 3))
+    if k <= direct_max:
+        status = np.empty(k, np.int64)
+        lam_d = np.zeros((k, 3))
+        residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance,
+                                 zeros, zeros, False, warm, False, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
+                                 DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel, omega, False, lam_d, status)
+        big = np.flatnonzero(status == TOO_LARGE)
+        if big.shape[0]:
+            lam_b = np.zeros((big.shape[0], 3))
+            with objmode(ok="boolean", res_b="float64"):
+                ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
+                                       compliance, zeros, zeros, False, warm, False, movable, vel, omega, lam_b)
+            if ok:
+                residual = max(residual, res_b)
+                for j in range(big.shape[0]):
+                    status[big[j]] = SOLVED
+                    for x in range(3):
+                        lam_d[big[j], x] = lam_b[j, x]
+        if np.all(status == SOLVED):
+            apply_ids(np.arange(k), a, b, dirs, iang_a, iang_b, ima, imb, lam_d, vel, omega)
+            lam[:] = lam_d
+            return 1, residual
+    return _sweep_ids(np.arange(k), a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, zeros,
+                      zeros, False, warm, False, iterations, tolerance, vel, omega, lam)
 
 
 @njit
@@ -433,28 +477,3 @@ def _jacobi_py(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu
                        warm=warm.copy() if use_warm else None)
     lam[...] = res.impulse
     return int(res.iterations), float(res.residual)
-
-
-def solve_soft(rows, vel, omega, *, target_n, compliance, iterations=20, tolerance=1e-9, direct_max=None):
-    """Frictionless contacts with compliant normal rows, updating ``vel, omega (N,3)`` in place:
-    ``n·v_rel + compliance·λn ≥ target_n ⟂ λn ≥ 0`` (``compliance, target_n (K,)``). This is the
-    implicit (backward Euler) spring–damper of the penalty response, stable at any stiffness.
-    Exact active set on ``A + diag(compliance)`` up to ``direct_max`` contacts, compiled
-    Gauss–Seidel above (the compliance only improves its conditioning)."""
-    k = len(rows.a)
-    live = rows.movable[rows.a] | rows.movable[rows.b]
-    if not live.all():   # no movable body: no impulse (see solve_auto)
-        lam = np.zeros((k, 3))
-        li = np.flatnonzero(live)
-        if li.size:
-            res = solve_soft(rows.select(li), vel, omega, target_n=target_n[li], compliance=compliance[li],
-                             iterations=iterations, tolerance=tolerance, direct_max=direct_max)
-            lam[li] = res.impulse
-            return SolveResult(lam, res.iterations, res.residual)
-        return SolveResult(lam, 0, 0.0)
-    if 0 < k <= (DIRECT_MAX_CONTACTS if direct_max is None else direct_max):
-        res, ok = solve_direct(rows, vel, omega, target_n=target_n, compliance=compliance)
-        if ok:
-            return res
-    return solve(rows, vel, omega, target_n=target_n, iterations=iterations, tolerance=tolerance,
-                 compliance=compliance)

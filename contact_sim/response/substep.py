@@ -28,15 +28,17 @@ import numpy as np
 
 from ..free_motion import advance
 from ..jit import njit
+from ..kinds import DYNAMIC
 from ..settings import COMBINE_RULES, SOLVER_METHODS
 from . import correction, prepare
 from . import toi as toi_mod
-from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
+from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, PGS_TOLERANCE,
                          REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
 from .cache import local_points
 from .compliance import possible as may_be_compliant, stiffness_rows
 from .energy import kinematic_work
 from .impact import impact_stage
+from .penalty import penalty_stage
 from .pgs import build_rows
 from .resting import rest_stage
 
@@ -357,3 +359,109 @@ def _move(frac, tau, dvw, rested, pos, vel, quat, omega, principal_q, moments, i
                                 kinematic, half_dv, half_dw, rested, tau, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE,
                                 MAX_SUBSTEPS)
     return drift, (kick_error if rested else 0.0)
+
+
+def run_penalty(ctx):
+    """A penalty step's stages after detection (``ctx.contacts``) in one compiled call: relative
+    velocities, rows, the springs and dampers with their friction (``penalty.penalty_stage``),
+    store, and the move: bodies in contact ``x += dt·v⁺`` (symplectic Euler), free bodies the exact
+    ballistic step. No contact: free motion."""
+    world, m = ctx.world, ctx.models
+    c = ctx.contacts
+    if not len(c):
+        ctx.drift += world._advance_free(ctx.dt)
+        return
+    st = world.settings
+    s = world.s
+    bm = world.body_masks()
+    cc = np.ascontiguousarray
+    bodies = _body_arrays(world)
+    ctx.pos0 = s.pos.copy() if bm.any_kinematic else None
+    ctx.max_penetration = max(ctx.max_penetration, float(c.depth.max()))
+    f3, f1, used, out = _penalty_substep(
+        cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+        cc(c.normal, dtype=float), cc(c.depth, dtype=float), world.kind, s.pos, s.vel, s.quat, s.omega,
+        *bodies[:4], prepare.inv_inertia(world, m, ctx.R), world._gravity, ctx.gravity, bm.dynamic, bm.rotating,
+        bm.kinematic, *bodies[7:9], COMBINE_RULES.index(st.combine), m.friction,
+        float(st.penalty.stiffness), float(st.penalty.damping), float(st.penalty.friction_velocity), float(ctx.dt),
+        DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+        int(st.solver_iterations), float(st.solver_tolerance), PGS_TOLERANCE)
+    iters, residual, sweeps, kept, drift = out.tolist()
+    ctx.iterations, ctx.residual = int(iters), residual
+    # the friction solve stopped by the sweep limit, not its tolerance, counts as unconverged too
+    ctx.unconverged = (iters >= st.solver_iterations and residual > st.solver_tolerance) \
+        or sweeps >= st.solver_iterations
+    ctx.drift += drift
+    c.normal_impulse, c.friction_impulse, c.impulse = f1[0], f3[0], f3[1]
+    c.relative_normal_velocity = f1[1]
+    if kept < len(c):   # a speculative contact that did nothing is none
+        c = c.select(used)
+    ctx.records.append((c, None))
+    if ctx.pos0 is not None:
+        ctx.kinematic_work += kinematic_work(world, c, ctx.pos0)
+
+
+@njit
+def _penalty_substep(a, b, point, normal, depth, kind, pos, vel, quat, omega, principal_q, moments, inertia_body,
+                     inv_mass, inv_inertia, gravity, gravity_rows, dynamic, rotating, kinematic, friction,
+                     static_friction, rule, kinetic, stiffness, damping, v_reg, dt, direct_max, iterations, tolerance,
+                     friction_tolerance):
+    """``run_penalty``'s kernel, on ``K > 0`` contacts (arrays as ``_substep``'s). Returns ``(f3
+    (2,K,3), f1 (2,K), used (K,), out)``: the friction impulses and the impulses, the normal
+    impulses and the approach speeds, the contacts that count (inside, or pushed), ``out = [sweeps,
+    residual, friction sweeps, used, drift]``."""
+    k, n = a.shape[0], pos.shape[0]
+    # ---- velocity stage, rows
+    rel_vel = np.empty((k, 3))
+    prepare._relative_velocity(a, b, point, pos, vel, omega, kind, False, rel_vel, normal, depth, 0.0, 0.0, 0.0,
+                               np.empty(0, np.bool_))
+    vec, mat, num = np.empty((4, k, 3)), np.empty((6, k, 3, 3)), np.empty((2, k))
+    t1, t2, ra, rb = vec[0], vec[1], vec[2], vec[3]
+    ang_a, ang_b, iang_a, iang_b, K, dirs = mat[0], mat[1], mat[2], mat[3], mat[4], mat[5]
+    ima, imb = num[0], num[1]
+    build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, rel_vel, dynamic, True, t1, t2, ra, rb, ang_a, ang_b,
+               iang_a, iang_b, ima, imb, K, dirs)
+    f3, f1, used, out = np.empty((2, k, 3)), np.empty((2, k)), np.empty(k, np.bool_), np.zeros(5)
+    friction_impulse, impulse, normal_impulse, vn0 = f3[0], f3[1], f1[0], f1[1]
+    inside = np.empty(k, np.bool_)
+    for c in range(k):
+        vn0[c] = normal[c, 0] * rel_vel[c, 0] + normal[c, 1] * rel_vel[c, 1] + normal[c, 2] * rel_vel[c, 2]
+        inside[c] = depth[c] >= 0.0
+    e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
+    prepare.coefficient_rows(a, b, np.zeros(n), friction, static_friction, rule, kinetic, e, mu_s, mu_d)
+    # ---- the springs and dampers, with friction: on the velocities the step would end with
+    v_end = np.empty((n, 3))
+    for i in range(n):
+        for x in range(3):
+            v_end[i, x] = vel[i, x] + gravity_rows[i, x] * dt
+    w_end = omega.copy()
+    lam = np.zeros((k, 3))
+    it, residual, sweeps = penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, mu_d, kinetic,
+                                         stiffness, damping, v_reg, dt, dynamic, direct_max, iterations, tolerance,
+                                         friction_tolerance, v_end, w_end, lam)
+    # ---- store: a speculative contact that did nothing is none
+    kept = _store(1.0, lam, lam, False, t1, t2, normal, True, inside, normal_impulse, friction_impulse, impulse, used)
+    # ---- move: bodies in contact x += dt·v⁺ (the kick, then half of gravity's kick shifted so that
+    # the exact ballistic drift ends at that position); free bodies keep the exact ballistic step
+    touched = np.zeros(n, np.bool_)
+    for c in range(k):
+        if used[c]:
+            touched[a[c]] = True
+            touched[b[c]] = True
+    shift = np.zeros((n, 3))
+    for i in range(n):
+        if touched[i] and kind[i] == DYNAMIC:
+            for x in range(3):
+                shift[i, x] = 0.5 * gravity[x] * dt
+    for i in range(n):
+        for x in range(3):
+            vel[i, x] = vel[i, x] + (((v_end[i, x] - gravity_rows[i, x] * dt) - vel[i, x]) + shift[i, x])
+            omega[i, x] = w_end[i, x]
+    drift, _ = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
+                       np.zeros((0, 3)), np.zeros((0, 3)), False, dt, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE,
+                       MAX_SUBSTEPS)
+    for i in range(n):
+        for x in range(3):
+            vel[i, x] = vel[i, x] - shift[i, x]
+    out[0], out[1], out[2], out[3], out[4] = it, residual, sweeps, kept, drift
+    return f3, f1, used, out
