@@ -6,7 +6,7 @@ gave (for primitives the two coincide).
 """
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -99,8 +99,7 @@ class _State:
 
     def copy(self):
         c = _State.__new__(_State)   # not __init__: its empty arrays would be replaced at once
-        for n in self.NAMES:
-            setattr(c, n, getattr(self, n).copy())
+        c.__dict__ = {n: getattr(self, n).copy() for n in self.NAMES}
         return c
 
     def take(self, rows):
@@ -554,7 +553,7 @@ class World(BodyInput):
         """What stepping and the state inputs change, as it is now (``Snapshot``, copies):
         ``restore`` puts it back. ``step`` takes one to be all or nothing; the node takes one
         around a tick's sub-steps. The model (bodies, shapes, materials, settings) is not in it."""
-        return Snapshot(self.s.copy(), self.time, replace(self.contact_cache), self.contacts, self.last_solve,
+        return Snapshot(self.s.copy(), self.time, self.contact_cache.copy(), self.contacts, self.last_solve,
                         self.last_detection, tuple((r, dict(r.q), dict(r.qd), dict(r.t), dict(r.before))
                                                    for r in self.robots), self.kind)
 
@@ -568,7 +567,7 @@ class World(BodyInput):
                                   f"{len(self)} now): bodies or robots were added or removed since")
         self.s = snapshot.state.copy()
         self.time = snapshot.time
-        self.contact_cache = replace(snapshot.contact_cache)
+        self.contact_cache = snapshot.contact_cache.copy()
         self.contacts, self.last_solve, self.last_detection = snapshot.contacts, snapshot.last_solve, \
             snapshot.last_detection
         for r, q, qd, t, before in snapshot.robots:
