@@ -317,12 +317,12 @@ def _largest(start):
 
 
 @njit
-def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
-            kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam):
-    """The active set island by island (``active_set.solve_islands``; an island larger than
-    ``DIRECT_ISLAND_MAX`` or whose factorisation failed by the sparse ``direct._active_set``), the
-    solved islands' impulses applied, Gauss–Seidel finishing the others (sliding friction, an
-    inconsistent set) from the start the active set left. Returns ``(sweeps, residual)``."""
+def _islands(max_island, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
+             mu_d, kinetic, warm, use_warm, vel, omega, lam):
+    """The dense active set on every island of at most ``max_island`` contacts
+    (``active_set.solve_islands``), the solved ones applied to ``vel, omega``; friction only when
+    ``kinetic`` and some ``mu_s > 0``. Returns ``(friction, mu_s, mu_d as solved, residual, status
+    (K,))``."""
     k = a.shape[0]
     friction = kinetic and np.any(mu_s > 0.0)
     zeros = np.zeros(k)
@@ -330,8 +330,21 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     mud = mu_d if friction else zeros
     status = np.empty(k, np.int64)
     residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus,
-                             mud, friction, warm, use_warm, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
-                             DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel, omega, True, lam, status)
+                             mud, friction, warm, use_warm, max_island, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
+                             DIRECT_MAX_ROUNDS, vel, omega, True, lam, status)
+    return friction, mus, mud, residual, status
+
+
+@njit
+def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
+            kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam):
+    """The active set island by island (``active_set.solve_islands``; an island larger than
+    ``DIRECT_ISLAND_MAX`` or whose factorisation failed by the sparse ``direct._active_set``), the
+    solved islands' impulses applied, Gauss–Seidel finishing the others (sliding friction, an
+    inconsistent set) from the start the active set left. Returns ``(sweeps, residual)``."""
+    friction, mus, mud, residual, status = _islands(DIRECT_ISLAND_MAX, a, b, order, start, dirs, ang_a, ang_b, iang_a,
+                                                    iang_b, ima, imb, target, compliance, mu_s, mu_d, kinetic, warm,
+                                                    use_warm, vel, omega, lam)
     big = np.flatnonzero(status == TOO_LARGE)
     if big.shape[0]:
         lam_b = np.zeros((big.shape[0], 3))
@@ -395,15 +408,8 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     """Islands of one contact (a body touching only static geometry) exactly, by the island
     kernel; Gauss–Seidel (``pgs.sweeps``) for the coupled rest and for a single contact that
     slides, from ``warm``. Returns ``(sweeps, residual)``."""
-    k = a.shape[0]
-    friction = kinetic and np.any(mu_s > 0.0)
-    zeros = np.zeros(k)
-    mus = mu_s if friction else zeros
-    mud = mu_d if friction else zeros
-    status = np.empty(k, np.int64)
-    solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus, mud,
-                  friction, warm, use_warm, 1, DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel,
-                  omega, True, lam, status)
+    status = _islands(1, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
+                      mu_d, kinetic, warm, use_warm, vel, omega, lam)[4]
     rest = np.flatnonzero(status != SOLVED)
     if rest.shape[0] == 0:
         return 1, 0.0
