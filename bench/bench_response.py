@@ -31,15 +31,19 @@ The timing protocol (issue 29), the same for every engine and row:
   block, each resting scene settled 1 s untimed.
 * Why (``bench/response_protocol.py``, ``bench/results/response_protocol.csv``): the old protocol
   timed every step alone in turns of 10 and reported pybullet's resting_10 at ~0.027–0.032 ms a
-  step where plain loops took 0.013–0.023. The protocol was not the cause: a ``perf_counter`` pair
-  costs 0.09 µs, per-step timing and a plain loop gave the same 0.0268/0.0269 ms, and turns of
-  10, 100 and 500 steps 0.0225/0.0230/0.0223 ms (contact_sim 0.081 in all). The causes were
-  pybullet's configuration — every body a Featherstone multibody (``createMultiBody``'s default)
-  — and the window: with a multibody ground pybullet's resting_10 step rises from ~0.020 to
-  ~0.027 ms after ~4 s of rest, so short loops on a fresh build saw the cheap phase. With every
-  body ``useMaximalCoordinates=True`` (btRigidBody, the ground too) it is 0.0150 ms and flat; with
-  only the dynamic bodies maximal, 0.0220. Blocks timed whole are kept (the same overhead for
-  every engine, none per step) and pybullet now runs as btRigidBodies.
+  step where plain loops took 0.013–0.023. The protocol was not the cause: a ``perf_counter``
+  pair costs 0.09 µs; per-step timing and a plain loop gave 0.0269 and 0.0272 ms; in turns with
+  contact_sim, blocks of 10, 100 and 500 steps gave 0.0147, 0.0150 and 0.0149 ms (the
+  btRigidBody configuration; contact_sim 0.078–0.080 in all). The causes were pybullet's
+  configuration and the window timed. ``createMultiBody``'s default makes every body a
+  Featherstone multibody: 0.0272 ms, against 0.0221 with the dynamic bodies
+  ``useMaximalCoordinates=True`` and 0.0148 with every body so (btRigidBodies, Bullet's
+  rigid-body solver). And with a multibody in the scene the resting cost changes as the bodies
+  settle: fresh builds of resting_10 step at 0.018–0.019 ms for the first 3 s and 0.026 from the
+  fourth second on (resting_100 0.180 → 0.256), so a short plain loop on a fresh build timed the
+  cheap phase and bench_response's window (after 1 s, 20 s long) the other; as btRigidBodies the
+  step is flat at 0.014 ms. So pybullet now runs as btRigidBodies, the blocks are timed whole
+  (the same overhead for every engine, none per step) and the resting window is unchanged.
 
 The scenes (issues 12 and 29), exactly:
 

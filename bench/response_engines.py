@@ -17,11 +17,11 @@ How each engine gets the scene's one material (friction μ, restitution e) for e
     Every body, the ground and walls too, is made with ``useMaximalCoordinates=True``: a
     btRigidBody solved by Bullet's rigid-body solver, its fastest way for free rigid bodies
     (issue 29; ``createMultiBody``'s default makes each a Featherstone multibody). Measured by
-    ``bench/response_protocol.py`` after 1 s of settling, ms a step, multibody / maximal dynamic
-    bodies only / maximal every body: resting_10 0.0270 / 0.0219 / 0.0150, resting_100 0.280 /
-    0.220 / 0.149, stack_10 0.131 / 0.092 / 0.087, spheres_10 0.0111 / 0.0096 / 0.0069, ball_1
-    0.0021 / 0.0019 / 0.0015. The physics: the same coefficients and combination rules; with e 0
-    nearly the same results (pybullet alone, multibody → maximal every body): resting penetration
+    ``bench/response_protocol.py`` (seconds 1–10 of fresh builds), ms a step, multibody / maximal
+    dynamic bodies only / maximal every body: resting_10 0.0256 / 0.0206 / 0.0141, resting_100
+    0.255 / 0.205 / 0.141, stack_10 0.124 / 0.086 / 0.082, spheres_10 0.0108 / 0.0093 / 0.0067,
+    ball_1 0.0013 / 0.0014 / 0.0015 (the one ball: no gain, within the noise). The physics: the
+    same coefficients and combination rules; with e 0 nearly the same results (pybullet alone, multibody → maximal every body): resting penetration
     0.0125 → 0.0126 mm (resting_100 0.0164 → 0.0126), the stack after 5 s 0.62 → 0.55 mm and top
     drift 6.3 → 5.6 mm, the pile after 2 s 0.65 → 1.02 mm deepest overlap, none escaped. Restitution is
     handled differently once no multibody takes part: any contact with a multibody goes through
