@@ -7,7 +7,7 @@ same way for all (``response_engines.max_penetration``), never from an engine's 
 
     .venv/bin/python bench/bench_response.py [--quick] [--rows ball,spheres,resting,stack,pile,rotation]
                                              [--seconds S] [--peers pybullet,MuJoCo] [--pile-peers ...]
-                                             [--out DIR] [--variants gs:20 ...]
+                                             [--out DIR] [--variants gs:20 ...] [--replot]
 
 Prints a table, writes ``response_peers.csv`` and ``response_peers.png`` (bar chart of the
 ratios) to bench/results/ (``--quick``: ``response_peers_quick.*``; ``--out`` another folder).
@@ -473,6 +473,11 @@ def plot(rows, path):
     ax.bar(x, vals, color=[colour.get(r["engine"], "grey") for r in rr])
     for xi, v in zip(x, vals):
         ax.annotate(f"{v:.3g}×", (xi, v), ha="center", va="bottom", fontsize=8)
+    tx = [(xi, r["target"]) for xi, r in zip(x, rr) if r.get("target", "") != ""]
+    if tx:   # issue 29's targets: a red dash on the bar
+        ax.scatter([t[0] for t in tx], [t[1] for t in tx], marker="_", s=400, color="red", zorder=3,
+                   label="target (at most)")
+        ax.legend(fontsize=7, loc="upper right")
     ax.axhline(1.0, color="black", linewidth=0.8)
     ax.set_yscale("log")
     ax.set_xticks(x, [f"{r['scene']}\n{r['ratio_meaning']}" for r in rr], fontsize=7, rotation=30, ha="right")
@@ -512,8 +517,16 @@ def main(argv=None):
                     help="extra contact_sim-only runs of the pile with the solver forced, e.g. gs:10 jacobi:20")
     ap.add_argument("--peers", default=None,
                     help="comma-separated subset of the peers (pybullet, MuJoCo); default every one installed")
+    ap.add_argument("--replot", action="store_true", help="only redraw the PNG from the CSV already in --out")
     args = ap.parse_args(argv)
     q = args.quick
+    stem = os.path.join(args.out, "response_peers" + ("_quick" if q else ""))
+    if args.replot:
+        with open(stem + ".csv", newline="") as fh:
+            rows = [{k: (float(v) if k in ("ratio", "target") and v else v) for k, v in r.items()}
+                    for r in csv.DictReader(fh)]
+        print(f"wrote {plot(rows, stem + '.png')}")
+        return rows
     side = 4 if q else 10
     pile_s, stack_s = (0.4, 0.25) if q else (2.0, 5.0)
     if args.seconds is not None:
@@ -565,7 +578,6 @@ def main(argv=None):
             r["target"] = TARGETS[r["scene"], r["engine"]]
     print_table(rows)
     os.makedirs(args.out, exist_ok=True)
-    stem = os.path.join(args.out, "response_peers" + ("_quick" if q else ""))
     write_csv(rows, stem + ".csv")
     png = plot(rows, stem + ".png")
     print(f"wrote {stem}.csv" + (f" and {png}" if png else "") + f"; load average {load()}")
