@@ -85,19 +85,34 @@ def response():
         return []
     out = ["### Contact response against pybullet and MuJoCo (`bench/bench_response.py`)", "",
            "Each scene built from one description in every engine, stepped in one process with the engines "
-           "taking turns (chunks of the same simulated interval, order rotated); ratio = contact_sim's time ÷ the "
-           "peer's (> 1: contact_sim slower). Penetration, escapes and drift are computed from each engine's "
-           "final poses in numpy, the same way for all. Scene specifications: the docstring of "
-           "`bench/bench_response.py`.", ""]
+           "taking turns, order rotated each round; each turn one block of steps timed whole (a plain loop over "
+           "the engine's own step call: `world.step`, `stepSimulation`, `mj_step`), the same overhead for every "
+           "engine. Step ms = the p50 over blocks of the time per step; ratio = the median over rounds of "
+           "contact_sim's block time ÷ the peer's in the same round (> 1: contact_sim slower). pybullet runs "
+           "every body as a btRigidBody (`useMaximalCoordinates=True`), its fastest configuration for free rigid "
+           "bodies (issue 29; why, and what it changes: the docstrings of `bench/bench_response.py` and "
+           "`bench/response_engines.py`, the numbers in `bench/results/response_protocol.csv`). Penetration, "
+           "escapes, drift and bounce apexes are computed from each engine's poses in numpy, the same way for all. "
+           "Scene specifications: the docstring of `bench/bench_response.py`.", ""]
+    targets = [x for x in r if x.get("target")]
+    if targets:
+        out += ["Issue 29's targets (contact_sim ÷ peer, p50 step time):", ""]
+        cs = {x["scene"]: x for x in r if x["engine"] == "contact_sim"}
+        out += table(["scene", "peer", "contact_sim ms", "peer ms", "ratio", "target", ""],
+                     [[x["scene"], x["engine"], f(cs[x["scene"]]["step_ms"], ".3g"), f(x["step_ms"], ".3g"),
+                       f(x["ratio"], ".3g"), f"≤ {f(x['target'], 'g')}",
+                       "met" if float(x["ratio"]) <= float(x["target"]) else "missed"] for x in targets])
+        out += [""]
     cells = []
     for x in r:
         ratio = f"{f(x['ratio'], '.3g')} ({x['ratio_meaning']})" if x.get("ratio") else ""
         split = (f"{f(x['detect_ms'], '.3f')} / {f(x['rest_ms'], '.3f')}" if x.get("detect_ms") else "")
-        cells.append([x["scene"], x["engine"], f(x["wall_s_per_sim_s"], ".3g"), f(x["step_ms"], ".3g"), ratio,
-                      f(x["max_penetration_mm"], ".3g"), x["escaped"] or "–", f(x["top_drift_mm"], ".3g"),
-                      split or "–"])
-    out += table(["scene", "engine", "wall s per simulated s", "step ms (median)", "ratio", "final max penetration mm",
-                  "escaped", "top drift mm", "contact_sim detection / rest of step ms"], cells)
+        cells.append([x["scene"], x["engine"], f(x["step_ms"], ".3g"), ratio, f(x["wall_s_per_sim_s"], ".3g"),
+                      f(x.get("ratio_of_totals"), ".3g"), f(x["max_penetration_mm"], ".3g"), x["escaped"] or "–",
+                      f(x["top_drift_mm"], ".3g"), x.get("apex_m") or "–", split or "–"])
+    out += table(["scene", "engine", "step ms (p50)", "ratio", "wall s per simulated s", "ratio of totals",
+                  "final max penetration mm", "escaped", "top drift mm", "bounce apexes m",
+                  "contact_sim detection / rest of step ms"], cells)
     out += ["", "Settings each engine ran with:", ""]
     scenes = {}
     for x in r:   # one line per engine and settings, naming the scenes that ran with them
@@ -105,6 +120,35 @@ def response():
     out += [f"- {e} ({', '.join(dict.fromkeys(sc))}): {st}" for (e, st), sc in scenes.items()]
     if os.path.isfile(os.path.join(RESULTS, "response_peers.png")):
         out += ["", f"![response ratios]({CHARTS}response_peers.png)"]
+    return out + [""] + response_protocol()
+
+
+def response_protocol():
+    """The protocol finding of issue 29, from ``bench/response_protocol.py``'s CSV."""
+    r = rows("response_protocol.csv")
+    if not r:
+        return []
+    out = ["#### Why blocks timed whole and pybullet as btRigidBodies (`bench/response_protocol.py`)", "",
+           "The earlier protocol (every step timed alone, turns of 10 steps) reported pybullet's resting_10 at "
+           "~0.03 ms a step where plain `stepSimulation` loops took 0.013–0.023. The protocol was not the cause: "
+           "timed alone, per step or as a loop, or in turns of 10, 100 or 500 steps, pybullet's step costs the "
+           "same (resting_10 after 1 s of settling, median of 5 repeats of 2000 steps):", ""]
+    proto = [x for x in r if not x["protocol"].startswith("config:")]
+    out += table(["measured (pybullet unless named)", "ms a step"],
+                 [[x["protocol"].strip(), f(x["step_ms"], ".4f") if x["protocol"] != "perf_counter pair"
+                   else f"{f(1e3 * float(x['step_ms']), '.3f')} µs"] for x in proto])
+    cfg = [x for x in r if x["protocol"].startswith("config:")]
+    if cfg:
+        names = list(dict.fromkeys(x["protocol"][len("config: "):] for x in cfg))
+        by = {(x["scene"], x["protocol"][len("config: "):]): x for x in cfg}
+        out += ["", "The causes: pybullet's configuration (`createMultiBody`'s default makes every body a "
+                    "Featherstone multibody; `useMaximalCoordinates=True` makes a btRigidBody), and the window: with a "
+                    "multibody in the scene the resting step grows after ~3 s of rest, so a short loop on a fresh "
+                    "build timed the cheap phase. Fresh builds stepped 10 s in blocks taking turns, median of 3; ms a "
+                    "step over seconds 1–10, then each second from the build:", ""]
+        out += table(["scene"] + names + [f"{n}, by second" for n in names[:1]],
+                     [[sc] + [f(by[sc, n]["step_ms"], ".4f") for n in names] + [by[sc, names[0]].get("by_second_ms", "")]
+                      for sc in dict.fromkeys(x["scene"] for x in cfg)])
     return out + [""]
 
 

@@ -14,6 +14,24 @@ How each engine gets the scene's one material (friction μ, restitution e) for e
     √μ and √e: every pair — sphere–sphere as well as sphere–wall — then has exactly μ and e.
     Linear/angular damping 0 (its default is 0.04), rolling/spinning friction 0, restitution
     velocity threshold 0, otherwise its defaults (50 solver iterations, split impulse, ERP).
+    Every body, the ground and walls too, is made with ``useMaximalCoordinates=True``: a
+    btRigidBody solved by Bullet's rigid-body solver, its fastest way for free rigid bodies
+    (issue 29; ``createMultiBody``'s default makes each a Featherstone multibody). Measured by
+    ``bench/response_protocol.py`` (seconds 1–10 of fresh builds), ms a step, multibody / maximal
+    dynamic bodies only / maximal every body: resting_10 0.0256 / 0.0206 / 0.0141, resting_100
+    0.255 / 0.205 / 0.141, stack_10 0.124 / 0.086 / 0.082, spheres_10 0.0108 / 0.0093 / 0.0067,
+    ball_1 0.0013 / 0.0014 / 0.0015 (the one ball: no gain, within the noise). The physics: the
+    same coefficients and combination rules; with e 0 nearly the same results (pybullet alone, multibody → maximal every body): resting penetration
+    0.0125 → 0.0126 mm (resting_100 0.0164 → 0.0126), the stack after 5 s 0.62 → 0.55 mm and top
+    drift 6.3 → 5.6 mm, the pile after 2 s 0.65 → 1.02 mm deepest overlap, none escaped. Restitution is
+    handled differently once no multibody takes part: any contact with a multibody goes through
+    the multibody solver (with only the dynamic bodies maximal the ball bounces exactly as
+    before), the rigid-body solver subtracts a speculative contact's remaining gap ÷ dt from the
+    bounce velocity, so a bounce detected before touching loses height (at 2.0 mm gap: 0.9 × 3.988 − 0.0020 × 240
+    = 3.11 m/s, measured 3.107): the e 0.9 ball's apexes
+    are 0.921, 0.601, 0.345 m (exact 0.829, 0.690, 0.590; with the multibody ground 0.936,
+    0.801, 0.732, the first overshoot from Baumgarte pushing out a 12 mm penetration). The bodies
+    do not sleep (their velocities stay non-zero at rest).
   * MuJoCo takes the element-wise maximum of the two geoms' friction when their priorities are
     equal (the default), so every geom gets sliding friction μ (torsional and rolling left at
     their defaults 0.005 and 0.0001; they act only with condim > 3, and the default condim is 3).
@@ -74,10 +92,16 @@ def quat_matrix(q):
 
 # ---------------------------------------------------------------------------- adapters
 class Engine:
-    """Common loop: ``run(n)`` steps ``n`` times and returns the wall seconds of the steps alone
-    (each step timed on its own, so reading statistics between steps is not counted)."""
+    """Two loops. ``run_block(n)``, the benchmark's timed unit: ``n`` steps in a plain Python loop
+    over the engine's own step call (``world.step``, ``stepSimulation``, ``mj_step``), bound once,
+    one ``perf_counter`` pair around the whole block, nothing between the steps; returns its wall
+    seconds. ``run(n)``: each step timed on its own with the statistics hook ``after_step`` between
+    steps (not counted) — for untimed settling and for per-step statistics."""
 
     name = "engine"
+
+    def run_block(self, n):
+        raise NotImplementedError
 
     def run(self, n):
         total = 0.0
@@ -127,6 +151,13 @@ class ContactSimEngine(Engine):
     def step(self):
         self.world.step()
 
+    def run_block(self, n):
+        step = self.world.step
+        t0 = time.perf_counter()
+        for _ in range(n):
+            step()
+        return time.perf_counter() - t0
+
     def after_step(self):
         st = self.world.last_solve
         get = st.get
@@ -154,10 +185,13 @@ class ContactSimEngine(Engine):
 class PyBulletEngine(Engine):
     name = "pybullet"
 
-    def __init__(self, scene):
+    def __init__(self, scene, maximal=True, maximal_static=True):
+        """``maximal``/``maximal_static``: ``useMaximalCoordinates`` of the dynamic/static bodies
+        (both True: every body a btRigidBody, the fastest; see the module's docstring)."""
         import pybullet as p
 
         self.p = p
+        self.maximal, self.maximal_static = maximal, maximal_static
         self.cid = cid = p.connect(p.DIRECT)
         p.setGravity(*scene.gravity, physicsClientId=cid)
         p.setTimeStep(scene.dt, physicsClientId=cid)
@@ -175,7 +209,9 @@ class PyBulletEngine(Engine):
                     shapes[key] = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.5 * float(s) for s in b.size],
                                                          physicsClientId=cid)
             bid = p.createMultiBody(float(b.mass), shapes[key], basePosition=list(b.position),
-                                    baseOrientation=list(b.orientation), physicsClientId=cid)
+                                    baseOrientation=list(b.orientation),
+                                    useMaximalCoordinates=maximal_static if b.static else maximal,
+                                    physicsClientId=cid)
             p.changeDynamics(bid, -1, lateralFriction=mu, restitution=e, linearDamping=0.0, angularDamping=0.0,
                              rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
             if not b.static:
@@ -185,14 +221,26 @@ class PyBulletEngine(Engine):
     def step(self):
         self.p.stepSimulation(physicsClientId=self.cid)
 
+    def run_block(self, n):
+        step, cid = self.p.stepSimulation, self.cid
+        t0 = time.perf_counter()
+        for _ in range(n):
+            step(physicsClientId=cid)
+        return time.perf_counter() - t0
+
     def poses(self):
         st = [self.p.getBasePositionAndOrientation(i, physicsClientId=self.cid) for i in self.ids]
         return np.array([s[0] for s in st], float).reshape(-1, 3), np.array([s[1] for s in st], float).reshape(-1, 4)
 
     def settings(self):
         par = self.p.getPhysicsEngineParameters(physicsClientId=self.cid)
-        return (f"numSolverIterations {par['numSolverIterations']}, numSubSteps {par['numSubSteps']}, "
-                f"damping 0, restitutionVelocityThreshold 0, friction/restitution √ per body (product rule)")
+        how = {(True, True): "every body useMaximalCoordinates=True (btRigidBody; the ground too)",
+               (True, False): "dynamic bodies useMaximalCoordinates=True, the ground a multibody",
+               (False, False): "every body a multibody (useMaximalCoordinates=False)",
+               (False, True): "dynamic bodies multibodies, the ground useMaximalCoordinates=True"}
+        return (f"{how[self.maximal, self.maximal_static]}; numSolverIterations {par['numSolverIterations']}, "
+                f"numSubSteps {par['numSubSteps']}, damping 0, restitutionVelocityThreshold 0, "
+                f"friction/restitution √ per body (product rule)")
 
     def close(self):
         self.p.disconnect(physicsClientId=self.cid)
@@ -251,6 +299,13 @@ class MuJoCoEngine(Engine):
 
     def step(self):
         self.mj.mj_step(self.m, self.d)
+
+    def run_block(self, n):
+        step, m, d = self.mj.mj_step, self.m, self.d
+        t0 = time.perf_counter()
+        for _ in range(n):
+            step(m, d)
+        return time.perf_counter() - t0
 
     def poses(self):
         qp = self.d.qpos

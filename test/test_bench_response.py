@@ -25,13 +25,14 @@ def test_quick_run_writes_every_row_for_every_engine(tmp_path):
         rows = list(csv.DictReader(fh))
     assert (tmp_path / "response_peers_quick.png").stat().st_size > 0
     got = {(r["scene"], r["engine"]) for r in rows}
-    for scene in ("pile_64", "stack_10", "resting_10", "resting_100"):
+    for scene in ("ball_1", "spheres_10", "pile_64", "stack_10", "resting_10", "resting_100"):
         for engine in ("contact_sim", "pybullet", "MuJoCo"):
             assert (scene, engine) in got
     assert {("rotation_rod", "contact_sim"), ("rotation_cube", "contact_sim")} <= got
     for r in rows:
-        time_value = r["wall_s_per_sim_s"] or r["step_ms"]
-        assert float(time_value) > 0, r
+        assert float(r["step_ms"]) > 0 and int(r["block"]) > 0, r   # every row timed in blocks
+        if r["scene"] in ("ball_1", "stack_10", "pile_64"):
+            assert float(r["wall_s_per_sim_s"]) > 0, r
         if r["engine"] != "contact_sim" or r["scene"] == "rotation_rod":
             assert float(r["ratio"]) > 0 and r["ratio_meaning"], r
         if not r["scene"].startswith("rotation"):
@@ -42,6 +43,11 @@ def test_quick_run_writes_every_row_for_every_engine(tmp_path):
     pile = [r for r in rows if r["scene"] == "pile_64"]
     assert all(r["escaped"] != "" for r in pile)
     assert "contact_sim ÷ pybullet" in proc.stdout and "rod ÷ cube" in proc.stdout
+    targets = {(r["scene"], r["engine"]): float(r["target"]) for r in rows if r["target"]}
+    assert targets == {("ball_1", "pybullet"): 3.0, ("spheres_10", "pybullet"): 2.0, ("resting_10", "pybullet"): 2.0,
+                       ("resting_100", "pybullet"): 1.0, ("stack_10", "MuJoCo"): 2.0}   # pile_1000's: not in --quick
+    assert all(r["apex_m"] for r in rows if r["scene"] == "ball_1")
+    assert "useMaximalCoordinates=True" in next(r["settings"] for r in rows if r["engine"] == "pybullet")
 
 
 def test_default_scene_benchmark_writes_every_phase(tmp_path):
