@@ -13,7 +13,7 @@ Prints a table, writes ``response_peers.csv`` and ``response_peers.png`` (bar ch
 ratios) to bench/results/ (``--quick``: ``response_peers_quick.*``; ``--out`` another folder).
 ``make bench`` runs it; ``bench/report.py`` puts the table in docs/benchmarks.md.
 
-The timing protocol (issue 29), the same for every engine and row:
+The timing protocol, the same for every engine and row:
 
 * Engines take turns, the order rotated every round; each turn is one BLOCK of steps, timed whole:
   one ``perf_counter`` pair around a plain Python loop over the engine's own step call, bound
@@ -45,10 +45,10 @@ The timing protocol (issue 29), the same for every engine and row:
   step is flat at 0.014 ms. So pybullet now runs as btRigidBodies, the blocks are timed whole
   (the same overhead for every engine, none per step) and the resting window is unchanged.
 
-The scenes (issues 12 and 29), exactly:
+The scenes, exactly:
 
 1. ``ball_1``: one sphere, radius 0.1 m, 1 kg, dropped from rest with its centre at 1 m onto the
-   plane z = 0, e 0.9 (the issue gives no coefficient; 0.9 keeps it bouncing through the run), μ
+   plane z = 0, e 0.9 (0.9 keeps it bouncing through the run), μ
    0.5, dt 1/240, 4 s (960 steps), contact_sim with ``toi: next_step``; blocks of 48, median of 5
    fresh runs. Reported also: the first three bounce apexes (centre height) from a separate
    untimed run reading the pose every step (exact 0.829, 0.690, 0.590 m).
@@ -80,7 +80,7 @@ The scenes (issues 12 and 29), exactly:
    cube of 1 kg with the same spin. contact_sim only, the two taking turns: 40 rounds of blocks
    of 50 steps, ratio rod ÷ cube (target ≤ 1).
 
-Issue 29's targets (contact_sim ÷ peer, p50 step, at most; the ``target`` column): ball_1 3×,
+The step-time targets (contact_sim ÷ peer, p50 step, at most; the ``target`` column): ball_1 3×,
 spheres_10 2×, resting_10 2× and resting_100 1× against pybullet; stack_10 2× against MuJoCo;
 pile_1000 1× against pybullet.
 
@@ -117,7 +117,7 @@ from response_engines import ENGINES, Body, ContactSimEngine, Scene  # noqa: E40
 FIELDS = ["scene", "engine", "bodies", "dt", "steps", "repeats", "block", "wall_s_per_sim_s", "step_ms", "detect_ms",
           "rest_ms", "ratio", "ratio_meaning", "ratio_of_medians", "ratio_of_totals", "target", "max_penetration_mm",
           "escaped", "top_drift_mm", "apex_m", "contacts_per_step", "solver_iterations", "load_1min", "settings"]
-# issue 29's targets: contact_sim's p50 step time ÷ the peer's, at most
+# the step-time targets: contact_sim's p50 step time ÷ the peer's, at most
 TARGETS = {("ball_1", "pybullet"): 3.0, ("spheres_10", "pybullet"): 2.0, ("resting_10", "pybullet"): 2.0,
            ("resting_100", "pybullet"): 1.0, ("stack_10", "MuJoCo"): 2.0, ("pile_1000", "pybullet"): 1.0}
 WALL_INNER = 0.7
@@ -125,7 +125,7 @@ WALL_INNER = 0.7
 
 # ---------------------------------------------------------------------------- scenes
 def pile_scene(side=10, seed=0):
-    """Row 1: the jittered sphere pile (``side``³ spheres; 10 in the issue)."""
+    """Row 1: the jittered sphere pile (``side``³ spheres; side 10 in the table)."""
     g = (np.arange(side) - (side - 1) / 2) * 0.12
     grid = np.array([[x, y, 0.5 + 0.12 * k] for x in g for y in g for k in range(side)])
     pos = grid + np.random.default_rng(seed).uniform(-0.01, 0.01, size=grid.shape)
@@ -474,7 +474,7 @@ def plot(rows, path):
     for xi, v in zip(x, vals):
         ax.annotate(f"{v:.3g}×", (xi, v), ha="center", va="bottom", fontsize=8)
     tx = [(xi, r["target"]) for xi, r in zip(x, rr) if r.get("target", "") != ""]
-    if tx:   # issue 29's targets: a red dash on the bar
+    if tx:   # the step-time targets: a red dash on the bar
         ax.scatter([t[0] for t in tx], [t[1] for t in tx], marker="_", s=400, color="red", zorder=3,
                    label="target (at most)")
         ax.legend(fontsize=7, loc="upper right")

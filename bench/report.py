@@ -90,13 +90,13 @@ def response():
            "engine. Step ms = the p50 over blocks of the time per step; ratio = the median over rounds of "
            "contact_sim's block time ÷ the peer's in the same round (> 1: contact_sim slower). pybullet runs "
            "every body as a btRigidBody (`useMaximalCoordinates=True`), its fastest configuration for free rigid "
-           "bodies (issue 29; why, and what it changes: the docstrings of `bench/bench_response.py` and "
+           "bodies (why, and what it changes: the docstrings of `bench/bench_response.py` and "
            "`bench/response_engines.py`, the numbers in `bench/results/response_protocol.csv`). Penetration, "
            "escapes, drift and bounce apexes are computed from each engine's poses in numpy, the same way for all. "
            "Scene specifications: the docstring of `bench/bench_response.py`.", ""]
     targets = [x for x in r if x.get("target")]
     if targets:
-        out += ["Issue 29's targets (contact_sim ÷ peer, p50 step time):", ""]
+        out += ["The step-time targets (contact_sim ÷ peer, p50 step time; why the missed ones are missed: [known limits](limits.md)):", ""]
         cs = {x["scene"]: x for x in r if x["engine"] == "contact_sim"}
         out += table(["scene", "peer", "contact_sim ms", "peer ms", "ratio", "target", ""],
                      [[x["scene"], x["engine"], f(cs[x["scene"]]["step_ms"], ".3g"), f(x["step_ms"], ".3g"),
@@ -124,7 +124,7 @@ def response():
 
 
 def response_protocol():
-    """The protocol finding of issue 29, from ``bench/response_protocol.py``'s CSV."""
+    """Why pybullet timed slower in the old protocol, from ``bench/response_protocol.py``'s CSV."""
     r = rows("response_protocol.csv")
     if not r:
         return []

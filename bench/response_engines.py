@@ -16,7 +16,7 @@ How each engine gets the scene's one material (friction μ, restitution e) for e
     velocity threshold 0, otherwise its defaults (50 solver iterations, split impulse, ERP).
     Every body, the ground and walls too, is made with ``useMaximalCoordinates=True``: a
     btRigidBody solved by Bullet's rigid-body solver, its fastest way for free rigid bodies
-    (issue 29; ``createMultiBody``'s default makes each a Featherstone multibody). Measured by
+    (``createMultiBody``'s default makes each a Featherstone multibody). Measured by
     ``bench/response_protocol.py`` (seconds 1–10 of fresh builds), ms a step, multibody / maximal
     dynamic bodies only / maximal every body: resting_10 0.0256 / 0.0206 / 0.0141, resting_100
     0.255 / 0.205 / 0.141, stack_10 0.124 / 0.086 / 0.082, spheres_10 0.0108 / 0.0093 / 0.0067,

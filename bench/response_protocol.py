@@ -1,4 +1,4 @@
-"""Why bench_response timed pybullet's resting_10 slower than a plain ``stepSimulation`` loop (issue 29).
+"""Why bench_response timed pybullet's resting_10 slower than a plain ``stepSimulation`` loop.
 
     PYTHONPATH=. .venv/bin/python bench/response_protocol.py [--scene resting_10] [--steps 2000] [--repeats 5]
 
@@ -8,11 +8,11 @@ per-step time of each, in ms:
 
   * ``loop``: a plain ``for _ in range(n): p.stepSimulation(physicsClientId=cid)``, timed as a whole;
   * the same with the dynamic bodies made with ``useMaximalCoordinates=True``, and with the
-    ground too (bench_response's pybullet since issue 29);
+    ground too (bench_response's pybullet now);
   * ``per-step timer``: the old protocol's measurement alone, every step wrapped in its own
     ``perf_counter`` pair and the engine's ``after_step`` between steps, the median step;
   * ``old protocol``: that, in blocks of 10 steps, taking turns with contact_sim (resting_10 too),
-    the order rotated each round — what bench_response did before issue 29;
+    the order rotated each round — what bench_response did before (the old protocol);
   * ``turns of B``: the new protocol: turns of B steps with contact_sim, each block timed as a
     whole (one ``perf_counter`` pair around the plain loop), per-step = block time / B, median of
     the blocks.
@@ -59,7 +59,7 @@ def per_step_median(e, n):
 
 
 def old_protocol(pb, cs, rounds, block=10):
-    """bench_response before issue 29: blocks of 10 per-step-timed steps, engines taking turns."""
+    """bench_response's old protocol: blocks of 10 per-step-timed steps, engines taking turns."""
     times = {id(pb): [], id(cs): []}
     for r in range(rounds):
         for e in br.rotated([cs, pb], r):
