@@ -8,6 +8,7 @@ install, with or without ``--symlink-install``), else under the Python prefix (`
 import copy
 import math
 import os
+from dataclasses import dataclass
 
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
@@ -17,6 +18,7 @@ import contact_sim
 from contact_sim.kinds import KINEMATIC
 from contact_sim.scene import source_scenes_dir
 from contact_sim.settings import parse_settings
+from contact_sim.validate import Flag, Number, Rule
 
 PACKAGE = "contact_sim"
 MODEL_STRING = {  # parameter -> engine setting; "" keeps the scene's value
@@ -29,147 +31,183 @@ class ConfigError(ValueError):
     """A parameter value that cannot be used; the message names the parameter and the reason."""
 
 
-def _d(description, read_only=False, dynamic_typing=False, fp=None, ir=None, constraints="", ptype=None):
-    desc = ParameterDescriptor(description=description, read_only=read_only, dynamic_typing=dynamic_typing,
-                               additional_constraints=constraints)
-    if ptype is not None:
-        desc.type = ptype
-    if fp is not None:
-        desc.floating_point_range = [FloatingPointRange(from_value=fp[0], to_value=fp[1], step=0.0)]
-    if ir is not None:
-        desc.integer_range = [IntegerRange(from_value=ir[0], to_value=ir[1], step=1)]
-    return desc
+class Text(Rule):
+    """A string (``nonempty``: with something besides blanks)."""
+
+    def __init__(self, nonempty=False, what="a string"):
+        self.nonempty, self.what = nonempty, what
+
+    def check(self, value, path, ctx=None):
+        if not isinstance(value, str) or (self.nonempty and not value.strip()):
+            raise contact_sim.ContactSimError(f"{path}: must be {self.what}, got {value!r}")
+        return value
 
 
-# name: (default, descriptor). Doubles use dynamic_typing so that an integer is accepted; their
-# type and range are then checked by ``validate_config`` (the ranges are also in the descriptor).
-PARAMETERS = {
-    "scene": ("default", _d("Scene file path, or the name of a shipped scene (config/scenes/<name>.yaml). "
-                            "Set at run time to load another scene; a scene that fails validation is refused.")),
-    "rate_hz": (100.0, _d("Tick rate (Hz); every tick advances the world by exactly 1/rate_hz seconds.",
-                          read_only=True, dynamic_typing=True, fp=(0.1, 2000.0), constraints="0.1 <= rate_hz <= 2000")),
-    "substeps": (1, _d("Engine steps per tick (each 1/(rate_hz*substeps) s).", ir=(1, 1000))),
-    "frame_id": ("world", _d("Frame of every published pose, point and marker; incoming poses must be in it "
-                             "(or have an empty frame_id).")),
-    "tracked_bodies": (Parameter.Type.STRING_ARRAY, _d(
+class Names(Rule):
+    """A list of non-empty strings (unset: empty), unique when ``unique``."""
+
+    def __init__(self, unique=False, what="a list of non-empty strings"):
+        self.unique, self.what = unique, what
+
+    def check(self, value, path, ctx=None):
+        v = [] if value is None else list(value)
+        if not all(isinstance(x, str) and x for x in v):
+            raise contact_sim.ContactSimError(f"{path}: must be {self.what}, got {v!r}")
+        if self.unique and len(set(v)) != len(v):
+            raise contact_sim.ContactSimError(f"{path}: names must be unique, got {v!r}")
+        return v
+
+
+class Pairs(Names):
+    """A list of ``'a:b'`` pairs of non-empty names, returned as ``[a, b]`` lists."""
+
+    def check(self, value, path, ctx=None):
+        v = super().check(value, path, ctx)
+        pairs = [x.split(":") for x in v]
+        bad = [x for x, parts in zip(v, pairs) if len(parts) != 2 or not all(parts)]
+        if bad:
+            raise contact_sim.ContactSimError(f"{path}: each pair is 'a:b' (a link or a body on each side), "
+                                              f"got {bad[0]!r}")
+        return pairs
+
+
+class BasePose(Rule):
+    """Unset or empty (None), or ``[x, y, z, qx, qy, qz, qw]`` finite with a unit quaternion (within
+    1e-3), returned as ``(position, quaternion)``."""
+
+    def check(self, value, path, ctx=None):
+        pose = [] if value is None else list(value)
+        if not pose:
+            return None
+        if (len(pose) != 7 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                                      for x in pose) or abs(np.linalg.norm(pose[3:]) - 1.0) > 1e-3):
+            raise contact_sim.ContactSimError(f"{path}: must be [x, y, z, qx, qy, qz, qw] (finite, a unit "
+                                              f"quaternion), got {pose!r}")
+        return pose[:3], pose[3:]
+
+
+@dataclass(frozen=True)
+class Param:
+    """One node parameter: its default (a ``Parameter.Type`` for one declared by type only, unset by
+    default), the rule every value is checked by (``contact_sim.validate``'s rules, as the engine's
+    settings are), its description, and whether it is read-only (set at start-up only). Its ROS
+    descriptor (type, ranges, constraints) is derived from the rule (``descriptor``)."""
+
+    default: object
+    rule: Rule
+    description: str
+    read_only: bool = False
+    constraints: str = ""
+
+    def descriptor(self):
+        desc = ParameterDescriptor(description=self.description, read_only=self.read_only,
+                                   additional_constraints=self.constraints)
+        r = self.rule
+        if isinstance(self.default, Parameter.Type):
+            desc.type = {Parameter.Type.STRING_ARRAY: ParameterType.PARAMETER_STRING_ARRAY,
+                         Parameter.Type.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY}[self.default]
+        elif isinstance(r, Number) and r.integer:
+            if r.ge is not None and r.le is not None:
+                desc.integer_range = [IntegerRange(from_value=int(r.ge), to_value=int(r.le), step=1)]
+        elif isinstance(r, Number):
+            desc.dynamic_typing = True   # an integer is accepted; the rule checks the type and range
+            if r.ge is not None and r.le is not None:
+                desc.floating_point_range = [FloatingPointRange(from_value=float(r.ge), to_value=float(r.le),
+                                                                step=0.0)]
+                desc.additional_constraints = self.constraints or f"{r.ge:g} <= value <= {r.le:g}"
+        return desc
+
+
+_OVERRIDE = "('' keeps the scene's)"
+# name: Param. The rules are contact_sim.validate's (Number, Flag) and the few above; the model.*
+# overrides are then checked by the engine's own settings rules (parse_settings).
+DECLARED = {
+    "scene": Param("default", Text(nonempty=True, what="a scene file or a shipped scene"), (
+        "Scene file path, or the name of a shipped scene (config/scenes/<name>.yaml). Set at run time to load "
+        "another scene; a scene that fails validation is refused.")),
+    "rate_hz": Param(100.0, Number(ge=0.1, le=2000.0, unit="Hz"), (
+        "Tick rate (Hz); every tick advances the world by exactly 1/rate_hz seconds."), read_only=True),
+    "substeps": Param(1, Number(ge=1, le=1000, integer=True), "Engine steps per tick (each 1/(rate_hz*substeps) s)."),
+    "frame_id": Param("world", Text(), ("Frame of every published pose, point and marker; incoming poses must be in "
+                                        "it (or have an empty frame_id).")),
+    "tracked_bodies": Param(Parameter.Type.STRING_ARRAY, Names(unique=True, what="a list of body names"), (
         "Kinematic bodies driven by body_poses: pose i drives tracked_bodies[i]. Unset or empty: all kinematic "
-        "bodies of the scene, in scene order.", ptype=ParameterType.PARAMETER_STRING_ARRAY)),
-    "publish_markers": (True, _d("Publish contact_markers (MarkerArray) for RViz; turning it off (or stopping the "
-                                 "node) sends a DELETEALL.")),
-    "publish_clock": (False, _d("Publish /clock (rosgraph_msgs/Clock) from the world time and stamp every output with "
-                                "it; ticks then run on the steady clock. Not with use_sim_time.", read_only=True)),
-    "max_marker_arrows": (10, _d("Arrows for at most this many of the largest impulses per tick (every impulse is "
-                                 "also drawn as a line segment).", ir=(0, 100000))),
-    "impulse_marker_scale": (1.0, _d("Impulse arrow length in m per N*s.", dynamic_typing=True, fp=(0.0, 1e6))),
-    "pose_timeout": (0.5, _d("Seconds without a pose after which a tracked body holds its last pose and its "
-                             "velocity decays to zero.", dynamic_typing=True, fp=(0.001, 3600.0))),
-    "velocity_decay": (0.1, _d("Time constant (s) of that decay; 0 stops the body at once.",
-                               dynamic_typing=True, fp=(0.0, 3600.0))),
-    "diagnostics_period": (1.0, _d("Seconds between /diagnostics messages; 0 publishes every tick.",
-                                   dynamic_typing=True, fp=(0.0, 3600.0))),
-    "stats_window": (1000, _d("Number of most recent ticks over which the diagnostics' tick_time_ms_p50/p99/max "
-                              "are computed.", read_only=True, ir=(1, 1000000))),
-    "thread_priority": (0, _d("SCHED_FIFO priority (1-99) of the thread that runs the ticks, set by the node's process "
-                              "before it spins (as ros2_control's controller manager runs its loop at 50); 0 keeps the "
-                              "normal scheduler. Needs CAP_SYS_NICE or an rtprio limit: refused, the node warns and "
-                              "runs at normal priority.", read_only=True, ir=(0, 99))),
-    "model.toi": ("", _d("Override the scene's time-of-impact policy ('' keeps the scene's).",
-                         constraints="'' | auto | next_step | fractional | swept")),
-    "model.response": ("", _d("Override the scene's contact response ('' keeps the scene's).",
-                              constraints="'' | auto | kinematic | penalty | impulse")),
-    "model.friction": ("", _d("Override friction on/off ('' keeps the scene's).", constraints="'' | auto | true | false")),
-    "model.resting": ("", _d("Override the resting-contact solver on/off ('' keeps the scene's).",
-                             constraints="'' | auto | true | false")),
-    "model.solver_iterations": (0, _d("Override the solver iterations (0 keeps the scene's).", ir=(0, 100000))),
-    "model.contact_margin": (-1.0, _d("Override the contact margin in m (negative keeps the scene's).",
-                                      dynamic_typing=True)),
-    "robot_description_topic": ("robot_description", _d(
+        "bodies of the scene, in scene order.")),
+    "publish_markers": Param(True, Flag(), ("Publish contact_markers (MarkerArray) for RViz; turning it off (or "
+                                            "stopping the node) sends a DELETEALL.")),
+    "publish_clock": Param(False, Flag(), (
+        "Publish /clock (rosgraph_msgs/Clock) from the world time and stamp every output with it; ticks then run on "
+        "the steady clock. Not with use_sim_time."), read_only=True),
+    "max_marker_arrows": Param(10, Number(ge=0, le=100000, integer=True), (
+        "Arrows for at most this many of the largest impulses per tick (every impulse is also drawn as a line "
+        "segment).")),
+    "impulse_marker_scale": Param(1.0, Number(ge=0.0, le=1e6, unit="m/(N*s)"), "Impulse arrow length in m per N*s."),
+    "pose_timeout": Param(0.5, Number(ge=0.001, le=3600.0, unit="s"), (
+        "Seconds without a pose after which a tracked body holds its last pose and its velocity decays to zero.")),
+    "velocity_decay": Param(0.1, Number(ge=0.0, le=3600.0, unit="s"),
+                            "Time constant (s) of that decay; 0 stops the body at once."),
+    "diagnostics_period": Param(1.0, Number(ge=0.0, le=3600.0, unit="s"),
+                                "Seconds between /diagnostics messages; 0 publishes every tick."),
+    "stats_window": Param(1000, Number(ge=1, le=1000000, integer=True), (
+        "Number of most recent ticks over which the diagnostics' tick_time_ms_p50/p99/max are computed."),
+        read_only=True),
+    "thread_priority": Param(0, Number(ge=0, le=99, integer=True), (
+        "SCHED_FIFO priority (1-99) of the thread that runs the ticks, set by the node's process before it spins "
+        "(as ros2_control's controller manager runs its loop at 50); 0 keeps the normal scheduler. Needs "
+        "CAP_SYS_NICE or an rtprio limit: refused, the node warns and runs at normal priority."), read_only=True),
+    "model.toi": Param("", Text(), f"Override the scene's time-of-impact policy {_OVERRIDE}.",
+                       constraints="'' | auto | next_step | fractional | swept"),
+    "model.response": Param("", Text(), f"Override the scene's contact response {_OVERRIDE}.",
+                            constraints="'' | auto | kinematic | penalty | impulse"),
+    "model.friction": Param("", Text(), f"Override friction on/off {_OVERRIDE}.",
+                            constraints="'' | auto | true | false"),
+    "model.resting": Param("", Text(), f"Override the resting-contact solver on/off {_OVERRIDE}.",
+                           constraints="'' | auto | true | false"),
+    "model.solver_iterations": Param(0, Number(ge=0, le=100000, integer=True),
+                                     "Override the solver iterations (0 keeps the scene's)."),
+    "model.contact_margin": Param(-1.0, Number(unit="m"),
+                                  "Override the contact margin in m (negative keeps the scene's).",
+                                  constraints="negative, or the engine's contact_margin rule"),
+    "robot_description_topic": Param("robot_description", Text(), (
         "Topic of the robot's URDF (std_msgs/String, transient local): its links become kinematic bodies, moved by "
-        "joint_states_topic. Empty: no robot input.", read_only=True)),
-    "joint_states_topic": ("joint_states", _d("Topic of the robot's sensor_msgs/JointState.", read_only=True)),
-    "robot_description_semantic_topic": ("robot_description_semantic", _d(
+        "joint_states_topic. Empty: no robot input."), read_only=True),
+    "joint_states_topic": Param("joint_states", Text(), "Topic of the robot's sensor_msgs/JointState.",
+                                read_only=True),
+    "robot_description_semantic_topic": Param("robot_description_semantic", Text(), (
         "Topic of the robot's SRDF (std_msgs/String, transient local): its disable_collisions pairs are never "
-        "tested. Empty: not read.", read_only=True)),
-    "robot_prefix": ("", _d("Prefix of the robot's body and joint names (the URDF's link and joint names after it).",
-                            read_only=True)),
-    "robot_base_pose": (Parameter.Type.DOUBLE_ARRAY, _d(
+        "tested. Empty: not read."), read_only=True),
+    "robot_prefix": Param("", Text(), (
+        "Prefix of the robot's body and joint names (the URDF's link and joint names after it)."), read_only=True),
+    "robot_base_pose": Param(Parameter.Type.DOUBLE_ARRAY, BasePose(), (
         "Pose of the robot's root link in frame_id: [x, y, z, qx, qy, qz, qw] (m, quaternion). Unset or empty: the "
-        "origin.", read_only=True, ptype=ParameterType.PARAMETER_DOUBLE_ARRAY)),
-    "robot_disable_collisions": (Parameter.Type.STRING_ARRAY, _d(
+        "origin."), read_only=True),
+    "robot_disable_collisions": Param(Parameter.Type.STRING_ARRAY, Pairs(), (
         "Pairs never tested for contact, each 'a:b': a robot link without robot_prefix, or a scene body by name "
-        "(a robot's base on a table, a gripper's own fixture).", read_only=True,
-        ptype=ParameterType.PARAMETER_STRING_ARRAY)),
-    "robot_exclude_touching": (True, _d(
+        "(a robot's base on a table, a gripper's own fixture)."), read_only=True),
+    "robot_exclude_touching": Param(True, Flag(), (
         "Never test the pairs in contact at the robot's initial configuration between two of its links, or a link "
-        "and a static body (a robot standing on a floor; MoveIt's 'Default'); /diagnostics lists them.",
-        read_only=True)),
-    "package_paths": (Parameter.Type.STRING_ARRAY, _d(
+        "and a static body (a robot standing on a floor; MoveIt's 'Default'); /diagnostics lists them."),
+        read_only=True),
+    "package_paths": Param(Parameter.Type.STRING_ARRAY, Names(), (
         "Folders holding the packages the robot's package:// mesh URIs name (besides $CONTACT_SIM_PACKAGE_PATH, "
-        "$ROS_PACKAGE_PATH and the ament index).", read_only=True, ptype=ParameterType.PARAMETER_STRING_ARRAY)),
+        "$ROS_PACKAGE_PATH and the ament index)."), read_only=True),
 }
-DOUBLES = {"rate_hz", "impulse_marker_scale", "pose_timeout", "velocity_decay", "diagnostics_period",
-           "model.contact_margin"}
+#: name -> (default, ParameterDescriptor): what the node declares, derived from ``DECLARED``
+PARAMETERS = {name: (p.default, p.descriptor()) for name, p in DECLARED.items()}
 
 
 def validate_config(values):
-    """Check raw parameter values (a dict name -> value); return the normalised config or raise
-    ``ConfigError`` naming the parameter. Scene loading and body names are checked separately."""
+    """Check raw parameter values (a dict name -> value) by each parameter's rule (``DECLARED``),
+    then what relates parameters; return the normalised config or raise ``ConfigError`` naming the
+    parameter. Scene loading and body names are checked separately."""
     cfg = dict(values)
-    for name in DOUBLES:
-        v = cfg[name]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"parameter {name}: must be a number, got {v!r}")
-        v = float(v)
-        if not math.isfinite(v):
-            raise ConfigError(f"parameter {name}: must be finite, got {v!r}")
-        fp = PARAMETERS[name][1].floating_point_range
-        if fp and not fp[0].from_value <= v <= fp[0].to_value:
-            raise ConfigError(f"parameter {name}: must be in [{fp[0].from_value:g}, {fp[0].to_value:g}], got {v:g}")
-        cfg[name] = v
-    for name in ("substeps", "max_marker_arrows", "model.solver_iterations", "stats_window", "thread_priority"):
-        v = cfg[name]
-        ir = PARAMETERS[name][1].integer_range[0]
-        if isinstance(v, bool) or not isinstance(v, int) or not ir.from_value <= v <= ir.to_value:
-            raise ConfigError(f"parameter {name}: must be an integer in [{ir.from_value}, {ir.to_value}], got {v!r}")
-    for name in ("scene", "frame_id", "robot_description_topic", "joint_states_topic", "robot_prefix",
-                 "robot_description_semantic_topic") + \
-            tuple(MODEL_STRING):
-        if not isinstance(cfg[name], str):
-            raise ConfigError(f"parameter {name}: must be a string, got {cfg[name]!r}")
+    try:
+        for name, p in DECLARED.items():
+            cfg[name] = p.rule.check(cfg[name], f"parameter {name}")
+    except contact_sim.ContactSimError as exc:
+        raise ConfigError(str(exc)) from None
     if cfg["robot_description_topic"] and not cfg["joint_states_topic"]:
         raise ConfigError("parameter joint_states_topic: must name a topic when robot_description_topic is set")
-    if not cfg["scene"].strip():
-        raise ConfigError("parameter scene: must name a scene file or a shipped scene, got ''")
-    for name in ("publish_markers", "publish_clock"):
-        if not isinstance(cfg[name], bool):
-            raise ConfigError(f"parameter {name}: must be true or false, got {cfg[name]!r}")
-    tb = cfg["tracked_bodies"]
-    tb = [] if tb is None else list(tb)
-    if not all(isinstance(n, str) and n for n in tb):
-        raise ConfigError(f"parameter tracked_bodies: must be a list of body names, got {tb!r}")
-    if len(set(tb)) != len(tb):
-        raise ConfigError(f"parameter tracked_bodies: names must be unique, got {tb!r}")
-    cfg["tracked_bodies"] = tb
-    for name in ("package_paths", "robot_disable_collisions"):
-        v = [] if cfg[name] is None else list(cfg[name])
-        if not all(isinstance(x, str) and x for x in v):
-            raise ConfigError(f"parameter {name}: must be a list of non-empty strings, got {v!r}")
-        cfg[name] = v
-    pairs = [p.split(":") for p in cfg["robot_disable_collisions"]]
-    bad = [p for p, parts in zip(cfg["robot_disable_collisions"], pairs) if len(parts) != 2 or not all(parts)]
-    if bad:
-        raise ConfigError(f"parameter robot_disable_collisions: each pair is 'a:b' (a link or a body on each side), "
-                          f"got {bad[0]!r}")
-    cfg["robot_disable_collisions"] = pairs
-    pose = [] if cfg["robot_base_pose"] is None else list(cfg["robot_base_pose"])
-    if pose and (len(pose) != 7 or not all(isinstance(x, (int, float)) and math.isfinite(x) for x in pose)
-                 or abs(np.linalg.norm(pose[3:]) - 1.0) > 1e-3):
-        raise ConfigError(f"parameter robot_base_pose: must be [x, y, z, qx, qy, qz, qw] (finite, a unit "
-                          f"quaternion), got {pose!r}")
-    cfg["robot_base_pose"] = (pose[:3], pose[3:]) if pose else None
-    if not isinstance(cfg["robot_exclude_touching"], bool):
-        raise ConfigError(f"parameter robot_exclude_touching: must be true or false, "
-                          f"got {cfg['robot_exclude_touching']!r}")
     overrides = {}
     for pname, key in MODEL_STRING.items():
         v = cfg[pname].strip().lower()
@@ -179,7 +217,7 @@ def validate_config(values):
         overrides["solver_iterations"] = cfg["model.solver_iterations"]
     if cfg["model.contact_margin"] >= 0:
         overrides["contact_margin"] = cfg["model.contact_margin"]
-    try:
+    try:   # the engine's own rules for the settings they override
         checked = parse_settings(overrides)
     except contact_sim.ContactSimError as exc:
         raise ConfigError(f"parameter model.{str(exc).split('.', 1)[1] if '.' in str(exc) else exc}") from None
