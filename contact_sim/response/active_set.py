@@ -385,6 +385,179 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
 
 
 @njit
+def _single(c, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d, friction, warm,
+            use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S):
+    """``_island`` for an island of the one contact ``c`` (a body touching only the ground or other
+    immovable bodies: most islands of a scene at rest), the same arithmetic in the same order on its
+    3 × 3 block, written out with no call and no array view: a kernel call that hands on its
+    arrays costs ~16 ns per array in reference counts (atomic), which for one contact was most of
+    its solve. ``A, L (≥3, ≥3)``, ``vecs (5, ≥3)``, ``S (≥3,) int64`` are workspace. Returns
+    ``(status, residual)``."""
+    # the block (_delassus for p = q = c: A's side, then B's; a contact never has a = b)
+    for d in range(3):
+        for e in range(3):
+            A[d, e] = 0.0
+            for side in range(2):
+                im = ima[c] if side == 0 else imb[c]
+                if im == 0.0:
+                    continue
+                lin = 0.0
+                ang = 0.0
+                for x in range(3):
+                    lin += dirs[c, d, x] * dirs[c, e, x]
+                    if side == 0:
+                        ang += ang_a[c, d, x] * iang_a[c, e, x]
+                    else:
+                        ang += ang_b[c, d, x] * iang_b[c, e, x]
+                A[d, e] += 1.0 * (im * lin + ang)
+    A[0, 0] += compliance[c]
+    # vecs rows: rhs, y, r, x, ax (as _island's)
+    rmax = 0.0
+    dmax = 0.0
+    for d in range(3):
+        vecs[0, d] = -v0[c, d]
+        dmax = max(dmax, A[d, d])
+    vecs[0, 0] += target[c]
+    act = v0[c, 0] <= target[c] or (use_warm and warm[c, 0] > 0.0)
+    for i in range(3):
+        rmax = max(rmax, abs(vecs[0, i]))
+    eps = regularisation * max(dmax, _TINY)
+    tol = 1e-12 + 1e-9 * rmax
+    converged = False
+    for _ in range(max_rounds):
+        ns = 0
+        if act:
+            S[0] = 0
+            ns = 1
+            if friction and mu_s[c] > 0.0:
+                S[1] = 1
+                S[2] = 2
+                ns = 3
+        for i in range(3):
+            vecs[3, i] = 0.0
+        if ns:
+            for i in range(ns):
+                for j in range(i + 1):
+                    L[i, j] = A[S[i], S[j]]
+                L[i, i] += eps
+            # _cholesky: a column's updates over its non-zeros only (at most two below the diagonal)
+            for j in range(ns):
+                dj = L[j, j]
+                if not (dj > 0.0):
+                    return TOO_LARGE, 0.0
+                dj = math.sqrt(dj)
+                L[j, j] = dj
+                z0 = -1
+                z1 = -1
+                for i in range(j + 1, ns):
+                    if L[i, j] != 0.0:
+                        L[i, j] /= dj
+                        if z0 < 0:
+                            z0 = i
+                        else:
+                            z1 = i
+                if z0 >= 0:
+                    L[z0, z0] -= L[z0, j] * L[z0, j]
+                if z1 >= 0:
+                    L[z1, z0] -= L[z1, j] * L[z0, j]
+                    L[z1, z1] -= L[z1, j] * L[z1, j]
+            for i in range(ns):
+                vecs[1, i] = vecs[0, S[i]]
+            for solve in range(3):   # the solve, then two refinements (proximal point, as _island)
+                row = 1 if solve == 0 else 2
+                if solve > 0:
+                    for i in range(ns):
+                        s = vecs[0, S[i]]
+                        for j in range(ns):
+                            s -= A[S[i], S[j]] * vecs[1, j]
+                        vecs[2, i] = s
+                for i in range(ns):   # _cho_solve
+                    s = vecs[row, i]
+                    for j in range(i):
+                        s -= L[i, j] * vecs[row, j]
+                    vecs[row, i] = s / L[i, i]
+                for i in range(ns - 1, -1, -1):
+                    s = vecs[row, i]
+                    for j in range(i + 1, ns):
+                        s -= L[j, i] * vecs[row, j]
+                    vecs[row, i] = s / L[i, i]
+                if solve > 0:
+                    for i in range(ns):
+                        vecs[1, i] += vecs[2, i]
+            for i in range(ns):
+                vecs[3, S[i]] = vecs[1, i]
+        for i in range(3):
+            s = 0.0
+            for j in range(3):
+                s += A[i, j] * vecs[3, j]
+            vecs[4, i] = s
+        if ns:
+            worst = 0.0
+            for i in range(ns):
+                worst = max(worst, abs(vecs[4, S[i]] - vecs[0, S[i]]))
+            if worst > consistency * (rmax + _TINY):
+                break
+        change = False
+        if act and vecs[3, 0] < 0.0:
+            act = False
+            change = True
+        elif not act and v0[c, 0] + vecs[4, 0] < target[c] - tol:
+            act = True
+            change = True
+        if not change:
+            converged = True
+            break
+    vecs[3, 0] = max(vecs[3, 0], 0.0)
+    if friction:
+        mag = math.sqrt(vecs[3, 1] ** 2 + vecs[3, 2] ** 2)
+        if mag > mu_s[c] * vecs[3, 0] * (1 + 1e-12) + 1e-300:
+            converged = False
+            scale = mu_d[c] * vecs[3, 0] / max(mag, _TINY)
+            vecs[3, 1] *= scale
+            vecs[3, 2] *= scale
+    else:
+        vecs[3, 1] = 0.0
+        vecs[3, 2] = 0.0
+    if not converged:
+        # _island's choice of Gauss–Seidel's start: the candidate of lowest objective
+        best = 0.0
+        for k in range(2):
+            if k == 1:
+                if not use_warm:
+                    break
+                for d in range(3):
+                    vecs[3, d] = warm[c, d] if math.isfinite(warm[c, d]) else 0.0
+            f = 0.0
+            for i in range(3):
+                if vecs[3, i] == 0.0:
+                    continue
+                s = 0.0
+                for j in range(3):
+                    s += A[i, j] * vecs[3, j]
+                f += vecs[3, i] * (0.5 * s - vecs[0, i])
+            if f < best:
+                best = f
+                for d in range(3):
+                    lam[c, d] = vecs[3, d]
+            elif k == 0:
+                for d in range(3):
+                    lam[c, d] = 0.0
+        return UNFINISHED, math.inf
+    residual = 0.0
+    for i in range(3):
+        s = -vecs[0, i]
+        for j in range(3):
+            s += A[i, j] * vecs[3, j]
+        if i == 0 and not (vecs[3, i] > 0.0):
+            s = min(s, 0.0)
+        if i != 0 and not friction:
+            s = 0.0
+        residual = max(residual, abs(s) / max(A[i, i], _TINY))
+        lam[c, i] = vecs[3, i]
+    return SOLVED, residual
+
+
+@njit
 def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s, mu_d,
                   friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, vel, omega, apply,
                   lam, status):
@@ -420,16 +593,18 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
         ids = order[start[i]:start[i + 1]]
         if ids.shape[0] > max_island:
             st = TOO_LARGE
+        elif ids.shape[0] == 1:
+            st, res = _single(ids[0], a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s,
+                              mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S)
         else:
             st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
                               mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,
                               A, L, vecs, S, nz, act, nb, cnt, index)
-            if st == SOLVED:
-                residual = max(residual, res)
-                if apply:
-                    for c in ids:
-                        _apply(c, a[c], b[c], lam[c, 0], lam[c, 1], lam[c, 2], dirs, iang_a, iang_b, ima, imb, vel,
-                               omega)
+        if st == SOLVED:
+            residual = max(residual, res)
+            if apply:
+                for c in ids:
+                    _apply(c, a[c], b[c], lam[c, 0], lam[c, 1], lam[c, 2], dirs, iang_a, iang_b, ima, imb, vel, omega)
         for c in ids:
             status[c] = st
     return residual
