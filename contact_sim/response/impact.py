@@ -108,7 +108,8 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     # where kinematic bodies push, no body ends faster than a push can make it (energy.push_cap_kernel)
     u = push_speed(ta, tb, point[ti], kinematic, pos, vel, omega)
     pb = bodies0
-    v0, w0 = vel[pb], omega[pb]
+    # the pushed bodies' velocities before the solve: only the push cap reads them
+    v0, w0 = (vel[pb], omega[pb]) if u >= 0.0 else (vel[:0], omega[:0])
     target = np.empty(nt)
     for j in range(nt):
         target[j] = 0.0 if touching[ti[j]] else spec_target[ti[j]]

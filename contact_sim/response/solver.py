@@ -345,20 +345,11 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     friction, mus, mud, residual, status = _islands(DIRECT_ISLAND_MAX, a, b, order, start, dirs, ang_a, ang_b, iang_a,
                                                     iang_b, ima, imb, target, compliance, mu_s, mu_d, kinetic, warm,
                                                     use_warm, vel, omega, lam)
-    big = np.flatnonzero(status == TOO_LARGE)
-    if big.shape[0]:
-        lam_b = np.zeros((big.shape[0], 3))
-        with objmode(ok="boolean", res_b="float64"):
-            ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
-                                   mus, mud, friction, warm, use_warm, movable, vel, omega, lam_b)
-        for j in range(big.shape[0]):
-            for x in range(3):
-                lam[big[j], x] = lam_b[j, x]
-        if ok:
-            residual = max(residual, res_b)
-            apply_ids(big, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
-            for j in range(big.shape[0]):
-                status[big[j]] = SOLVED
+    ok, res_b, big = _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
+                                     compliance, mus, mud, friction, warm, use_warm, movable, vel, omega, lam)
+    if ok and big.shape[0]:
+        residual = max(residual, res_b)
+        apply_ids(big, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
     unfinished = np.flatnonzero(status != SOLVED)
     if unfinished.shape[0] == 0:
         return 1, residual
@@ -382,24 +373,38 @@ def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, t
         residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance,
                                  zeros, zeros, False, warm, False, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
                                  DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel, omega, False, lam_d, status)
-        big = np.flatnonzero(status == TOO_LARGE)
-        if big.shape[0]:
-            lam_b = np.zeros((big.shape[0], 3))
-            with objmode(ok="boolean", res_b="float64"):
-                ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
-                                       compliance, zeros, zeros, False, warm, False, movable, vel, omega, lam_b)
-            if ok:
-                residual = max(residual, res_b)
-                for j in range(big.shape[0]):
-                    status[big[j]] = SOLVED
-                    for x in range(3):
-                        lam_d[big[j], x] = lam_b[j, x]
+        ok, res_b, big = _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
+                                         compliance, zeros, zeros, False, warm, False, movable, vel, omega, lam_d)
+        if ok and big.shape[0]:
+            residual = max(residual, res_b)
         if np.all(status == SOLVED):
             apply_ids(np.arange(k), a, b, dirs, iang_a, iang_b, ima, imb, lam_d, vel, omega)
             lam[:] = lam_d
             return 1, residual
     return _sweep_ids(np.arange(k), a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, zeros,
                       zeros, False, warm, False, iterations, tolerance, vel, omega, lam)
+
+
+@njit
+def _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
+                    friction, warm, use_warm, movable, vel, omega, lam):
+    """The islands ``solve_islands`` left ``TOO_LARGE`` (``status (K,)``), together by SciPy's sparse
+    active set (``_sparse_py``, run as Python from the kernel) from the velocities the solved islands
+    left: their impulses (the solve's, or Gauss–Seidel's start) into ``lam``'s rows, marked ``SOLVED``
+    when it converged (the caller applies them). Returns ``(converged, residual, contacts (B,))``."""
+    big = np.flatnonzero(status == TOO_LARGE)
+    if big.shape[0] == 0:
+        return True, 0.0, big
+    lam_b = np.zeros((big.shape[0], 3))
+    with objmode(ok="boolean", res_b="float64"):
+        ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s,
+                               mu_d, friction, warm, use_warm, movable, vel, omega, lam_b)
+    for j in range(big.shape[0]):
+        for x in range(3):
+            lam[big[j], x] = lam_b[j, x]
+        if ok:
+            status[big[j]] = SOLVED
+    return ok, res_b, big
 
 
 @njit
