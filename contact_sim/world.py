@@ -551,8 +551,9 @@ class World(BodyInput):
 
     def snapshot(self):
         """What stepping and the state inputs change, as it is now (``Snapshot``, copies):
-        ``restore`` puts it back. ``step`` takes one to be all or nothing; the node takes one
-        around a tick's sub-steps. The model (bodies, shapes, materials, settings) is not in it."""
+        ``restore`` puts it back. The node takes one around a tick's sub-steps (``step`` keeps
+        only what a step changes: ``_step_snapshot``). The model (bodies, shapes, materials,
+        settings) is not in it."""
         return Snapshot(self.s.copy(), self.time, self.contact_cache.copy(), self.contacts, self.last_solve,
                         self.last_detection, tuple((r, dict(r.q), dict(r.qd), dict(r.t), dict(r.before))
                                                    for r in self.robots), self.kind)
