@@ -63,8 +63,9 @@ def step(world, dt):
     else:
         _impulse_step(world, dt, m)
     s = world.s
-    s.stepped[:, :3] = s.pos   # where this step left the bodies: a pose given before the next moves a
-    s.stepped[:, 3:] = s.quat  # kinematic one at once (energy.pose_work)
+    # where this step left the bodies (centre, then orientation): a pose given before the next moves
+    # a kinematic one at once (energy.pose_work)
+    np.concatenate((s.pos, s.quat), axis=1, out=s.stepped)
     world.time += dt
 
 

@@ -525,25 +525,25 @@ class World(BodyInput):
         non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
         is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
-        saved = self.snapshot()
+        saved = self._step_snapshot()
         try:
             stepper.step(self, dt)
         except ContactSimError as exc:
             # every input was checked before the step: a refusal from inside it is the engine's own
             # failure (an internal query handed a bad value), not the caller's bad input
-            self.restore(saved)
+            self._undo_step(saved)
             if isinstance(exc, EngineError):
                 raise
             raise EngineError(f"step: an internal query failed ({exc}); the world is as it was before this "
                               f"step (a failure on valid input, please report it)") from exc
         except BaseException:
-            self.restore(saved)
+            self._undo_step(saved)
             raise
         bad = self._nonfinite_bodies()
         if bad.size:
             # the invariant guard: the engine never leaves a non-finite state behind; the step is
             # undone and the bodies are named, so a caller (the node) can keep its last good world
-            self.restore(saved)
+            self._undo_step(saved)
             names = ", ".join(repr(self._names[i]) for i in bad[:10]) + (" ..." if bad.size > 10 else "")
             raise EngineError(f"step: the state of {bad.size} bod{'y' if bad.size == 1 else 'ies'} ({names}) "
                               f"would have become non-finite (a failure on valid input, please report it); "
@@ -551,8 +551,9 @@ class World(BodyInput):
 
     def snapshot(self):
         """What stepping and the state inputs change, as it is now (``Snapshot``, copies):
-        ``restore`` puts it back. ``step`` takes one to be all or nothing; the node takes one
-        around a tick's sub-steps. The model (bodies, shapes, materials, settings) is not in it."""
+        ``restore`` puts it back. The node takes one around a tick's sub-steps (``step`` keeps
+        only what a step changes: ``_step_snapshot``). The model (bodies, shapes, materials,
+        settings) is not in it."""
         return Snapshot(self.s.copy(), self.time, self.contact_cache.copy(), self.contacts, self.last_solve,
                         self.last_detection, tuple((r, dict(r.q), dict(r.qd), dict(r.t), dict(r.before))
                                                    for r in self.robots), self.kind)
@@ -572,6 +573,24 @@ class World(BodyInput):
             snapshot.last_detection
         for r, q, qd, t, before in snapshot.robots:
             r.q, r.qd, r.t, r.before = dict(q), dict(qd), dict(t), dict(before)
+
+    def _step_snapshot(self):
+        """What a step can change, for ``_undo_step``: ``snapshot``'s cheaper form for ``step``'s own
+        undo. A step writes only the motion arrays of the state (``_State.MOTION``, in place), so it
+        copies those and keeps the state object with its other arrays as they are; the contact
+        cache's fields (a step assigns new records, never edits them), the time and the last step's
+        outputs are kept by reference. Robots' joint records are not in it: a step never changes them."""
+        s, cache = self.s, self.contact_cache
+        return (s, [getattr(s, n).copy() for n in _State.MOTION], self.time, cache.warm, cache.preflight_dt,
+                self.contacts, self.last_solve, self.last_detection)
+
+    def _undo_step(self, saved):
+        """Put back what ``_step_snapshot`` saved (the world as it was before the step)."""
+        s, motion, self.time, warm, preflight_dt, self.contacts, self.last_solve, self.last_detection = saved
+        for n, a in zip(_State.MOTION, motion):
+            setattr(s, n, a)
+        self.s = s
+        self.contact_cache.warm, self.contact_cache.preflight_dt = warm, preflight_dt
 
     def _nonfinite_bodies(self):
         """Indices ``(B,)`` of bodies with a non-finite position, velocity or orientation (one sum per

@@ -102,7 +102,7 @@ def run(ctx, whole):
     if pen.shape[0]:   # the correction moves the bodies after the step (correction.apply)
         correction.cap(ctx, pen, pw[0], pw[1])
     local = f3[0]
-    used, resting, touching = flags
+    used, resting, touching = flags[0], flags[1], flags[2]
     if rested:
         # what the contact cache keeps of the resting solve (copies: never views of the step's
         # contacts; ``local`` is the kernel's own, no contact's column)
