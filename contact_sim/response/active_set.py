@@ -81,44 +81,19 @@ def islands(a, b, movable, n_bodies):
 
 
 @njit
-def _neighbours(ids, a, b, ima, imb, nb, cnt):
-    """The island's coupling: for each contact ``p`` of ``ids (m,)``, the contacts ``q`` (ascending,
-    ``p`` itself always among them) that share a movable body with it, ``nb[p, :cnt[p]]``. Block
-    ``(p, q)`` of the Delassus matrix is zero for every other ``q``: the products below skip them,
-    so a 10-box stack (each contact coupled to the 12 of the two boxes it touches) costs its
-    coupling, not its size squared."""
-    m = ids.shape[0]
-    for p in range(m):
-        cp = ids[p]
-        k = 0
-        for q in range(m):
-            cq = ids[q]
-            if q == p or (ima[cq] != 0.0 and (a[cq] == a[cp] or a[cq] == b[cp])) \
-                    or (imb[cq] != 0.0 and (b[cq] == a[cp] or b[cq] == b[cp])):
-                nb[p, k] = q
-                k += 1
-        cnt[p] = k
-
-
-@njit
-def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, nb, cnt, A):
-    """The Delassus matrix of the island's contacts ``ids (m,)``, its non-zero blocks (``nb, cnt``:
-    ``_neighbours``) written into ``A (≥3m,≥3m)`` (nothing else of ``A`` is read): block ``(p,q)``
+def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A):
+    """Dense Delassus matrix of the island's contacts ``ids (m,)`` into ``A (3m,3m)``: block ``(p,q)``
     sums, over each body the two contacts share, ``s_p s_q (m⁻¹ d_p d_qᵀ + (r_p×d_p)·I⁻¹(r_q×d_q)ᵀ)``
     (``s`` = +1 on A, −1 on B; an immovable body's inverse mass and inertia are zero); the normal
     rows' diagonal gets ``compliance``."""
     m = ids.shape[0]
+    A[:3 * m, :3 * m] = 0.0
     for p in range(m):
         cp = ids[p]
-        for t in range(cnt[p]):
-            q = nb[p, t]
+        for q in range(m):
             cq = ids[q]
-            for d in range(3):
-                for e in range(3):
-                    A[3 * p + d, 3 * q + e] = 0.0
             for side_p in range(2):
                 body_p = a[cp] if side_p == 0 else b[cp]
-                jp = ang_a if side_p == 0 else ang_b
                 for side_q in range(2):
                     body_q = a[cq] if side_q == 0 else b[cq]
                     if body_p != body_q:
@@ -127,25 +102,30 @@ def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, complianc
                     im = ima[cq] if side_q == 0 else imb[cq]
                     if im == 0.0:
                         continue   # immovable (its inverse inertia is zero too)
-                    wq = iang_a if side_q == 0 else iang_b
                     for d in range(3):
                         for e in range(3):
                             lin = 0.0
                             ang = 0.0
                             for x in range(3):
                                 lin += dirs[cp, d, x] * dirs[cq, e, x]
-                                ang += jp[cp, d, x] * wq[cq, e, x]
+                                if side_p == 0:
+                                    jp = ang_a[cp, d, x]
+                                else:
+                                    jp = ang_b[cp, d, x]
+                                if side_q == 0:
+                                    wq = iang_a[cq, e, x]
+                                else:
+                                    wq = iang_b[cq, e, x]
+                                ang += jp * wq
                             A[3 * p + d, 3 * q + e] += s * (im * lin + ang)
         A[3 * p, 3 * p] += compliance[cp]
 
 
 @njit
-def _cholesky(M, n, lo, hi, nz):
-    """In-place lower Cholesky factor of ``M[:n,:n]``, whose row ``i`` is zero left of column
-    ``lo[i]`` (its envelope, which the factor keeps; ``hi[j]`` the last row whose envelope reaches
-    column ``j``): right-looking, the update of each column restricted to its non-zeros ``nz``, so a
-    banded island costs its band, not ``n³``. Nothing outside the envelope is read or written.
-    False when a pivot is not positive (the caller falls back)."""
+def _cholesky(M, n, nz):
+    """In-place lower Cholesky factor of ``M[:n,:n]`` (right-looking, the update of each column
+    restricted to its non-zeros ``nz``: a banded island costs its band, not ``n³``). False when a
+    pivot is not positive (the caller falls back)."""
     for j in range(n):
         d = M[j, j]
         if not (d > 0.0):
@@ -153,8 +133,8 @@ def _cholesky(M, n, lo, hi, nz):
         d = math.sqrt(d)
         M[j, j] = d
         cnt = 0
-        for i in range(j + 1, hi[j] + 1):
-            if lo[i] <= j and M[i, j] != 0.0:
+        for i in range(j + 1, n):
+            if M[i, j] != 0.0:
                 M[i, j] /= d
                 nz[cnt] = i
                 cnt += 1
@@ -168,68 +148,44 @@ def _cholesky(M, n, lo, hi, nz):
 
 
 @njit
-def _cho_solve(L, n, lo, hi, x):
-    """Solve ``L Lᵀ y = x`` in place (``x (n,)``; ``lo, hi`` the envelope, as ``_cholesky``'s)."""
+def _cho_solve(L, n, x):
+    """Solve ``L Lᵀ y = x`` in place (``x (n,)``)."""
     for i in range(n):
         s = x[i]
-        for j in range(lo[i], i):
+        for j in range(i):
             s -= L[i, j] * x[j]
         x[i] = s / L[i, i]
     for i in range(n - 1, -1, -1):
         s = x[i]
-        for j in range(i + 1, hi[i] + 1):
-            if lo[j] <= i:
-                s -= L[j, i] * x[j]
+        for j in range(i + 1, n):
+            s -= L[j, i] * x[j]
         x[i] = s / L[i, i]
 
 
 @njit
-def _product(A, nb, cnt, x, n, out):
-    """``out = A x`` over the island's ``n`` rows, the non-zero blocks only (``nb, cnt``), summed
-    in column order."""
-    for i in range(n):
-        p = i // 3
-        s = 0.0
-        for t in range(cnt[p]):
-            q = nb[p, t]
-            for e in range(3):
-                s += A[i, 3 * q + e] * x[3 * q + e]
-        out[i] = s
-
-
-@njit
-def _objective(A, nb, cnt, rhs, x, n):
+def _objective(A, rhs, x, n):
     """Contact objective ``½ x·Ax − x·rhs`` (what Gauss–Seidel descends) over ``n`` rows."""
     f = 0.0
     for i in range(n):
         if x[i] == 0.0:
             continue
-        p = i // 3
         s = 0.0
-        for t in range(cnt[p]):
-            q = nb[p, t]
-            for e in range(3):
-                s += A[i, 3 * q + e] * x[3 * q + e]
+        for j in range(n):
+            s += A[i, j] * x[j]
         f += x[i] * (0.5 * s - rhs[i])
     return f
 
 
 @njit
 def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
-            friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S, nz, act, nb, cnt,
-            index):
+            friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, sub, L, vecs, S, nz, act):
     """The active set on one island (contacts ``ids (m,)``); writes ``lam`` rows of ``ids``.
-    ``A, L (≥3m, ≥3m)``, ``vecs (5, ≥3m)``, ``S, nz (≥3m,) int64``, ``index (3, ≥3m) int64``,
-    ``act (≥m,) bool``, ``nb (≥m, ≥m)``, ``cnt (≥m,) int64`` are workspace (allocated once for all
-    islands). Only the non-zero blocks of the Delassus matrix are formed and multiplied
-    (``_neighbours``); the active rows' factor keeps to their envelope. Returns ``(status,
-    residual)``."""
+    ``A, sub, L (≥3m, ≥3m)``, ``vecs (5, ≥3m)``, ``S, nz (≥3m,) int64``, ``act (≥m,) bool`` are
+    workspace (allocated once for all islands). Returns ``(status, residual)``."""
     m = ids.shape[0]
     n = 3 * m
-    _neighbours(ids, a, b, ima, imb, nb, cnt)
-    _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, nb, cnt, A)
+    _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A)
     rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
-    pos_s, lo, hi = index[0], index[1], index[2]   # a row's place among the active rows (−1: inactive), the envelope
     rmax = 0.0
     dmax = 0.0
     for p in range(m):
@@ -248,68 +204,42 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
     converged = False
     for _ in range(max_rounds + m // 4):
         ns = 0
-        pos_s[:n] = -1
         for p in range(m):
             if act[p]:
                 S[ns] = 3 * p
-                pos_s[3 * p] = ns
                 ns += 1
                 if friction and mu_s[ids[p]] > 0.0:
                     S[ns] = 3 * p + 1
                     S[ns + 1] = 3 * p + 2
-                    pos_s[3 * p + 1] = ns
-                    pos_s[3 * p + 2] = ns + 1
                     ns += 2
         x[:n] = 0.0
         if ns:
-            # the active rows' matrix, lower triangle within each row's envelope (its first
-            # non-zero column among the active rows, on to the diagonal)
             for i in range(ns):
-                p = S[i] // 3
-                lo[i] = i
-                for t in range(cnt[p]):
-                    q = nb[p, t]
-                    for e in range(3):
-                        j = pos_s[3 * q + e]
-                        if j >= 0:
-                            lo[i] = min(lo[i], j)
-                for j in range(lo[i], i + 1):
-                    L[i, j] = 0.0
-                for t in range(cnt[p]):
-                    q = nb[p, t]
-                    for e in range(3):
-                        j = pos_s[3 * q + e]
-                        if 0 <= j <= i:
-                            L[i, j] = A[S[i], 3 * q + e]
+                for j in range(ns):
+                    sub[i, j] = A[S[i], S[j]]
+                    L[i, j] = sub[i, j]
                 L[i, i] += eps
-            for j in range(ns):
-                hi[j] = j
-            for i in range(ns):
-                hi[lo[i]] = max(hi[lo[i]], i)
-            for j in range(1, ns):
-                hi[j] = max(hi[j], hi[j - 1])
-            if not _cholesky(L, ns, lo, hi, nz):
+            if not _cholesky(L, ns, nz):
                 return TOO_LARGE, 0.0
             for i in range(ns):
                 y[i] = rhs[S[i]]
-            _cho_solve(L, ns, lo, hi, y)
+            _cho_solve(L, ns, y)
             for _refine in range(2):   # proximal point: removes ε's bias where the rows are independent
                 for i in range(ns):
-                    p = S[i] // 3
                     s = rhs[S[i]]
-                    for t in range(cnt[p]):
-                        q = nb[p, t]
-                        for e in range(3):
-                            j = pos_s[3 * q + e]
-                            if j >= 0:
-                                s -= A[S[i], 3 * q + e] * y[j]
+                    for j in range(ns):
+                        s -= sub[i, j] * y[j]
                     r[i] = s
-                _cho_solve(L, ns, lo, hi, r)
+                _cho_solve(L, ns, r)
                 for i in range(ns):
                     y[i] += r[i]
             for i in range(ns):
                 x[S[i]] = y[i]
-        _product(A, nb, cnt, x, n, ax)
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += A[i, j] * x[j]
+            ax[i] = s
         if ns:
             worst = 0.0
             for i in range(ns):
@@ -346,7 +276,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
         # an unfinished answer can be far worse than no impulse: Gauss–Seidel starts from the
         # candidate (this, the warm start, zero) with the lowest objective, which decides where it ends
         best = 0.0
-        fx = _objective(A, nb, cnt, rhs, x, n)
+        fx = _objective(A, rhs, x, n)
         if fx < best:
             best = fx
             for p in range(m):
@@ -360,7 +290,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
             for p in range(m):
                 for d in range(3):
                     y[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
-            fw = _objective(A, nb, cnt, rhs, y, n)
+            fw = _objective(A, rhs, y, n)
             if fw < best:
                 for p in range(m):
                     for d in range(3):
@@ -368,12 +298,9 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
         return UNFINISHED, math.inf
     residual = 0.0
     for i in range(n):
-        p = i // 3
         s = -rhs[i]
-        for t in range(cnt[p]):
-            q = nb[p, t]
-            for e in range(3):
-                s += A[i, 3 * q + e] * x[3 * q + e]
+        for j in range(n):
+            s += A[i, j] * x[j]
         d = i % 3
         if d == 0 and not (x[i] > 0.0):
             s = min(s, 0.0)
@@ -584,10 +511,9 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
         if size <= max_island:
             m_max = max(m_max, size)
     n_max = 3 * m_max   # workspace for the largest island solved here, shared by all
-    A, L = np.empty((n_max, n_max)), np.empty((n_max, n_max))
+    A, sub, L = np.empty((n_max, n_max)), np.empty((n_max, n_max)), np.empty((n_max, n_max))
     vecs = np.empty((5, n_max))
     S, nz, act = np.empty(n_max, np.int64), np.empty(n_max, np.int64), np.empty(m_max, np.bool_)
-    nb, cnt, index = np.empty((m_max, m_max), np.int64), np.empty(m_max, np.int64), np.empty((3, n_max), np.int64)
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
@@ -599,7 +525,7 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
         else:
             st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
                               mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,
-                              A, L, vecs, S, nz, act, nb, cnt, index)
+                              A, sub, L, vecs, S, nz, act)
         if st == SOLVED:
             residual = max(residual, res)
             if apply:
