@@ -256,3 +256,55 @@ def test_hulls_and_boxes_in_a_pile_beside_rolling_balls_come_to_rest(seed):
         if w.time > 5.0:
             worst = max(worst, np.abs(w.s.omega[~spheres]).max())
     assert worst < 1e-6
+
+
+def _one_contact(rng, static_b):
+    """Random rows of one contact (``rows.Rows``' arrays, K = 1): an orthonormal (n, t1, t2), lever
+    arms, inverse masses and inertias (B immovable when ``static_b``)."""
+    n = rng.normal(size=3)
+    n /= np.linalg.norm(n)
+    t1 = np.cross(n, rng.normal(size=3))
+    t1 /= np.linalg.norm(t1)
+    dirs = np.array([[n, t1, np.cross(n, t1)]])
+    sides = []
+    for static in (False, static_b):
+        m = rng.uniform(0.2, 0.5) * rng.normal(size=(3, 3))
+        inv_i = np.zeros((3, 3)) if static else m @ m.T + 0.1 * np.eye(3)
+        ang = np.cross(rng.normal(size=3), dirs[0])[None]
+        sides.append((np.zeros(1) if static else np.array([rng.uniform(0.1, 2.0)]), ang, ang @ inv_i.T))
+    (ima, ang_a, iang_a), (imb, ang_b, iang_b) = sides
+    return dirs, ang_a, ang_b, iang_a, iang_b, ima, imb
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_a_one_contact_island_is_solved_as_the_island_kernel_solves_it(seed):
+    """``active_set._single`` restates ``_island`` for one contact (a kernel call costs more than its
+    arithmetic): the same status, residual and impulses, bit for bit, sticking, sliding, separating,
+    warm started or not, with or without friction and compliance."""
+    from contact_sim.response import active_set
+
+    rng = np.random.default_rng(seed)
+    dirs, ang_a, ang_b, iang_a, iang_b, ima, imb = _one_contact(rng, static_b=seed % 3 != 0)
+    a, b = np.array([1]), np.array([0 if seed % 3 else 2])
+    v0 = rng.normal(size=(1, 3))
+    target = np.array([min(0.0, rng.normal())])
+    compliance = np.array([0.0 if seed % 4 else rng.uniform(0, 0.5)])
+    mu_s = np.array([rng.uniform(0.0, 1.0)])
+    mu_d = mu_s * rng.uniform(0.5, 1.0)
+    warm = rng.normal(size=(1, 3))
+    friction, use_warm = seed % 2 == 0, seed % 5 != 0
+    answers = []
+    for kernel in ("island", "single"):
+        lam = np.full((1, 3), np.nan)
+        A, sub, L, vecs = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 3))
+        S, nz, act = np.empty(3, np.int64), np.empty(3, np.int64), np.empty(1, np.bool_)
+        args = (a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d, friction,
+                warm, use_warm, 1e-10, 1e-7, 12, lam)
+        if kernel == "island":
+            st, res = active_set._island(np.array([0]), *args, A, sub, L, vecs, S, nz, act)
+        else:
+            st, res = active_set._single(0, *args, A, L, vecs, S)
+        answers.append((st, res, lam))
+    (st0, res0, lam0), (st1, res1, lam1) = answers
+    assert st1 == st0 and (res1 == res0 or (np.isinf(res0) and np.isinf(res1)))
+    assert np.array_equal(lam1, lam0)
