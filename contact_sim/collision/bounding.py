@@ -181,6 +181,10 @@ def bv_filter(use_sphere, use_obb, a, b, shape_of, sf, pos, R, margin, keep):
     """``keep (K,)``: pairs ``a, b`` whose bounding spheres (``use_sphere``) and OBBs (``use_obb``)
     overlap within ``margin``; the same tests as ``sphere_overlap`` and ``obb_overlap``, one pass.
     Planes and sphere–sphere pairs are always kept (a sphere is its own bounding sphere)."""
+    # the OBB test's workspace, one block for all pairs: B's centre from A's (world, then in A's
+    # frame), A's axes · B's axes and their absolute values
+    work = np.empty((8, 3))
+    dc, t, C, absC = work[0], work[1], work[2:5], work[5:8]
     for k in range(a.shape[0]):
         sa, sb = shape_of[a[k]], shape_of[b[k]]
         ok = True
@@ -199,16 +203,12 @@ def bv_filter(use_sphere, use_obb, a, b, shape_of, sf, pos, R, margin, keep):
             ok = d2 <= (sf[sa, SF_SPHERE + 3] + sf[sb, SF_SPHERE + 3] + margin) ** 2
         if ok and use_obb:
             ha, hb = sf[sa, SF_BOX + 3:SF_BOX + 6], sf[sb, SF_BOX + 3:SF_BOX + 6]
-            dc = np.empty(3)
             for i in range(3):
                 dc[i] = (pos[b[k], i] + Rb[i, 0] * sf[sb, SF_BOX] + Rb[i, 1] * sf[sb, SF_BOX + 1]
                          + Rb[i, 2] * sf[sb, SF_BOX + 2]) - (pos[a[k], i] + Ra[i, 0] * sf[sa, SF_BOX]
                                                              + Ra[i, 1] * sf[sa, SF_BOX + 1] + Ra[i, 2] * sf[sa, SF_BOX + 2])
-            t = np.empty(3)
             for i in range(3):
                 t[i] = Ra[0, i] * dc[0] + Ra[1, i] * dc[1] + Ra[2, i] * dc[2]
-            C = np.empty((3, 3))
-            absC = np.empty((3, 3))
             for i in range(3):
                 for j in range(3):
                     C[i, j] = Ra[0, i] * Rb[0, j] + Ra[1, i] * Rb[1, j] + Ra[2, i] * Rb[2, j]
@@ -236,12 +236,17 @@ def kept_pairs(ia, ib, rank, use_sphere, use_obb, shape_of, sf, pos, R, margin):
     ``bv_filter``. Returns ``(swap (K,), kk (M,), a (M,), b (M,))``: the kept pairs' batch indices
     and their bodies in that order."""
     K = ia.shape[0]
-    swap = np.empty(K, np.bool_)
-    a, b = np.empty(K, np.int64), np.empty(K, np.int64)
+    flags = np.empty((2, K), np.bool_)     # swap, and the filter's keep
+    swap, keep = flags[0], flags[1]
+    ints = np.empty((3, K), np.int64)      # a, b (all pairs, then the kept ones first), kk
+    a, b, kk = ints[0], ints[1], ints[2]
     for k in range(K):
         swap[k] = rank[ia[k]] < rank[ib[k]]
         a[k], b[k] = (ib[k], ia[k]) if swap[k] else (ia[k], ib[k])
-    keep = np.empty(K, np.bool_)
     bv_filter(use_sphere, use_obb, a, b, shape_of, sf, pos, R, margin, keep)
-    kk = np.flatnonzero(keep)
-    return swap, kk, a[kk], b[kk]
+    m = 0
+    for k in range(K):   # the kept pairs to the front, in order (m <= k: nothing unread is overwritten)
+        if keep[k]:
+            kk[m], a[m], b[m] = k, a[k], b[k]
+            m += 1
+    return swap, kk[:m], a[:m], b[:m]

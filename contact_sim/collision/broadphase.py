@@ -234,7 +234,8 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
     (D,)``. One compiled pass: a dozen numpy calls a step were most of a small world's detection."""
     m = fin.shape[0]
     nb = pos.shape[0]
-    c, h = np.empty((m, 3)), np.empty((m, 3))
+    boxes = np.empty((2, m, 3))   # the world boxes' centres and half sizes, one block
+    c, h = boxes[0], boxes[1]
     world_boxes(pos, R, fin, centre, half, c, h)
     if fat_c.shape[0] != m or not margin <= fat_margin or not inside_fat(c, h, fat_c, fat_h):
         return False, np.zeros(0, np.int64), np.zeros(0, np.int64)
@@ -247,18 +248,22 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
             n += 1
     for q in range(planes.shape[0]):
         p = planes[q]
-        nw = np.empty(3)
-        for i in range(3):
-            nw[i] = R[p, i, 0] * plane_n[p, 0] + R[p, i, 1] * plane_n[p, 1] + R[p, i, 2] * plane_n[p, 2]
-        dw = plane_d[p] + (nw[0] * pos[p, 0] + nw[1] * pos[p, 1] + nw[2] * pos[p, 2])
+        # the plane's world normal (nx, ny, nz) and offset dw
+        nx = R[p, 0, 0] * plane_n[p, 0] + R[p, 0, 1] * plane_n[p, 1] + R[p, 0, 2] * plane_n[p, 2]
+        ny = R[p, 1, 0] * plane_n[p, 0] + R[p, 1, 1] * plane_n[p, 1] + R[p, 1, 2] * plane_n[p, 2]
+        nz = R[p, 2, 0] * plane_n[p, 0] + R[p, 2, 1] * plane_n[p, 1] + R[p, 2, 2] * plane_n[p, 2]
+        dw = plane_d[p] + (nx * pos[p, 0] + ny * pos[p, 1] + nz * pos[p, 2])
         for f in range(m):
-            low = (nw[0] * c[f, 0] + nw[1] * c[f, 1] + nw[2] * c[f, 2]) \
-                - (abs(nw[0]) * h[f, 0] + abs(nw[1]) * h[f, 1] + abs(nw[2]) * h[f, 2])
+            low = (nx * c[f, 0] + ny * c[f, 1] + nz * c[f, 2]) \
+                - (abs(nx) * h[f, 0] + abs(ny) * h[f, 1] + abs(nz) * h[f, 2])
             if low <= dw + margin:
                 keys[n] = min(p, fin[f]) * nb + max(p, fin[f])
                 n += 1
-    keys = np.sort(keys[:n]) if planes.shape[0] else keys[:n]
-    oi, oj = np.empty(n, np.int64), np.empty(n, np.int64)
+    keys = keys[:n]
+    if planes.shape[0]:
+        keys.sort()   # in place: the plane pairs among the cached ones
+    pairs = np.empty((2, n), np.int64)   # the kept pairs' i and j, one block
+    oi, oj = pairs[0], pairs[1]
     out = 0
     for k in range(n):
         a, b = keys[k] // nb, keys[k] % nb

@@ -16,6 +16,7 @@ group's kernel through ``pair_kernels.call``, all in one compiled call per detec
 import numpy as np
 
 from ..jit import njit
+from .vec3 import counting_order
 
 KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris", "shape_of", "a", "b", "pos", "R",
                "margins", "counters", "out_i", "out_f")
@@ -23,14 +24,14 @@ KERNEL_ARGS = ("sf", "si", "verts", "planes", "faces", "loops", "edges", "tris",
 def group_by_type(a, b, ranks, nrank):
     """Pairs ``a, b (K,)`` in the stable order of their type-pair key ``rank A · nrank + rank B``:
     ``(order (K,), A (K,), B (K,), starts (G + 1,), keys (G,))``, group ``g`` being
-    ``A[starts[g]:starts[g + 1]]`` with key ``keys[g]``."""
+    ``A[starts[g]:starts[g + 1]]`` with key ``keys[g]``. The order is a counting sort of the
+    keys (``vec3.counting_order``: stable, as a merge sort)."""
     K = a.shape[0]
-    key = np.empty(K, np.int64)
+    ints = np.empty((6, K + 1), np.int64)   # one block: key, order, A, B, keys (K,), starts (K + 1,)
+    key, order, A, B, keys, starts = ints[0, :K], ints[1, :K], ints[2, :K], ints[3, :K], ints[4, :K], ints[5]
     for k in range(K):
         key[k] = ranks[a[k]] * nrank + ranks[b[k]]
-    order = np.argsort(key, kind="mergesort")
-    A, B = np.empty(K, np.int64), np.empty(K, np.int64)
-    starts, keys = np.empty(K + 1, np.int64), np.empty(K, np.int64)
+    counting_order(key, nrank * nrank, order)
     g = 0
     for k in range(K):
         o = order[k]
@@ -49,7 +50,8 @@ def contact_columns(rows_i, rows_f, kk, ia, ib, swap):
     (M,), normal (M, 3)`` (from ``body_b`` to ``body_a``: the kernels' normal, negated where the
     pair was swapped), ``colliding pairs)``."""
     M = rows_i.shape[0]
-    body_a, body_b = np.empty(M, np.int64), np.empty(M, np.int64)
+    bodies = np.empty((2, M), np.int64)   # body_a, body_b: one block
+    body_a, body_b = bodies[0], bodies[1]
     normal = np.empty((M, 3))
     seen = np.zeros(ia.shape[0], np.bool_)
     pairs = 0

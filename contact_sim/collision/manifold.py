@@ -173,6 +173,17 @@ def put(out_i, out_f, k, pair, point, normal, depth, feature, feature_id):
 
 
 @njit
+def put3(out_i, out_f, k, pair, px, py, pz, nx, ny, nz, depth, feature, feature_id):
+    """``put`` of the point ``(px, py, pz)`` and the normal ``(nx, ny, nz)`` given as numbers (a
+    kernel that computes them needs no temporary array per contact); returns ``k + 1``."""
+    out_i[k, 0], out_i[k, 1], out_i[k, 2] = pair, feature, feature_id
+    out_f[k, 0], out_f[k, 1], out_f[k, 2] = px, py, pz
+    out_f[k, 3], out_f[k, 4], out_f[k, 5] = nx, ny, nz
+    out_f[k, 6] = depth
+    return k + 1
+
+
+@njit
 def _cross_dot(a, b, n):
     """``(a × b)·n``."""
     return (a[1] * b[2] - a[2] * b[1]) * n[0] + (a[2] * b[0] - a[0] * b[2]) * n[1] + (a[0] * b[1] - a[1] * b[0]) * n[2]

@@ -28,7 +28,7 @@ from ..jit import njit
 from .inside import outside_plane
 from .geometry import SF_CENTROID, SF_SCALE, SI_E0, SI_NE, SI_NP, SI_NV, SI_P0, SI_V0
 from .manifold import F_EDGE, face_patch, put
-from .vec3 import col_max, cross, dot, dotr, edge_through_face, mv, norm, transform_rows
+from .vec3 import col_max, cross, dot, dotr, edge_through_face, norm, transform_rows
 from ..constants import PROBE_WORK
 
 
@@ -233,6 +233,15 @@ def _probes(V, nv, toward, out, use):
 
 
 @njit
+def centroid(sf, s, p, R, out):
+    """``out (3,)``: the centroid of shape ``s`` carried by ``p (3,)``, ``R (3, 3)`` (``R c + p``,
+    into the caller's buffer)."""
+    for i in range(3):
+        out[i] = (R[i, 0] * sf[s, SF_CENTROID] + R[i, 1] * sf[s, SF_CENTROID + 1] + R[i, 2] * sf[s, SF_CENTROID + 2]) \
+            + p[i]
+
+
+@njit
 def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, pos, R, margins, counters,
               out_i, out_f):
     """Convex polyhedra A and B: SAT with Gauss-map pruning, then the edge or face contacts."""
@@ -247,6 +256,8 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
     NBt = np.empty((3, npl))
     eb = np.empty(2 * ne, np.int64)
     eb2, eb3 = eb[:ne], eb[ne:]
+    cAB = np.empty((2, 3))   # the world centroids of A and B
+    cA, cB = cAB[0], cAB[1]
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
@@ -267,14 +278,14 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
         # tolerances follow the smaller body: a 1 mm box against a 1 km one needs mm-relative
         # round-off (1e-9 of the larger size would be a micrometre, a third of a shallow penetration)
         scale = min(sf[sa, SF_SCALE], sf[sb, SF_SCALE])
-        cA = mv(Ra, sf[sa, SF_CENTROID:SF_CENTROID + 3]) + pa
+        centroid(sf, sa, pa, Ra, cA)
         EA = edges[si[sa, SI_E0]:si[sa, SI_E0] + si[sa, SI_NE]]
         EB = edges[si[sb, SI_E0]:si[sb, SI_E0] + si[sb, SI_NE]]
         fA = faces[si[sa, SI_P0]:si[sa, SI_P0] + npa]
         fB = faces[si[sb, SI_P0]:si[sb, SI_P0] + npb]
         # the Gauss-map test is symmetric in the two bodies: loop over the body with fewer edges
         # outside (each outer edge costs a sweep over the other body's normals)
-        cB = mv(Rb, sf[sb, SF_CENTROID:SF_CENTROID + 3]) + pb
+        centroid(sf, sb, pb, Rb, cB)
         # edge pairs that cannot beat the face axes (by more than round-off) change nothing below
         floor = face_sep - 1e-9 * scale
         if EB.shape[0] < EA.shape[0]:

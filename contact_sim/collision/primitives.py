@@ -13,24 +13,41 @@ from ..contacts import FID_PLANE, FID_POINT, fid
 from ..jit import njit
 from .geometry import SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
     SI_V0
-from .manifold import F_PLANE, F_SPHERE, put, reduce4
+from .manifold import F_PLANE, F_SPHERE, put, put3, reduce4
 from .vec3 import col_max, closest_on_triangle, dot, mtv, mv, transform_rows
 
 
 @njit
 def plane_world(sf, s, p, R):
     """World normal ``(3,)`` and offset of plane shape ``s`` carried by ``p (3,)``, ``R (3, 3)``."""
-    n = mv(R, sf[s, SF_PLANE:SF_PLANE + 3])
-    return n, sf[s, SF_PLANE + 3] + dot(n, p)
+    n = np.empty(3)
+    return n, plane_world_to(sf, s, p, R, n)
+
+
+@njit
+def plane_world_to(sf, s, p, R, n):
+    """``plane_world`` into the caller's ``n (3,)`` (one buffer for a kernel's pairs, not an array
+    per pair): writes the world normal, returns the offset."""
+    for i in range(3):
+        n[i] = R[i, 0] * sf[s, SF_PLANE] + R[i, 1] * sf[s, SF_PLANE + 1] + R[i, 2] * sf[s, SF_PLANE + 2]
+    return sf[s, SF_PLANE + 3] + dot(n, p)
 
 
 @njit
 def sphere_row(out_i, out_f, k, pair, sep, normal, cb, rb, margin):
     """The one contact of a pair with a sphere B (centre ``cb``, radius ``rb``) at ``sep``."""
+    return sphere_row3(out_i, out_f, k, pair, sep, normal[0], normal[1], normal[2], cb, rb, margin)
+
+
+@njit
+def sphere_row3(out_i, out_f, k, pair, sep, nx, ny, nz, cb, rb, margin):
+    """``sphere_row`` of the normal ``(nx, ny, nz)`` given as numbers."""
     if sep > margin:
         return k
     depth = -sep
-    return put(out_i, out_f, k, pair, cb + normal * (rb - 0.5 * depth), normal, depth, F_SPHERE, fid(FID_POINT, 0, 0, 0))
+    s = rb - 0.5 * depth
+    return put3(out_i, out_f, k, pair, cb[0] + nx * s, cb[1] + ny * s, cb[2] + nz * s, nx, ny, nz, depth, F_SPHERE,
+                fid(FID_POINT, 0, 0, 0))
 
 
 @njit
@@ -38,16 +55,19 @@ def sphere_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, 
                  out_i, out_f):
     """Sphere A against plane B: the true signed distance, one contact."""
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
+    nb = np.empty(3)  # the plane's world normal, one buffer for all pairs
     for i in range(a.shape[0]):
         margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa = shape_of[a[i]]
-        nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
+        db = plane_world_to(sf, shape_of[b[i]], pos[b[i]], R[b[i]], nb)
         ra = sf[sa, SF_RADIUS]
         ca = pos[a[i]]
         sep = dot(nb, ca) - ra - db
         if sep <= margin:
             depth = -sep
-            k = put(out_i, out_f, k, i, ca - nb * (ra - 0.5 * depth), nb, depth, F_PLANE, fid(FID_POINT, 0, 0, 0))
+            s = ra - 0.5 * depth
+            k = put3(out_i, out_f, k, i, ca[0] - nb[0] * s, ca[1] - nb[1] * s, ca[2] - nb[2] * s, nb[0], nb[1], nb[2],
+                     depth, F_PLANE, fid(FID_POINT, 0, 0, 0))
     return k
 
 
@@ -59,10 +79,10 @@ def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a,
     for i in range(a.shape[0]):
         margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
-        d = pos[a[i]] - pos[b[i]]
-        dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        n = d / dist if dist > 1e-300 else np.array([0.0, 0.0, 1.0])
-        k = sphere_row(out_i, out_f, k, i, dist - ra - rb, n, pos[b[i]], rb, margin)
+        dx, dy, dz = pos[a[i], 0] - pos[b[i], 0], pos[a[i], 1] - pos[b[i], 1], pos[a[i], 2] - pos[b[i], 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        nx, ny, nz = (dx / dist, dy / dist, dz / dist) if dist > 1e-300 else (0.0, 0.0, 1.0)
+        k = sphere_row3(out_i, out_f, k, i, dist - ra - rb, nx, ny, nz, pos[b[i]], rb, margin)
     return k
 
 
@@ -122,12 +142,14 @@ def poly_plane(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b,
     """Polyhedron or mesh A against plane B: every vertex within the margin is a candidate; a
     resting face keeps at most 4 of them, spanning the patch."""
     nmax = col_max(si, SI_NV, shape_of, a, b)
-    pts, dep, val, keep = np.empty((nmax, 3)), np.empty(nmax), np.empty(nmax, np.bool_), np.empty(nmax, np.bool_)
+    pts, dep, flags = np.empty((nmax, 3)), np.empty(nmax), np.empty((2, nmax), np.bool_)
+    val, keep = flags[0], flags[1]
+    nb = np.empty(3)  # the plane's world normal, one buffer for all pairs
     k = np.int64(0)   # not a literal 0: a literal argument would compile callees twice
     for i in range(a.shape[0]):
         margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         sa = shape_of[a[i]]
-        nb, db = plane_world(sf, shape_of[b[i]], pos[b[i]], R[b[i]])
+        db = plane_world_to(sf, shape_of[b[i]], pos[b[i]], R[b[i]], nb)
         v0, nv = si[sa, SI_V0], si[sa, SI_NV]
         Ra, pa = R[a[i]], pos[a[i]]
         transform_rows(verts[v0:v0 + nv], pa, Ra, pts, nv)

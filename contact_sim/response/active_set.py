@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .pgs import _apply, _row_velocity
+from .pgs import _apply, _row_velocity3
 
 _TINY = 1e-300
 
@@ -44,17 +44,23 @@ def islands(a, b, movable, n_bodies):
     the contacts ``order[start[i]:start[i+1]]`` in their original order, islands in the order of
     their first contact (deterministic). A contact between two immovable bodies is its own island."""
     k = a.shape[0]
-    parent = np.arange(n_bodies)
+    trees = np.empty((2, n_bodies), np.int64)   # union-find parents; each root's island number
+    parent, number = trees[0], trees[1]
+    for i in range(n_bodies):
+        parent[i] = i
+        number[i] = -1
     for c in range(k):
         if movable[a[c]] and movable[b[c]]:
             ra = _find(parent, a[c])
             rb = _find(parent, b[c])
             if ra != rb:
                 parent[max(ra, rb)] = min(ra, rb)
-    label = np.empty(k, np.int64)       # island number of each contact, by first appearance
-    number = np.full(n_bodies, -1)
+    # one block: each contact's island number (by first appearance), the islands' sizes then their
+    # starts (a running sum in place), the fill pointers, the order
+    ints = np.empty((4, k + 1), np.int64)
+    label, sizes, fill, order = ints[0, :k], ints[1], ints[2], ints[3, :k]
     count = 0
-    sizes = np.zeros(k + 1, np.int64)
+    sizes[:] = 0
     for c in range(k):
         if movable[a[c]]:
             r = _find(parent, a[c])
@@ -71,9 +77,10 @@ def islands(a, b, movable, n_bodies):
                 count += 1
             label[c] = number[r]
         sizes[label[c] + 1] += 1
-    start = np.cumsum(sizes[:count + 1])
-    fill = start[:count].copy()
-    order = np.empty(k, np.int64)
+    start = sizes[:count + 1]
+    for i in range(count):
+        start[i + 1] += start[i]
+        fill[i] = start[i]
     for c in range(k):
         order[fill[label[c]]] = c
         fill[label[c]] += 1
@@ -501,19 +508,19 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     residual of the solved islands."""
     k = a.shape[0]
     v0 = np.empty((k, 3))
-    rv = np.empty(3)
     for c in range(k):
-        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
-        v0[c, 0], v0[c, 1], v0[c, 2] = rv[0], rv[1], rv[2]
+        v0[c, 0], v0[c, 1], v0[c, 2] = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)
     m_max = 0
     for i in range(start.shape[0] - 1):
         size = start[i + 1] - start[i]
         if size <= max_island:
             m_max = max(m_max, size)
     n_max = 3 * m_max   # workspace for the largest island solved here, shared by all
-    A, sub, L = np.empty((n_max, n_max)), np.empty((n_max, n_max)), np.empty((n_max, n_max))
+    mats = np.empty((3, n_max, n_max))   # A, sub, L: one block
+    A, sub, L = mats[0], mats[1], mats[2]
     vecs = np.empty((5, n_max))
-    S, nz, act = np.empty(n_max, np.int64), np.empty(n_max, np.int64), np.empty(m_max, np.bool_)
+    rows = np.empty((2, n_max), np.int64)
+    S, nz, act = rows[0], rows[1], np.empty(m_max, np.bool_)
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]

@@ -75,9 +75,13 @@ def _match(a0, b0, p0, a1, b1, p1, ext, fraction, out):
     ``out (K1,)``. The old contacts sorted by pair key ``a·N + b``, each new contact's candidates
     are its pair's (a handful: binary search, then a scan), ties to the lower index."""
     n = ext.shape[0]
-    key0 = a0 * n + b0
+    keys = np.empty((2, a0.shape[0]), np.int64)   # one block: the old pairs' keys, then sorted
+    key0, sk = keys[0], keys[1]
+    for j in range(a0.shape[0]):
+        key0[j] = a0[j] * n + b0[j]
     order = np.argsort(key0, kind="mergesort")
-    sk = key0[order]
+    for j in range(a0.shape[0]):
+        sk[j] = key0[order[j]]
     k1 = a1.shape[0]
     best = np.full(k1, -1, np.int64)
     dist = np.full(k1, np.inf)

@@ -97,13 +97,26 @@ def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv):
         rv[d] = s
 
 
+@njit(inline="always")
+def _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega):
+    """``_row_velocity`` returned as three numbers ``(n, t1, t2)`` (the same sums in the same
+    order), for a caller with no buffer to write it to."""
+    s0, s1, s2 = 0.0, 0.0, 0.0
+    for x in range(3):
+        s0 += (dirs[c, 0, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, 0, x] * omega[ia, x]
+               - ang_b[c, 0, x] * omega[ib, x])
+        s1 += (dirs[c, 1, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, 1, x] * omega[ia, x]
+               - ang_b[c, 1, x] * omega[ib, x])
+        s2 += (dirs[c, 2, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, 2, x] * omega[ia, x]
+               - ang_b[c, 2, x] * omega[ib, x])
+    return s0, s1, s2
+
+
 @njit
 def normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, out):
     """The contacts' normal relative velocities ``out (K,)`` (``_row_velocity``'s first row)."""
-    rv = np.empty(3)
     for c in range(a.shape[0]):
-        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
-        out[c] = rv[0]
+        out[c] = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)[0]
 
 
 @njit(inline="always")
@@ -128,12 +141,13 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
     warm start on entry (already applied to the velocities) and the result on return; ``vel, omega
     (N,3)`` updated in place. Returns ``(sweeps done, largest impulse change of the last sweep)``."""
     k = a.shape[0]
-    inv_kn = np.zeros(k)
-    ikt = np.zeros((k, 4))
+    # per contact, one block: K_tt⁻¹ row by row (columns 0-3), then the normal row's 1/(K_nn + c)
+    # (column 4); zero where singular
+    ikt = np.zeros((k, 5))
     for c in range(k):
         kn = K[c, 0, 0] + compliance[c]
         if kn > 0.0:
-            inv_kn[c] = 1.0 / max(kn, _TINY)
+            ikt[c, 4] = 1.0 / max(kn, _TINY)
         det = K[c, 1, 1] * K[c, 2, 2] - K[c, 1, 2] * K[c, 2, 1]
         if det > 1e-300:
             ikt[c, 0] = K[c, 2, 2] / det
@@ -142,17 +156,16 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
             ikt[c, 3] = K[c, 1, 1] / det
     done = 0
     residual = 0.0
-    rv = np.zeros(3)
     for it in range(iterations):
         residual = 0.0
         for c in range(k):
             ia = a[c]
             ib = b[c]
-            _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv)
+            rv = _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]
-            new0 = max(old0 + (target_n[c] - compliance[c] * old0 - rv[0]) * inv_kn[c], 0.0)
+            new0 = max(old0 + (target_n[c] - compliance[c] * old0 - rv[0]) * ikt[c, 4], 0.0)
             new1 = old1
             new2 = old2
             if friction:
@@ -290,7 +303,6 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
     Arrays as ``sweeps``; ``mu (K,)``. Stops when a sweep changes no impulse by more than
     ``tolerance`` × the largest one. Returns the sweeps done."""
     k = a.shape[0]
-    rv = np.zeros(3)
     done = 0
     for it in range(iterations):
         change = 0.0
@@ -301,7 +313,7 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
                 continue
             ia = a[c]
             ib = b[c]
-            _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv)
+            rv = _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]

@@ -17,7 +17,7 @@ from ..constants import MATCH_FRACTION
 from .cache import warm_record, warm_start
 from .compliance import soft_rows
 from .energy import dynamic_bodies, push_cap_kernel, push_speed
-from .pgs import _row_velocity
+from .pgs import _row_velocity3
 from .solver import solve_rows
 
 
@@ -61,25 +61,26 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
     siang_a, siang_b, sK = (iang_a, iang_b, K) if whole else (iang_a[ri], iang_b[ri], K[ri])
     sima, simb, slocal = (ima, imb, local) if whole else (ima[ri], imb[ri], local[ri])
     smu_s, smu_d = (mu_s, mu_d) if whole else (mu_s[ri], mu_d[ri])
-    v_end = np.empty((n, 3))
+    ends = np.empty((4, n, 3))   # one block: the end velocities the solve updates, and their start
+    v_end, w_end, v_start_end, w_start_end = ends[0], ends[1], ends[2], ends[3]
     for i in range(n):
         for x in range(3):
             v_end[i, x] = vel[i, x] + gravity_rows[i, x] * t
-    w_end = omega.copy()
-    v_start_end = v_end.copy()
-    w_start_end = w_end.copy()
+            w_end[i, x] = omega[i, x]
+            v_start_end[i, x] = v_end[i, x]
+            w_start_end[i, x] = w_end[i, x]
     # the constraints are on the velocity at the end of t: the normal velocity at least
     # min(depth, 0)/t-ish (the force acts on the displacement (v_start + v_end)/2·t, which may close a
     # gap exactly, never more, and never asks a pair to separate)
-    target = np.empty(kr)
+    per = np.zeros((2, kr))   # one block: the normal rows' targets and compliances
+    target, compliance = per[0], per[1]
     for j in range(kr):
         c = ri[j]
         target[j] = _min(2.0 * _min(depth[c], 0.0) / t - vn1[c], 0.0)
-    warm = np.zeros((kr, 3))
+    impulses = np.zeros((2, kr, 3))   # one block: the warm start, the solve's impulses
+    warm, lam = impulses[0], impulses[1]
     use_warm = has_old and kr > 0 and warm_start(a0, b0, p0, sa, sb, slocal, ext, MATCH_FRACTION, values, t, sdirs,
                                                   smu_d, warm)
-    lam = np.zeros((kr, 3))
-    compliance = np.zeros(kr)
     if soft.shape[0]:   # the compliant rows: their spring's target and compliance (compliance.soft_rows)
         soft_rows(ri, K, depth, vn1, stiff, zeta, t, target, compliance)
     it, residual = solve_rows(method, sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK, target,
@@ -138,11 +139,10 @@ def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, vel_end, omega_end, target
     creeps along the squeeze its friction grows with). Their positive parts are counted, so the
     bound holds for whatever impulses the solve returned."""
     total = 0.0
-    rv = np.empty(3)
     for c in range(a.shape[0]):
-        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega, rv)
+        rv = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)
         total += math.sqrt(lam[c, 0] ** 2 + lam[c, 1] ** 2 + lam[c, 2] ** 2) * math.sqrt(
             rv[0] ** 2 + rv[1] ** 2 + rv[2] ** 2)
-        _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel_end, omega_end, rv)
+        rv = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel_end, omega_end)
         total += lam[c, 0] * max(rv[0] - target[c], 0.0) + max(lam[c, 1] * rv[1] + lam[c, 2] * rv[2], 0.0)
     return 0.5 * total

@@ -324,10 +324,15 @@ def _islands(max_island, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b,
     ``kinetic`` and some ``mu_s > 0``. Returns ``(friction, mu_s, mu_d as solved, residual, status
     (K,))``."""
     k = a.shape[0]
-    friction = kinetic and np.any(mu_s > 0.0)
-    zeros = np.zeros(k)
-    mus = mu_s if friction else zeros
-    mud = mu_d if friction else zeros
+    friction = False
+    if kinetic:
+        for c in range(k):
+            friction = friction or mu_s[c] > 0.0
+    if friction:
+        mus, mud = mu_s, mu_d
+    else:
+        mus = np.zeros(k)
+        mud = mus
     status = np.empty(k, np.int64)
     residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus,
                              mud, friction, warm, use_warm, max_island, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
@@ -350,7 +355,7 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     if ok and big.shape[0]:
         residual = max(residual, res_b)
         apply_ids(big, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
-    unfinished = np.flatnonzero(status != SOLVED)
+    unfinished = _where_not(status, SOLVED)
     if unfinished.shape[0] == 0:
         return 1, residual
     sweeps_, res = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
@@ -392,9 +397,17 @@ def _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, 
     active set (``_sparse_py``, run as Python from the kernel) from the velocities the solved islands
     left: their impulses (the solve's, or Gauss–Seidel's start) into ``lam``'s rows, marked ``SOLVED``
     when it converged (the caller applies them). Returns ``(converged, residual, contacts (B,))``."""
-    big = np.flatnonzero(status == TOO_LARGE)
-    if big.shape[0] == 0:
-        return True, 0.0, big
+    n_big = 0
+    for c in range(status.shape[0]):
+        n_big += status[c] == TOO_LARGE
+    if n_big == 0:
+        return True, 0.0, status[:0]   # no contact (an empty view: nothing to allocate)
+    big = np.empty(n_big, np.int64)
+    j = 0
+    for c in range(status.shape[0]):
+        if status[c] == TOO_LARGE:
+            big[j] = c
+            j += 1
     lam_b = np.zeros((big.shape[0], 3))
     with objmode(ok="boolean", res_b="float64"):
         ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s,
@@ -415,7 +428,7 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     slides, from ``warm``. Returns ``(sweeps, residual)``."""
     status = _islands(1, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
                       mu_d, kinetic, warm, use_warm, vel, omega, lam)[4]
-    rest = np.flatnonzero(status != SOLVED)
+    rest = _where_not(status, SOLVED)
     if rest.shape[0] == 0:
         return 1, 0.0
     for j in range(rest.shape[0]):
@@ -423,6 +436,24 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
             lam[rest[j], x] = 0.0
     return _sweep_ids(rest, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
                       kinetic, warm, use_warm, iterations, tolerance, vel, omega, lam)
+
+
+@njit
+def _where_not(status, value):
+    """The contacts whose ``status (K,)`` is not ``value``, ascending (``np.flatnonzero(status !=
+    value)`` without the temporary mask); an empty view of ``status`` when there is none."""
+    m = 0
+    for c in range(status.shape[0]):
+        m += status[c] != value
+    if m == 0:
+        return status[:0]
+    out = np.empty(m, np.int64)
+    j = 0
+    for c in range(status.shape[0]):
+        if status[c] != value:
+            out[j] = c
+            j += 1
+    return out
 
 
 @njit

@@ -232,14 +232,22 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     vp, wp = pw[0], pw[1]
     out = np.zeros(10)
     # ---- prepare: coefficients, stiffnesses, rows, points in A's frame, classes
-    e, mu_s, mu_d = np.empty(k), np.empty(k), np.empty(k)
+    # the per-contact numbers, one block: restitution (as the impact rounds rule it, and the
+    # material's), friction, stiffness, damping ratio, speculative target, normal velocity after
+    # the impacts
+    per = np.zeros((8, k))
+    e, e_material, mu_s, mu_d = per[0], per[1], per[2], per[3]
+    stiff, zeta, spec_target, vn1 = per[4], per[5], per[6], per[7]
     prepare.coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d)
-    stiff, zeta = np.zeros(k), np.zeros(k)
     n_soft = 0
     if may_soften and k:
         n_soft = stiffness_rows(a, b, depth, margin, stiffness, damping_ratio, kinematic, k_kinematic, rule, stiff,
                                 zeta)
-    soft = stiff > 0.0 if n_soft else np.zeros(0, np.bool_)
+    classes = np.empty((4, k), np.bool_)   # impact, closing, bounced, and the compliant contacts
+    imp, closing, bounced = classes[0], classes[1], classes[2]
+    soft = classes[3] if n_soft else classes[3, :0]   # empty: none is compliant
+    for c in range(soft.shape[0]):
+        soft[c] = stiff[c] > 0.0
     vec, mat, num = np.empty((4, k, 3)), np.empty((6, k, 3, 3)), np.empty((2, k))   # the rows (rows.build_rows' blocks)
     t1, t2, ra, rb = vec[0], vec[1], vec[2], vec[3]
     ang_a, ang_b, iang_a, iang_b, K, dirs = mat[0], mat[1], mat[2], mat[3], mat[4], mat[5]
@@ -247,18 +255,20 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, rel_vel, dynamic, not particles, t1, t2, ra, rb, ang_a,
                ang_b, iang_a, iang_b, ima, imb, K, dirs)
     local_points(a, point, pos, R, local)
-    classes = np.empty((3, k), np.bool_)
-    imp, closing, bounced = classes[0], classes[1], classes[2]
-    spec_target = np.empty(k)
-    e_material = e.copy()   # classify zeroes e where a rebound rests; a later impact round rules again
+    for c in range(k):   # classify zeroes e where a rebound rests; a later impact round rules again
+        e_material[c] = e[c]
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, ext, exact_toi, toi_tolerance, simultaneous,
                               margin, resting, rebound_speed, impact_speed, speculative, t, soft, e, vn0, touching,
                               imp, closing, spec_target, bounced)
     # ---- impacts: compression with friction, then restitution, capped; the push cap's budget is
     # measured from the velocities at the sub-step's start in every solve of it
-    vel_ref, omega_ref = vel.copy(), omega.copy()
-    lam_i = np.zeros((k, 3))
-    vn1 = np.empty(k)
+    refs = np.empty((2, n, 3))
+    vel_ref, omega_ref = refs[0], refs[1]
+    for i in range(n):
+        for x in range(3):
+            vel_ref[i, x], omega_ref[i, x] = vel[i, x], omega[i, x]
+    lams = np.zeros((2, k, 3))   # the impacts' and the resting impulses
+    lam_i, lam_r = lams[0], lams[1]
     it_i, residual_i, unconverged = impact_stage(a, b, point, normal, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
                                                  rel_vel, touching, closing, bounced, spec_target, e, e_material, soft,
                                                  vn0, counts.impact, counts.closing, particles, resting, rebound_speed,
@@ -274,8 +284,7 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     # ---- resting contact: the constant force over the rest of the step, warm started, on every
     # contact but those that just rebounded (none when every contact rebounded)
     rested = resting and k > 0 and (counts.touching > 0 or not exact_toi) \
-        and not (counts.bounced > 0 and np.all(vn1 > impact_speed))
-    lam_r = np.zeros((k, 3))
+        and not (counts.bounced > 0 and _all_above(vn1, impact_speed))
     dv, dw = dvw[0], dvw[1]
     kr, it_r, residual_r, rest_bound = 0, 0, 0.0, 0.0
     if rested:
@@ -302,6 +311,15 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     out[3], out[4] = _move(1.0, t, dvw, rested, pos, vel, quat, omega, principal_q, moments, inertia_body, gravity,
                            dynamic, rotating, kinematic)
     return near, f3, f1, flags, wv, pw, keep, dvw, pen, out
+
+
+@njit
+def _all_above(x, bound):
+    """Every value of ``x (K,)`` above ``bound`` (``np.all(x > bound)`` without the temporary mask)."""
+    for c in range(x.shape[0]):
+        if not x[c] > bound:
+            return False
+    return True
 
 
 @njit
@@ -348,13 +366,15 @@ def _move(frac, tau, dvw, rested, pos, vel, quat, omega, principal_q, moments, i
     drift. Returns ``(drift, kick_error)`` (J; the error bound 0 without kicks)."""
     n = pos.shape[0]
     if rested:
-        half_dv, half_dw = np.empty((n, 3)), np.empty((n, 3))
+        half = np.empty((2, n, 3))
+        half_dv, half_dw = half[0], half[1]
         for i in range(n):
             for x in range(3):
                 half_dv[i, x] = 0.5 * dvw[0, i, x] * frac
                 half_dw[i, x] = 0.5 * dvw[1, i, x] * frac
     else:
-        half_dv, half_dw = np.zeros((0, 3)), np.zeros((0, 3))
+        half = np.zeros((2, 0, 3))
+        half_dv, half_dw = half[0], half[1]
     drift, kick_error = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating,
                                 kinematic, half_dv, half_dw, rested, tau, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE,
                                 MAX_SUBSTEPS)
