@@ -33,8 +33,8 @@ from ..settings import COMBINE_RULES, SOLVER_METHODS
 from .. import validate
 from . import correction, prepare
 from . import toi as toi_mod
-from ..constants import (DIRECT_MAX_CONTACTS, IMPACT_SPEED_FRACTION, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, PGS_TOLERANCE,
-                         REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
+from ..constants import (DIRECT_MAX_CONTACTS, IMPACT_SPEED_FRACTION, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
+                         PGS_TOLERANCE, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
 from .cache import local_points
 from .compliance import possible as may_be_compliant, stiffness_rows
 from .energy import kinematic_work
@@ -67,7 +67,7 @@ def run(ctx, whole):
     if not has_old:
         old = _NO_OLD
     look = ctx.look_ahead
-    lead, inertia, materials, extents, solve, any_kinematic, particles = _fixed_args(world, m, ctx.dt)
+    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(world, m, ctx.dt)
     # the kinematic bodies' work is taken where the contact points are, at the sub-step's start:
     # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
     # missed at the end)
@@ -76,7 +76,7 @@ def run(ctx, whole):
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
-        prepare.inv_inertia(world, m, ctx.R), ctx.R, *materials,
+        prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials,
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
         has_old, extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, whole,
         *solve[1:])
@@ -178,8 +178,10 @@ def _fixed_args(world, m, dt):
     restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic,
     rule, kinetic)``, ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance,
     simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, method, direct_max,
-    max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), and whether a body
-    is kinematic and the response is kinematic.
+    max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
+    kinematic, whether the response is kinematic, and the world inverse inertia ``(N,3,3)`` when
+    it is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only read),
+    else None.
 
     They follow from the body arrays (``_body_arrays``: the very same tuple while no array is
     replaced), gravity, the models ``m``, the step ``dt`` (s) and the settings; kept on the world
@@ -188,11 +190,11 @@ def _fixed_args(world, m, dt):
     dozen reads and conversions."""
     bodies = _body_arrays(world)
     st = world.settings
-    gravity = world._gravity
+    gravity, ib = world._gravity, world.inv_inertia_body
     hit = world._derived.get("substep_args")
     if (hit is not None and hit[0] is bodies and hit[1] is st and hit[2] == validate.edits and hit[3] is m
-            and hit[4] == dt and hit[5] is gravity):
-        return hit[6]
+            and hit[4] == dt and hit[5] is gravity and hit[6] is ib):
+        return hit[7]
     edits = validate.edits
     bm = world.body_masks()
     particles = m.response == "kinematic"
@@ -211,8 +213,8 @@ def _fixed_args(world, m, dt):
          float(st.split_slop), float(st.split_beta), SOLVER_METHODS.index(st.solver_method),
          DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
          int(st.solver_iterations), float(st.solver_tolerance)),
-        bm.any_kinematic, particles)
-    world._derived["substep_args"] = (bodies, st, edits, m, dt, gravity, fixed)
+        bm.any_kinematic, particles, prepare.inv_inertia(world, m, None) if prepare.frame_free(world, m) else None)
+    world._derived["substep_args"] = (bodies, st, edits, m, dt, gravity, ib, fixed)
     return fixed
 
 
