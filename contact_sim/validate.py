@@ -377,6 +377,10 @@ def declare(default, rule, doc="", world_bound=False):
 
 _RULES = {}          # Declared class -> {field: rule}
 _WORLD_BOUNDS = {}   # Declared class -> names of its world-bound fields
+#: how many field assignments any ``Declared`` object (settings, materials) has taken: a value
+#: derived from a settings object stays true while this count and the object are the same (the
+#: step's fixed arguments, ``response.substep``), one comparison instead of reading every field
+edits = 0
 
 
 class Declared:
@@ -413,6 +417,8 @@ class Declared:
             raise ContactSimError(f"{self.LABEL}.{name}: unknown field (known: {', '.join(rules)})")
         ready = self.__dict__.get("_ready", False)
         value = rules[name].check(value, f"{self.LABEL}.{name}", self if ready else None)
+        global edits
+        edits += 1   # before the change: a refused one only costs a rebuild
         if not ready:   # the constructor: bounds between fields are checked in __post_init__
             object.__setattr__(self, name, value)
             return

@@ -581,8 +581,9 @@ class World(BodyInput):
         cache's fields (a step assigns new records, never edits them), the time and the last step's
         outputs are kept by reference. Robots' joint records are not in it: a step never changes them."""
         s, cache = self.s, self.contact_cache
-        return (s, [getattr(s, n).copy() for n in _State.MOTION], self.time, cache.warm, cache.preflight_dt,
-                self.contacts, self.last_solve, self.last_detection)
+        # in ``_State.MOTION``'s order, named one by one (a loop over the names costs a third of it)
+        return (s, (s.pos.copy(), s.vel.copy(), s.quat.copy(), s.omega.copy(), s.stepped.copy()), self.time,
+                cache.warm, cache.preflight_dt, self.contacts, self.last_solve, self.last_detection)
 
     def _undo_step(self, saved):
         """Put back what ``_step_snapshot`` saved (the world as it was before the step)."""

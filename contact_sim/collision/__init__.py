@@ -223,9 +223,10 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
     timings["narrow"] = t3 - t2
     k = len(body_a)
     vec, num = np.zeros((2, k, 3)), np.zeros((2, k))   # the response columns, filled by the step
-    c = Contacts(body_a=body_a, body_b=body_b, point=rows_f[:, 0:3], normal=normal, depth=rows_f[:, 6],
-                 impulse=vec[0], normal_impulse=num[0], friction_impulse=vec[1], relative_normal_velocity=num[1],
-                 feature=rows_i[:, 1], feature_id=rows_i[:, 2])
+    # positional, in ``COLUMNS`` order: body_a, body_b, point, normal, depth, impulse, normal_impulse,
+    # friction_impulse, relative_normal_velocity, feature, feature_id
+    c = Contacts(body_a, body_b, rows_f[:, 0:3], normal, rows_f[:, 6], vec[0], num[0], vec[1], num[1], rows_i[:, 1],
+                 rows_i[:, 2])
     stats.settled_by_vertex, stats.needed_edge_face, stats.edge_face_hits = counters.tolist()
     stats.unsupported_pairs = unsupported
     stats.colliding_pairs = pairs
@@ -286,23 +287,27 @@ def _world_pairs(world, bodies, pos, R, margin):
     (``broadphase.world_pairs``) while the pair cache holds; a rebuild of the cache first otherwise."""
     fin, cache = bodies.finite, bodies.pair_cache
     disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
-
-    def cached_pairs():
-        return broadphase.world_pairs(pos, R, fin, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n,
-                                      bodies.plane_d, cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, margin,
-                                      world.kind, world.group, world.mask, disabled)
-
     if cache.fat_c is not None:
-        ok, ia, ib = cached_pairs()
+        ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, disabled)
         if ok:
             cache.reuses += 1
             return ia, ib
     c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
     broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
     cache.rebuild(c, h, margin)
-    ok, ia, ib = cached_pairs()   # the fat boxes hold the boxes they were built from
+    # the fat boxes hold the boxes they were built from
+    ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, disabled)
     assert ok
     return ia, ib
+
+
+def _cached_pairs(world, bodies, pos, R, margin, disabled):
+    """``broadphase.world_pairs`` on the pair cache's fat boxes: ``(ok, ia, ib)``, ``ok`` False when
+    a body left its fat box (the cache is then rebuilt)."""
+    cache = bodies.pair_cache
+    return broadphase.world_pairs(pos, R, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n,
+                                  bodies.plane_d, cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, margin,
+                                  world.kind, world.group, world.mask, disabled)
 
 
 _NO_KEYS = np.zeros(0, np.int64)

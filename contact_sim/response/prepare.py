@@ -216,19 +216,41 @@ def _speed(vel, omega, ext, i):
 
 def inv_inertia(world, m, R):
     """World inverse inertia ``R I⁻¹ Rᵀ (N,3,3)`` from the bodies' rotation matrices ``R (N,3,3)``
-    (zeros when the models skip rotation)."""
+    (zeros when the models skip rotation). The kernels only read it: when every body's is the
+    same in every frame it is ``world.inv_inertia_body`` itself (of the kernels' type), no copy,
+    and ``R`` is not read (``frame_free``)."""
     if not m.rotation:
         return np.zeros((len(world), 3, 3))
     ib = world.inv_inertia_body
-    # c·I (spheres, cubes, and the zeros of static/kinematic bodies) is the same in every frame
-    turn = derived(world, "anisotropic_inertia", (ib,),
-                   lambda: np.flatnonzero(~np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))))
+    turn, as_is = _isotropic(world)
     if turn.size == len(ib):
         return dynamics.rotate_inertia(R, ib)
+    if not turn.size and as_is:
+        return ib
     out = ib.copy()
     if turn.size:
         out[turn] = dynamics.rotate_inertia(R[turn], ib[turn])
     return out
+
+
+def frame_free(world, m):
+    """Whether ``inv_inertia`` is the same whatever the bodies' orientations: no rotation in the
+    models, or every body's inverse inertia ``c·I`` and handed as it is."""
+    if not m.rotation:
+        return True
+    turn, as_is = _isotropic(world)
+    return 0 < len(world.inv_inertia_body) and not turn.size and as_is
+
+
+def _isotropic(world):
+    """``(turn, as_is)``: the bodies whose inverse inertia is not ``c·I`` (spheres, cubes, and the
+    zeros of static/kinematic bodies are the same in every frame), and whether
+    ``world.inv_inertia_body`` has the type a copy would have (C order, float64, writable), so it
+    can stand for one. Kept while the array is the same."""
+    ib = world.inv_inertia_body
+    return derived(world, "anisotropic_inertia", (ib,), lambda: (
+        np.flatnonzero(~np.all(ib == ib[:, :1, :1] * np.eye(3), axis=(1, 2))),
+        ib.dtype == np.float64 and ib.flags.c_contiguous and ib.flags.writeable))
 
 
 def coefficients(world, c, m):

@@ -30,10 +30,11 @@ from ..free_motion import advance
 from ..jit import njit
 from ..kinds import DYNAMIC
 from ..settings import COMBINE_RULES, SOLVER_METHODS
+from .. import validate
 from . import correction, prepare
 from . import toi as toi_mod
-from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, PGS_TOLERANCE,
-                         REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
+from ..constants import (DIRECT_MAX_CONTACTS, IMPACT_SPEED_FRACTION, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
+                         PGS_TOLERANCE, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
 from .cache import local_points
 from .compliance import possible as may_be_compliant, stiffness_rows
 from .energy import kinematic_work
@@ -59,36 +60,26 @@ def run(ctx, whole):
         else:
             ctx.touching = np.zeros(0, bool)
         return
-    st = world.settings
     s = world.s
-    bm = world.body_masks()
     cc = np.ascontiguousarray
     old = world.contact_cache.warm
     has_old = old is not None and len(old[0]) > 0
     if not has_old:
         old = _NO_OLD
     look = ctx.look_ahead
-    bodies = _body_arrays(world)
-    particles = m.response == "kinematic"
+    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(world, m, ctx.dt)
     # the kinematic bodies' work is taken where the contact points are, at the sub-step's start:
     # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
     # missed at the end)
-    ctx.pos0 = s.pos.copy() if bm.any_kinematic else None
+    ctx.pos0 = s.pos.copy() if any_kinematic else None
     near, f3, f1, flags, wv, pw, keep, dvw, pen, out = _substep(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
-        *(look if look is not None else _NO_LOOK), world.gravity_norm(), world.kind,
-        s.pos, s.vel, s.quat, s.omega, *bodies[:4], prepare.inv_inertia(world, m, ctx.R), ctx.R, world._gravity,
-        ctx.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
-        m.response == "impulse" and m.resting and may_be_compliant(world), *bodies[10:12],
-        float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and not particles,
+        *(look if look is not None else _NO_LOOK), *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
+        prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials,
         cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
-        has_old, bodies[9], float(ctx.t_left), float(ctx.dt), ctx.first, ctx.exact_toi, particles, m.resting, whole,
-        float(st.contact_margin), ctx.speculative, TOI_TOLERANCE, SIMULTANEOUS_FRACTION * ctx.dt, ctx.gdt,
-        REST_REBOUND_FRACTION * ctx.gdt, ctx.impact_speed, float(st.split_slop), float(st.split_beta),
-        SOLVER_METHODS.index(st.solver_method),
-        DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
-        int(st.solver_iterations), float(st.solver_tolerance))
+        has_old, extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, whole,
+        *solve[1:])
     if near.shape[0]:   # speculative contacts that cannot close are not the step's
         c = ctx.contacts = c.select(near)
     k = len(c)
@@ -177,6 +168,54 @@ def _body_arrays(world):
     if all(map(is_, arrays[:9] + arrays[10:], raw[:9] + raw[10:])):
         world._derived["step_bodies"] = (raw, arrays)
     return arrays
+
+
+def _fixed_args(world, m, dt):
+    """The arguments of ``_substep`` that stay the same from step to step, in blocks of its
+    argument order: ``(lead, inertia, materials, extents, solve, any_kinematic, particles)`` with
+    ``lead = (g, kind)``, ``inertia = (principal_q, principal_moments, inertia_body, inv_mass)``,
+    ``materials = (gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
+    restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic,
+    rule, kinetic)``, ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance,
+    simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, method, direct_max,
+    max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
+    kinematic, whether the response is kinematic, and the world inverse inertia ``(N,3,3)`` when
+    it is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only read),
+    else None.
+
+    They follow from the body arrays (``_body_arrays``: the very same tuple while no array is
+    replaced), gravity, the models ``m``, the step ``dt`` (s) and the settings; kept on the world
+    while those are the same objects and no settings field was assigned since
+    (``validate.edits``), so a change is seen at the next step with one check instead of a
+    dozen reads and conversions."""
+    bodies = _body_arrays(world)
+    st = world.settings
+    gravity, ib = world._gravity, world.inv_inertia_body
+    hit = world._derived.get("substep_args")
+    if (hit is not None and hit[0] is bodies and hit[1] is st and hit[2] == validate.edits and hit[3] is m
+            and hit[4] == dt and hit[5] is gravity and hit[6] is ib):
+        return hit[7]
+    edits = validate.edits
+    bm = world.body_masks()
+    particles = m.response == "kinematic"
+    g = world.gravity_norm()
+    gdt = g * dt   # StepContext's gdt and impact_speed, the same products
+    exact_toi = m.toi in ("fractional", "swept")
+    fixed = (
+        (g, world.kind),
+        bodies[:4],
+        (gravity, bm.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
+         m.response == "impulse" and m.resting and may_be_compliant(world), *bodies[10:12],
+         float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and not particles),
+        bodies[9],
+        (float(dt), float(st.contact_margin), st.speculative and not exact_toi, TOI_TOLERANCE,
+         SIMULTANEOUS_FRACTION * dt, gdt, REST_REBOUND_FRACTION * gdt, IMPACT_SPEED_FRACTION * gdt,
+         float(st.split_slop), float(st.split_beta), SOLVER_METHODS.index(st.solver_method),
+         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+         int(st.solver_iterations), float(st.solver_tolerance)),
+        bm.any_kinematic, particles, prepare.inv_inertia(world, m, None) if prepare.frame_free(world, m) else None)
+    world._derived["substep_args"] = (bodies, st, edits, m, dt, gravity, ib, fixed)
+    return fixed
 
 
 _NO_OLD = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
