@@ -64,7 +64,9 @@ class DetectionStats:
     ``needed_edge_face``: polyhedron pairs that got past the bounding volumes and the face-axis
     test with no vertex inside, so the edge–face test ran (``edge_face_hits`` of them crossed);
     ``colliding_pairs``, ``contacts``: what was reported; ``unsupported_pairs``: pairs no
-    kernel handles (none since mesh–mesh has one); ``seconds``: per stage (``broad``, ``bounding``, ``narrow``, ``total``).
+    kernel handles (none since mesh–mesh has one); ``seconds``: per stage (``broad``, ``bounding``, ``narrow``, ``total``;
+    a step's detection, ``World.last_detection``, has ``broad`` and ``total``: its bounding volumes and narrow
+    phase run as one compiled call, untimed inside).
     """
 
     bodies: int = 0
@@ -189,11 +191,13 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
 
 
 _NO_REACH = np.zeros(0)
+_NO_STAGES = {"bounding": 0.0, "narrow": 0.0}
 
 
-def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0):
+def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0, timed=True):
     """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``; with ``reach (N,)``
-    each pair's narrow phase takes ``min(margin, floor + reach[a] + reach[b])`` (``detect_world``)."""
+    each pair's narrow phase takes ``min(margin, floor + reach[a] + reach[b])`` (``detect_world``).
+    ``timed``: the two stages' seconds in ``stats.seconds`` (else the total only)."""
     if R is None:
         R = np.empty((len(quat), 3, 3))
         rotations(np.ascontiguousarray(quat, float), R)
@@ -201,26 +205,28 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
     if len(ia) == 0:
         # no candidate pair (fewer than two bodies, or none near another): no kernel to run, and an
         # empty world's geometry table has no rows to type the kernels' arguments by
-        stats.seconds = dict(timings, bounding=0.0, narrow=0.0, total=time.perf_counter() - t0)
+        stats.seconds = dict(timings, **(_NO_STAGES if timed else {}), total=time.perf_counter() - t0)
         return Contacts.empty(), stats
     ia, ib = np.ascontiguousarray(ia, np.int64), np.ascontiguousarray(ib, np.int64)
-    if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank) and filter
-        swap, kk, a, b = bounding.kept_pairs(ia, ib, bodies.rank, bv != "obb", bv != "sphere", bodies.shape_of,
-                                             bodies.geom.sf, pos, R, margin)
+    counters = np.zeros(3, np.int64)
+    reach = _NO_REACH if reach is None else reach
+    if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank), filter, narrow phase
+        seconds = np.zeros(2)
+        rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kept = pair_kernels.kept_contacts(
+            *bodies.narrow_args(), ia, ib, bv != "obb", bv != "sphere", pos, R, margin, reach, float(floor), counters,
+            timed, seconds)
+        if timed:
+            timings["bounding"], timings["narrow"] = seconds.tolist()
     else:
         swap = bodies.rank[ia] < bodies.rank[ib]
         a, b = np.where(swap, ib, ia), np.where(swap, ia, ib)
         kk = np.flatnonzero(_bv_keep(bodies, bv, a, b, pos, R, margin))
-        a, b = a[kk], b[kk]
-    stats.rejected_by_bounding_volume = len(ia) - len(kk)
-    t2 = time.perf_counter()
-    timings["bounding"] = t2 - t1
-    counters = np.zeros(3, np.int64)
-    rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_kernels.pair_contacts(
-        *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, _NO_REACH if reach is None else reach,
-        float(floor), counters)
-    t3 = time.perf_counter()
-    timings["narrow"] = t3 - t2
+        a, b, kept = a[kk], b[kk], len(kk)
+        t2 = time.perf_counter()
+        rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_kernels.pair_contacts(
+            *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, reach, float(floor), counters)
+        timings["bounding"], timings["narrow"] = t2 - t1, time.perf_counter() - t2
+    stats.rejected_by_bounding_volume = len(ia) - kept
     k = len(body_a)
     vec, num = np.zeros((2, k, 3)), np.zeros((2, k))   # the response columns, filled by the step
     # positional, in ``COLUMNS`` order: body_a, body_b, point, normal, depth, impulse, normal_impulse,
@@ -249,7 +255,7 @@ def disabled_keys(world):
                    key=(len(world), len(world.disabled_pairs)))
 
 
-def detect_world(world, margin=None, R=None, reach=None, floor=0.0):
+def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
     ``margin`` (m) overrides ``world.settings.contact_margin``: pairs closer than it are reported
@@ -258,6 +264,8 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0):
     caller has them already (``vec3.rotations`` of ``world.s.quat``; the step shares them).
     ``reach (N,)`` (m, the step's speculative contacts: ``prepare.speculative_reach``) narrows each pair's
     margin to ``min(margin, floor + reach[a] + reach[b])``; ``margin`` still finds the pairs.
+    ``timed``: the seconds of each stage in the stats (the step's detection keeps the broad phase's
+    and the total: its bounding volumes and narrow phase run as one compiled call, untimed inside).
     """
     t0 = time.perf_counter()
     margin = float(world.settings.contact_margin if margin is None else margin)
@@ -277,7 +285,7 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0):
         ia, ib = _world_pairs(world, bodies, pos, R, margin)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
-    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor)
+    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor, timed)
 
 
 def _world_pairs(world, bodies, pos, R, margin):

@@ -10,10 +10,12 @@ Used by the compiled time-of-impact search (``response.advancement``) for the di
 and by ``pair_contacts``, the whole narrow phase of a detection in one compiled call.
 """
 import functools
+import time
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, objmode
+from .bounding import kept_pairs
 from .dispatch import contact_columns, group_by_type
 from .geometry import BOX, CONVEX, CYLINDER, MESH, NRANK, PLANE, SPHERE
 from .cylinders import cylinder_plane, cylinder_sphere
@@ -103,6 +105,36 @@ def which_table():
     """``(NRANK·NRANK,) int64``: the place in ``KERNELS`` of each type-pair key
     ``rank A · NRANK + rank B`` (``dispatch.group_by_type``'s keys), −1 where no kernel takes it."""
     return np.array([index(ra, rb) for ra in range(NRANK) for rb in range(NRANK)], np.int64)
+
+
+@njit
+def kept_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, use_sphere,
+                  use_obb, pos, R, margin, reach, floor, counters, timed, seconds):
+    """The bounding volumes (``bounding.kept_pairs``: ``use_sphere``, ``use_obb``) then the narrow
+    phase (``pair_contacts``, the same arguments) of the pairs ``ia, ib (K,)``, in one call: the
+    kept pairs' arrays stay in compiled code (from Python, each array handed back and in again cost
+    more than the bounding stage's arithmetic on a small world). Returns ``pair_contacts``' tuple
+    and the number of pairs kept. With ``timed`` the two stages' seconds go to ``seconds (2,)``
+    (a step's detection runs untimed)."""
+    t0 = _clock(timed)
+    swap, kk, a, b = kept_pairs(ia, ib, rank, use_sphere, use_obb, shape_of, sf, pos, R, margin)
+    t1 = _clock(timed)
+    rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_contacts(
+        which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, swap, kk, a, b, pos, R,
+        margin, reach, floor, counters)
+    if timed:
+        seconds[0], seconds[1] = t1 - t0, _clock(timed) - t1
+    return rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kk.shape[0]
+
+
+@njit
+def _clock(timed):
+    """``time.perf_counter()`` (s) when ``timed`` (run as Python from the kernel), else 0."""
+    t = 0.0
+    if timed:
+        with objmode(t="float64"):
+            t = time.perf_counter()
+    return t
 
 
 @njit
