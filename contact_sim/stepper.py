@@ -118,8 +118,10 @@ def _detect_stage(ctx):
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
     # the speculative margin finds the pairs; each pair's narrow phase takes only what its bodies can close
-    c = swept.mark_swept(_detect(world, det_margin, ctx.R, reach, floor), ctx.swept_pair)   # the sweep's hit: feature swept
-    ctx.swept_pair = None
+    c = _detect(world, det_margin, ctx.R, reach, floor)
+    if ctx.swept_pair is not None:   # the sweep's hit: feature swept
+        c = swept.mark_swept(c, ctx.swept_pair)
+        ctx.swept_pair = None
     ctx.look_ahead = (ctx.t_left, margin) if ctx.speculative and det_margin > margin else None
     ctx.contacts = c
     ctx.touching = ctx.rest_mask = ctx.dv_rest = None
