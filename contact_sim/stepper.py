@@ -87,10 +87,10 @@ def _impulse_step(world, dt, m):
     impulses and advance; with exact times of impact the time of impact is found between the
     solves and the advance); then apply the position correction and keep what the next step reuses."""
     ctx = StepContext.start(world, dt, m)
-    limit = world.settings.max_impacts_per_step
+    limit = ctx.settings.max_impacts_per_step
     while True:
         _detect_stage(ctx)               # contacts within the (speculative) margin
-        if ctx.first and ctx.k and m.response == "impulse" and world.body_masks().any_kinematic:
+        if ctx.first and ctx.any_kinematic and ctx.k and m.response == "impulse":
             ctx.pose_work = pose_work(world, ctx.contacts, m)   # what poses given since stored in springs
         whole = not (ctx.exact_toi or m.continuous) or ctx.events >= limit
         substep.run(ctx, whole)          # prepare, impacts, correction plan, resting (, store, advance)
@@ -111,15 +111,17 @@ def _detect_stage(ctx):
     look-ahead: ``ctx.look_ahead = (t_left, margin)`` then says which of them the sub-step keeps:
     the separated ones whose gap can close within the rest of the step)."""
     world = ctx.world
-    margin = world.settings.contact_margin
+    margin = ctx.settings.contact_margin
     det_margin, reach, floor = prepare.speculative_reach(world, ctx.t_left) if ctx.speculative else (margin, None, 0.0)
     if det_margin <= margin:   # no speculative contact: every pair takes the contact margin
         reach = None
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
     # the speculative margin finds the pairs; each pair's narrow phase takes only what its bodies can close
-    c = swept.mark_swept(_detect(world, det_margin, ctx.R, reach, floor), ctx.swept_pair)   # the sweep's hit: feature swept
-    ctx.swept_pair = None
+    c = _detect(world, det_margin, ctx.R, reach, floor)
+    if ctx.swept_pair is not None:   # the sweep's hit: feature swept
+        c = swept.mark_swept(c, ctx.swept_pair)
+        ctx.swept_pair = None
     ctx.look_ahead = (ctx.t_left, margin) if ctx.speculative and det_margin > margin else None
     ctx.contacts = c
     ctx.touching = ctx.rest_mask = ctx.dv_rest = None
@@ -155,13 +157,12 @@ def _finish(ctx, correction_energy):
     world, m = ctx.world, ctx.models
     world.contact_cache.warm = ctx.warm_out
     world.contacts = merge_records(world, ctx.records)
-    world.last_solve = StepStats(iterations=ctx.iterations, residual=ctx.residual, unconverged=ctx.unconverged,
-                                 max_penetration=ctx.max_penetration, contacts=len(world.contacts),
-                                 impacts=ctx.events, toi=m.toi, response=m.response,
-                                 correction_energy=correction_energy,
-                                 kinematic_work=ctx.kinematic_work, pose_work=ctx.pose_work,
-                                 rotation_drift=ctx.drift,
-                                 kick_error_bound=ctx.kick_error, rest_work_bound=ctx.rest_bound)
+    # positional, in the field order: iterations, residual, unconverged, max_penetration, contacts,
+    # impacts, toi, response, correction_energy, kinematic_work, pose_work, rotation_drift,
+    # kick_error_bound, rest_work_bound (a third of the keyword call's cost, every step)
+    world.last_solve = StepStats(ctx.iterations, ctx.residual, ctx.unconverged, ctx.max_penetration,
+                                 len(world.contacts), ctx.events, m.toi, m.response, correction_energy,
+                                 ctx.kinematic_work, ctx.pose_work, ctx.drift, ctx.kick_error, ctx.rest_bound)
 
 
 # ---------------------------------------------------------------------------- penalty

@@ -31,6 +31,7 @@ BODY_LISTS = ("_names", "shapes", "user_shapes", "material_names")
 MODELS = ("rigid", "particle")
 _KIND, _MODEL = Choice(KINDS), Choice(MODELS)
 ALL_GROUPS = 0xFFFFFFFF
+_NO_BODIES = np.zeros(0, np.int64)   # _nonfinite_bodies' usual answer (read only: its size)
 
 
 @dataclass(frozen=True)
@@ -597,11 +598,10 @@ class World(BodyInput):
         """Indices ``(B,)`` of bodies with a non-finite position, velocity or orientation (one sum per
         array answers the usual all-finite case)."""
         s = self.s
-        arrays = (s.pos, s.vel, s.quat, s.omega)
         if free_motion.all_finite(s.pos, s.vel, s.quat, s.omega):
-            return np.zeros(0, np.int64)
+            return _NO_BODIES
         bad = np.zeros(len(self), bool)
-        for a in arrays:
+        for a in (s.pos, s.vel, s.quat, s.omega):
             bad |= ~np.isfinite(a).all(axis=1)
         return np.flatnonzero(bad)
 

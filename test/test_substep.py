@@ -308,3 +308,23 @@ def test_a_one_contact_island_is_solved_as_the_island_kernel_solves_it(seed):
     (st0, res0, lam0), (st1, res1, lam1) = answers
     assert st1 == st0 and (res1 == res0 or (np.isinf(res0) and np.isinf(res1)))
     assert np.array_equal(lam1, lam0)
+
+
+def test_the_step_statistics_name_what_the_step_did():
+    """``World.last_solve`` is built from the step's context by field position: each field holds
+    its own figure (the field order is the one the stepper writes)."""
+    from contact_sim.response.models import choose
+
+    assert [f.name for f in dataclasses.fields(cs.StepStats)] == [
+        "iterations", "residual", "unconverged", "max_penetration", "contacts", "impacts", "toi", "response",
+        "correction_energy", "kinematic_work", "pose_work", "rotation_drift", "kick_error_bound", "rest_work_bound"]
+    w = cs.load_scene(default_scene_path())
+    for _ in range(1000):   # to the first step with contacts
+        w.step()
+        if len(w.contacts):
+            break
+    st, m = w.last_solve, choose(w)
+    assert st.contacts == len(w.contacts) > 0
+    assert (st.toi, st.response) == (m.toi, m.response)
+    assert isinstance(st.iterations, int) and isinstance(st.unconverged, bool)
+    assert st.residual >= 0 and st.max_penetration >= 0 and st.kick_error_bound >= 0 and st.rest_work_bound >= 0

@@ -358,3 +358,31 @@ def test_a_settings_field_assigned_between_steps_is_seen_by_the_next_step(field,
     for a, b in zip(state_of(edited)[1:], state_of(replaced)[1:]):
         assert np.array_equal(a, b)
     assert not all(np.array_equal(a, b) for a, b in zip(state_of(edited)[1:], state_of(kept)[1:]))
+
+
+def test_the_chosen_models_follow_every_edit_between_steps():
+    """The models a step uses are kept across steps: an assigned settings field, a replaced
+    settings object, a replaced material array, a kind edited in place and another ``dt`` each
+    make the next choice anew; with no edit the kept choice is the one returned."""
+    from contact_sim.response.models import choose
+
+    w = scene()
+    w.step()
+    m = choose(w)
+    assert choose(w) is m and m.friction
+    w.settings.friction = False
+    assert not choose(w).friction
+    w.settings = dataclasses.replace(w.settings, friction=True)
+    assert choose(w).friction
+    w.settings.friction = "auto"
+    assert choose(w).friction
+    w.friction = np.zeros(len(w))   # no dynamic material has friction left
+    assert not choose(w).friction
+    m = choose(w)
+    kind = w.kind.copy()
+    w.kind[w.index("box")] = cs.kinds.KINDS.index("static")
+    assert choose(w) is not m
+    w.kind[:] = kind
+    m = choose(w)
+    assert choose(w, dt=0.005) is not m
+    w.step()

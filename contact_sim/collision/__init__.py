@@ -144,7 +144,11 @@ def _bodies_of(world):
     """The world's shape arrays, built once and kept on the world itself (so they go with it),
     rebuilt when bodies are added (the shape list only grows)."""
     shapes = world.shapes
-    return derived(world, "bodies", (shapes[-1] if shapes else None,), lambda: _Bodies(shapes), key=len(shapes))
+    n, last = len(shapes), shapes[-1] if shapes else None
+    hit = world._derived.get("bodies")   # read every detection: identity checks, no closure
+    if hit is None or hit[0] is not last or hit[1] != n:
+        hit = world._derived["bodies"] = (last, n, _Bodies(shapes))
+    return hit[2]
 
 
 def _bv_keep(bodies, bv, a, b, pos, R, margin):

@@ -19,7 +19,8 @@ class ContactCache:
     up the next step (warm starts) and decides when the preflight check reruns."""
 
     #: the last resting solve's contacts: ``(body_a (K,), body_b (K,), points in A's frame (K,3),
-    #: impulses per unit time (K,4): normal, then the world tangential vector)``; ``None`` before one
+    #: impulses per unit time (K,4): normal, then the world tangential vector)``, int64 and float64
+    #: C-order arrays (the sub-step's kernel takes them as they are); ``None`` before one
     warm: tuple = None
     #: the step length the preflight warnings were last checked for
     preflight_dt: float = None
@@ -39,7 +40,9 @@ class ContactCache:
         if self.warm is not None:
             a, b = self.warm[0], self.warm[1]
             keep = (new_index[a] >= 0) & (new_index[b] >= 0)
-            self.warm = (new_index[a][keep], new_index[b][keep]) + tuple(x[keep] for x in self.warm[2:])
+            c = np.ascontiguousarray
+            self.warm = (c(new_index[a][keep], dtype=np.int64), c(new_index[b][keep], dtype=np.int64)) + tuple(
+                c(x[keep], dtype=float) for x in self.warm[2:])
 
 
 @njit

@@ -30,6 +30,7 @@ class StepContext:
     impact_speed: float = 0.0      # approach faster than this bounces (IMPACT_SPEED_FRACTION·|g|·dt)
     gravity: np.ndarray = None     # (N,3) gravity of the dynamic bodies, 0 for the others
     rotating: np.ndarray = None    # (N,) bool: dynamic bodies that rotate (not particles)
+    any_kinematic: bool = False    # a body is kinematic
     # ---- the current sub-step (written by the stages, in order)
     t_left: float = 0.0            # time left in the step
     R: np.ndarray = None           # (N,3,3) the bodies' rotation matrices at the sub-step's start (detect)
@@ -67,7 +68,7 @@ class StepContext:
         self.speculative = st.speculative and not exact_toi
         self.gdt = gdt = world.gravity_norm() * dt
         self.impact_speed = IMPACT_SPEED_FRACTION * gdt
-        self.gravity, self.rotating = bm.gravity, bm.rotating
+        self.gravity, self.rotating, self.any_kinematic = bm.gravity, bm.rotating, bm.any_kinematic
         self.records = []
 
     @classmethod

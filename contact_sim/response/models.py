@@ -7,9 +7,11 @@ warnings users of other engines ask for (mass ratio, thin-and-fast, stiff penalt
 import math
 import warnings
 from dataclasses import dataclass, field
+from operator import is_
 
 import numpy as np
 
+from .. import validate
 from ..jit import njit
 from ..kinds import DYNAMIC, KINEMATIC
 from ..memo import derived
@@ -129,15 +131,29 @@ def choose(world, dt=None):
     ``Models`` as read-only."""
     st = world.settings
     dt = st.dt if dt is None else dt
-    # kept: the models when no body is thin-and-fast, and the limits the velocity test reads
-    models, limit = derived(world, "models", _body_deps(world) + (world.friction, world.restitution, world.particle,
-                                                                 world.stiffness, world.damping_ratio),
-                            lambda: (_choose(world, dt, []), _shape_info(world)[3] if len(world) else np.zeros(0)),
-                            key=(dt, st.toi, st.response, st.friction, st.resting, st.speculative, st.kinematic_stiffness,
-                                 world.kind.tobytes()))
+    models, limit = _kept_models(world, st, dt)
     if st.toi != "auto" or not _any_too_fast(world.s.vel, world.kind, limit, world.gravity_norm(), float(dt)):
         return models
     return _choose(world, dt, thin_and_fast(world, dt))   # this step's speeds decide (swept): not kept
+
+
+def _kept_models(world, st, dt):
+    """``(models, limit)``: the models when no body is thin-and-fast (``_choose``), and the limits
+    ``(N,)`` (m) the velocity test reads. Kept on the world while the settings object is the same
+    and no settings field was assigned since (``validate.edits``), ``dt`` is equal, the bodies are
+    the same (the last shape, the kind array, equal kinds) and so are the material arrays; one
+    check of those a step instead of reading every field the choice depends on."""
+    kind = world.kind
+    deps = (world.shapes[-1] if len(world) else None, kind, world.friction, world.restitution, world.particle,
+            world.stiffness, world.damping_ratio)
+    hit = world._derived.get("models")
+    if (hit is not None and hit[0] is st and hit[1] == validate.edits and hit[2] == dt and all(map(is_, hit[3], deps))
+            and hit[4] == kind.tobytes()):
+        return hit[5]
+    edits = validate.edits
+    kept = (_choose(world, dt, []), _shape_info(world)[3] if len(world) else np.zeros(0))
+    world._derived["models"] = (st, edits, dt, deps, kind.tobytes(), kept)
+    return kept
 
 
 def _choose(world, dt, fast):

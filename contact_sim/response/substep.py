@@ -52,7 +52,8 @@ def run(ctx, whole):
     search needs, and ``finish`` completes the sub-step."""
     world, m = ctx.world, ctx.models
     c = ctx.contacts
-    if not len(c):   # free flight: the stages have nothing to do, the advance is free motion
+    k = len(c)
+    if not k:   # free flight: the stages have nothing to do, the advance is free motion
         ctx.first = False
         ctx.pending = ctx.pos0 = None
         if whole:
@@ -62,6 +63,8 @@ def run(ctx, whole):
         return
     s = world.s
     cc = np.ascontiguousarray
+    # the warm-start cache's columns are of the kernel's types (int64, float64, C order) as it
+    # stores them (this function, ``ContactCache.remap``): handed as they are
     old = world.contact_cache.warm
     has_old = old is not None and len(old[0]) > 0
     if not has_old:
@@ -76,13 +79,12 @@ def run(ctx, whole):
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
-        prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials,
-        cc(old[0], dtype=np.int64), cc(old[1], dtype=np.int64), cc(old[2], dtype=float), cc(old[3], dtype=float),
+        prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials, *old,
         has_old, extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, whole,
         *solve[1:])
     if near.shape[0]:   # speculative contacts that cannot close are not the step's
         c = ctx.contacts = c.select(near)
-    k = len(c)
+        k = len(c)
     residual, deepest, rest_bound, drift, kick_error, sweeps, kept, rested, n_rest, unconverged = out.tolist()
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
@@ -134,12 +136,13 @@ def _record(ctx, c, f3, f1, used, kept, drift, kick_error):
     work through them, the free rotation's drift and the half-kicks' error bound."""
     ctx.drift += drift
     ctx.kick_error += kick_error
-    if not len(c):
+    k = len(c)
+    if not k:
         return
     local = f3[0]
     c.normal_impulse, c.friction_impulse, c.impulse = f1[0], f3[1], f3[2]
     c.relative_normal_velocity = f1[1]
-    if kept < len(c):   # speculative contacts that did nothing are not contacts of this step
+    if kept < k:   # speculative contacts that did nothing are not contacts of this step
         c, local = c.select(used), local[used]
     ctx.records.append((c, local))
     if ctx.pos0 is not None:
