@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .pgs import _apply, _row_velocity3
+from .pgs import _apply, _row_velocity
 
 _TINY = 1e-300
 
@@ -509,7 +509,7 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     k = a.shape[0]
     v0 = np.empty((k, 3))
     for c in range(k):
-        v0[c, 0], v0[c, 1], v0[c, 2] = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)
+        v0[c, 0], v0[c, 1], v0[c, 2] = _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)
     m_max = 0
     for i in range(start.shape[0] - 1):
         size = start[i + 1] - start[i]

@@ -87,20 +87,9 @@ def disc_rows(kt, vfree, radius, out):
 
 
 @njit(inline="always")   # a call per contact update costs more than its arithmetic
-def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega, rv):
-    """Relative velocity of contact ``c``'s points in its (n, t1, t2) basis, written to ``rv (3,)``."""
-    for d in range(3):
-        s = 0.0
-        for x in range(3):
-            s += (dirs[c, d, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, d, x] * omega[ia, x]
-                  - ang_b[c, d, x] * omega[ib, x])
-        rv[d] = s
-
-
-@njit(inline="always")
-def _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega):
-    """``_row_velocity`` returned as three numbers ``(n, t1, t2)`` (the same sums in the same
-    order), for a caller with no buffer to write it to."""
+def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega):
+    """Relative velocity of contact ``c``'s points in its (n, t1, t2) basis, as three numbers
+    (no buffer to allocate or pass)."""
     s0, s1, s2 = 0.0, 0.0, 0.0
     for x in range(3):
         s0 += (dirs[c, 0, x] * (vel[ia, x] - vel[ib, x]) + ang_a[c, 0, x] * omega[ia, x]
@@ -116,7 +105,7 @@ def _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega):
 def normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, out):
     """The contacts' normal relative velocities ``out (K,)`` (``_row_velocity``'s first row)."""
     for c in range(a.shape[0]):
-        out[c] = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)[0]
+        out[c] = _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)[0]
 
 
 @njit(inline="always")
@@ -161,7 +150,7 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
         for c in range(k):
             ia = a[c]
             ib = b[c]
-            rv = _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
+            rv = _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]
@@ -313,7 +302,7 @@ def soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
                 continue
             ia = a[c]
             ib = b[c]
-            rv = _row_velocity3(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
+            rv = _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]

@@ -17,7 +17,7 @@ from ..constants import MATCH_FRACTION
 from .cache import warm_record, warm_start
 from .compliance import soft_rows
 from .energy import dynamic_bodies, push_cap_kernel, push_speed
-from .pgs import _row_velocity3
+from .pgs import _row_velocity
 from .solver import solve_rows
 
 
@@ -140,9 +140,9 @@ def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, vel_end, omega_end, target
     bound holds for whatever impulses the solve returned."""
     total = 0.0
     for c in range(a.shape[0]):
-        rv = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)
+        rv = _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel, omega)
         total += math.sqrt(lam[c, 0] ** 2 + lam[c, 1] ** 2 + lam[c, 2] ** 2) * math.sqrt(
             rv[0] ** 2 + rv[1] ** 2 + rv[2] ** 2)
-        rv = _row_velocity3(c, a[c], b[c], dirs, ang_a, ang_b, vel_end, omega_end)
+        rv = _row_velocity(c, a[c], b[c], dirs, ang_a, ang_b, vel_end, omega_end)
         total += lam[c, 0] * max(rv[0] - target[c], 0.0) + max(lam[c, 1] * rv[1] + lam[c, 2] * rv[2], 0.0)
     return 0.5 * total

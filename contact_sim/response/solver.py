@@ -355,7 +355,7 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     if ok and big.shape[0]:
         residual = max(residual, res_b)
         apply_ids(big, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
-    unfinished = _where_not(status, SOLVED)
+    unfinished = _where(status, SOLVED, False)
     if unfinished.shape[0] == 0:
         return 1, residual
     sweeps_, res = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
@@ -397,17 +397,9 @@ def _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, 
     active set (``_sparse_py``, run as Python from the kernel) from the velocities the solved islands
     left: their impulses (the solve's, or Gauss–Seidel's start) into ``lam``'s rows, marked ``SOLVED``
     when it converged (the caller applies them). Returns ``(converged, residual, contacts (B,))``."""
-    n_big = 0
-    for c in range(status.shape[0]):
-        n_big += status[c] == TOO_LARGE
-    if n_big == 0:
-        return True, 0.0, status[:0]   # no contact (an empty view: nothing to allocate)
-    big = np.empty(n_big, np.int64)
-    j = 0
-    for c in range(status.shape[0]):
-        if status[c] == TOO_LARGE:
-            big[j] = c
-            j += 1
+    big = _where(status, TOO_LARGE, True)
+    if big.shape[0] == 0:
+        return True, 0.0, big
     lam_b = np.zeros((big.shape[0], 3))
     with objmode(ok="boolean", res_b="float64"):
         ok, res_b = _sparse_py(big, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s,
@@ -428,7 +420,7 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     slides, from ``warm``. Returns ``(sweeps, residual)``."""
     status = _islands(1, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
                       mu_d, kinetic, warm, use_warm, vel, omega, lam)[4]
-    rest = _where_not(status, SOLVED)
+    rest = _where(status, SOLVED, False)
     if rest.shape[0] == 0:
         return 1, 0.0
     for j in range(rest.shape[0]):
@@ -439,18 +431,18 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
 
 
 @njit
-def _where_not(status, value):
-    """The contacts whose ``status (K,)`` is not ``value``, ascending (``np.flatnonzero(status !=
-    value)`` without the temporary mask); an empty view of ``status`` when there is none."""
+def _where(status, value, equal):
+    """The contacts whose ``status (K,)`` is ``value`` (``equal``) or is not, ascending
+    (``np.flatnonzero`` without the temporary mask); an empty view of ``status`` when there is none."""
     m = 0
     for c in range(status.shape[0]):
-        m += status[c] != value
+        m += (status[c] == value) == equal
     if m == 0:
         return status[:0]
     out = np.empty(m, np.int64)
     j = 0
     for c in range(status.shape[0]):
-        if status[c] != value:
+        if (status[c] == value) == equal:
             out[j] = c
             j += 1
     return out
