@@ -4,6 +4,7 @@ choice between the exact solve and Gauss–Seidel above 200 contacts."""
 import numpy as np
 import pytest
 
+from contact_sim import constants
 from contact_sim.response import active_set, direct, solver
 
 
@@ -97,11 +98,15 @@ def _box_stack(layers, seed=0):
 
 
 @pytest.mark.exact
+@pytest.mark.parametrize("shuffled", [False, True])
 @pytest.mark.parametrize("mu", [0.0, 0.6])
-def test_compiled_islands_equal_the_sparse_active_set(mu):
+def test_compiled_islands_equal_the_sparse_active_set(mu, shuffled):
     """Three separate stacks (three islands of 4–20 coupled contacts, four points on each face: a
-    redundant set the regularisation splits by least norm) with friction: the compiled dense kernel
-    and the sparse active set over the whole system give the same impulses to round-off."""
+    redundant set the regularisation splits by least norm) with friction: the compiled kernel and
+    the sparse active set over the whole system give the same impulses to round-off. The islands
+    above ``constants.DIRECT_BAND_MIN`` contacts are solved within each row's coupling range: in
+    detection's order (each box's contacts together, a band) and with the contacts shuffled (each
+    row's range then spans most of its island, and the ranges are widened to be monotone)."""
     parts = [_box_stack(n, seed=n) for n in (1, 3, 5)]
     # merge the three stacks into one system (bodies renumbered, one ground each)
     from contact_sim.response.rows import Rows
@@ -110,6 +115,9 @@ def test_compiled_islands_equal_the_sparse_active_set(mu):
     fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
     cat = {f: np.concatenate([getattr(p[0], f) + (o if f in ("a", "b") else 0) for p, o in zip(parts, offs)])
            for f in fields}
+    if shuffled:
+        perm = np.random.default_rng(7).permutation(len(cat["a"]))
+        cat = {f: v[perm] for f, v in cat.items()}
     rows = Rows(**cat, movable=np.concatenate([p[0].movable for p in parts]))
     vel = np.concatenate([p[1] for p in parts])
     omega = np.concatenate([p[2] for p in parts])
@@ -131,7 +139,8 @@ def test_compiled_islands_equal_the_sparse_active_set(mu):
         after.append((v, w, solver.row_velocity(rows, v, w)))
     assert np.allclose(after[0][0], after[1][0], rtol=0, atol=1e-12)
     assert np.allclose(after[0][1], after[1][1], rtol=0, atol=1e-12)
-    face = lambda x: np.add.reduceat(np.einsum("kd,kdi->ki", x, rows.dirs), np.arange(0, k, 4))   # noqa: E731
+    back = np.argsort(perm) if shuffled else np.arange(k)   # a face's four contacts in a row again
+    face = lambda x: np.add.reduceat(np.einsum("kd,kdi->ki", x[back], rows.dirs[back]), np.arange(0, k, 4))   # noqa: E731
     assert np.allclose(face(lam), face(ref), rtol=0, atol=1e-12 * np.abs(face(ref)).max())
     assert np.all(lam[:, 0] >= 0)
     # the answer: every pushing contact at rest after the impulses (the stacks stop)
@@ -140,6 +149,44 @@ def test_compiled_islands_equal_the_sparse_active_set(mu):
     assert np.abs(rv[pushing, 0]).max() < 1e-12
     if mu:
         assert np.abs(rv[pushing, 1:]).max() < 1e-12
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_island_solve_reads_only_what_it_wrote(seed):
+    """One island of a 6-box stack (24 contacts, above ``constants.DIRECT_BAND_MIN``: each row's coupling
+    range) in a shuffled order, solved by ``active_set._island`` with every workspace filled with
+    NaN (and the integer ones with nonsense): an entry read outside what the call wrote would show
+    in the answer. The same impulses, to round-off, as the sparse active set over the system."""
+    from contact_sim.constants import DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
+    from contact_sim.response.rows import Rows
+
+    rows, vel, omega = _box_stack(6, seed=seed)
+    k = len(rows)
+    assert k > constants.DIRECT_BAND_MIN
+    perm = np.random.default_rng(seed).permutation(k)
+    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
+    rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[perm]) for f in fields}, movable=rows.movable)
+    v0 = solver.row_velocity(rows, vel, omega)
+    mus, target = np.full(k, 0.6), np.zeros(k)
+    n = 3 * k
+    A, sub, L = np.full((n, n), np.nan), np.full((n, n), np.nan), np.full((n, n), np.nan)
+    vecs = np.full((5, n), np.nan)
+    S, nz = np.full(n, -(10 ** 9), np.int64), np.full(n, -(10 ** 9), np.int64)
+    act, band = np.zeros(k, bool), np.full((6, n + 1), 10 ** 9, np.int64)
+    lam = np.full((k, 3), np.nan)
+    status, residual = active_set._island(
+        np.arange(k), rows.a.astype(np.int64), rows.b.astype(np.int64), rows.dirs, rows.ang_a, rows.ang_b,
+        rows.iang_a, rows.iang_b, rows.ima, rows.imb, v0, target, np.zeros(k), mus, mus, True, np.zeros((k, 3)),
+        False, DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, A, sub, L, vecs, S, nz, act, band)
+    ref, ok, _ = direct._active_set(rows, v0, target, mus, mus, None)
+    assert status == active_set.SOLVED and ok and residual < 1e-9
+    after = []
+    for x in (lam, ref):
+        v, w = vel.copy(), omega.copy()
+        solver.apply(rows, v, w, x)
+        after.append(np.concatenate([v, w]))
+    assert np.allclose(after[0], after[1], rtol=0, atol=1e-12)
 
 
 @pytest.mark.exact

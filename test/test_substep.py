@@ -301,7 +301,8 @@ def test_a_one_contact_island_is_solved_as_the_island_kernel_solves_it(seed):
         args = (a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d, friction,
                 warm, use_warm, 1e-10, 1e-7, 12, lam)
         if kernel == "island":
-            st, res = active_set._island(np.array([0]), *args, A, sub, L, vecs, S, nz, act)
+            band = np.empty((6, 4), np.int64)
+            st, res = active_set._island(np.array([0]), *args, A, sub, L, vecs, S, nz, act, band)
         else:
             st, res = active_set._single(0, *args, A, L, vecs, S)
         answers.append((st, res, lam))

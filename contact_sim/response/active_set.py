@@ -3,9 +3,11 @@
 Contacts that share no movable body never push on each other, so the Delassus matrix ``A = J M⁻¹ Jᵀ``
 is block diagonal over *islands* (connected components of the contact graph through movable
 bodies; Box2D's islands). Each island is solved on its own, dense: a resting box's four contacts
-are a 12 × 12 system, a 10-box stack's 40 contacts 120 × 120. The Cholesky factorisation skips the
-zeros of each column (a stack's matrix is banded in detection order), so its cost follows the
-island's coupling, not its size cubed.
+are a 12 × 12 system, a 10-box stack's 40 contacts 120 × 120. An island of more than
+``DIRECT_BAND_MIN`` contacts is kept to each contact's coupling range (from the first to the last
+contact of the island that shares a movable body with it): its matrix, products and Cholesky
+factor visit no block outside it (a stack's matrix is banded in detection order), so the cost
+follows the island's coupling, not its size squared or cubed; a smaller island is taken whole.
 
 The method per island is ``direct.solve_direct``'s, row for row: rows of the active contacts
 (normal, and both tangents of a contact with friction, sticking) solved by regularised Cholesky
@@ -22,6 +24,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..constants import DIRECT_BAND_MIN
 from .pgs import _apply, _row_velocity
 
 _TINY = 1e-300
@@ -88,16 +91,17 @@ def islands(a, b, movable, n_bodies):
 
 
 @njit
-def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A):
+def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A, band):
     """Dense Delassus matrix of the island's contacts ``ids (m,)`` into ``A (3m,3m)``: block ``(p,q)``
     sums, over each body the two contacts share, ``s_p s_q (m⁻¹ d_p d_qᵀ + (r_p×d_p)·I⁻¹(r_q×d_q)ᵀ)``
     (``s`` = +1 on A, −1 on B; an immovable body's inverse mass and inertia are zero); the normal
-    rows' diagonal gets ``compliance``."""
+    rows' diagonal gets ``compliance``. Only the blocks within each contact's coupling range
+    (``band[0], band[1]``: ``_island``) are written, and only they are read."""
     m = ids.shape[0]
-    A[:3 * m, :3 * m] = 0.0
     for p in range(m):
         cp = ids[p]
-        for q in range(m):
+        A[3 * p:3 * p + 3, 3 * band[0, p]:3 * band[1, p] + 3] = 0.0
+        for q in range(band[0, p], band[1, p] + 1):
             cq = ids[q]
             for side_p in range(2):
                 body_p = a[cp] if side_p == 0 else b[cp]
@@ -129,10 +133,12 @@ def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, complianc
 
 
 @njit
-def _cholesky(M, n, nz):
+def _cholesky(M, n, nz, band):
     """In-place lower Cholesky factor of ``M[:n,:n]`` (right-looking, the update of each column
-    restricted to its non-zeros ``nz``: a banded island costs its band, not ``n³``). False when a
-    pivot is not positive (the caller falls back)."""
+    restricted to its non-zeros ``nz``: a banded island costs its band, not ``n³``), row ``i``
+    zero left of column ``band[3, i]`` (its envelope, which the factor keeps; ``band[5, j]`` the
+    last row whose envelope reaches column ``j``): nothing outside it is read or written. False
+    when a pivot is not positive (the caller falls back)."""
     for j in range(n):
         d = M[j, j]
         if not (d > 0.0):
@@ -140,7 +146,7 @@ def _cholesky(M, n, nz):
         d = math.sqrt(d)
         M[j, j] = d
         cnt = 0
-        for i in range(j + 1, n):
+        for i in range(j + 1, band[5, j] + 1):
             if M[i, j] != 0.0:
                 M[i, j] /= d
                 nz[cnt] = i
@@ -155,29 +161,30 @@ def _cholesky(M, n, nz):
 
 
 @njit
-def _cho_solve(L, n, x):
-    """Solve ``L Lᵀ y = x`` in place (``x (n,)``)."""
+def _cho_solve(L, n, band, x):
+    """Solve ``L Lᵀ y = x`` in place (``x (n,)``; the envelope in ``band``, as ``_cholesky``'s)."""
     for i in range(n):
         s = x[i]
-        for j in range(i):
+        for j in range(band[3, i], i):
             s -= L[i, j] * x[j]
         x[i] = s / L[i, i]
     for i in range(n - 1, -1, -1):
         s = x[i]
-        for j in range(i + 1, n):
+        for j in range(i + 1, band[5, i] + 1):
             s -= L[j, i] * x[j]
         x[i] = s / L[i, i]
 
 
 @njit
-def _objective(A, rhs, x, n):
-    """Contact objective ``½ x·Ax − x·rhs`` (what Gauss–Seidel descends) over ``n`` rows."""
+def _objective(A, rhs, x, n, band):
+    """Contact objective ``½ x·Ax − x·rhs`` (what Gauss–Seidel descends) over ``n`` rows (each
+    row's non-zero range from ``band``)."""
     f = 0.0
     for i in range(n):
         if x[i] == 0.0:
             continue
         s = 0.0
-        for j in range(n):
+        for j in range(3 * band[0, i // 3], 3 * band[1, i // 3] + 3):
             s += A[i, j] * x[j]
         f += x[i] * (0.5 * s - rhs[i])
     return f
@@ -185,13 +192,38 @@ def _objective(A, rhs, x, n):
 
 @njit
 def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
-            friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, sub, L, vecs, S, nz, act):
+            friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, sub, L, vecs, S, nz, act,
+            band):
     """The active set on one island (contacts ``ids (m,)``); writes ``lam`` rows of ``ids``.
-    ``A, sub, L (≥3m, ≥3m)``, ``vecs (5, ≥3m)``, ``S, nz (≥3m,) int64``, ``act (≥m,) bool`` are
-    workspace (allocated once for all islands). Returns ``(status, residual)``."""
+    ``A, sub, L (≥3m, ≥3m)``, ``vecs (5, ≥3m)``, ``S, nz (≥3m,) int64``, ``act (≥m,) bool``,
+    ``band (6, ≥3m+1) int64`` are workspace (allocated once for all islands). Every product and
+    the factorisation keep to the non-zero range of each row (``band``), every sum in the order
+    of the dense form (only exact zeros skipped). Returns ``(status, residual)``."""
     m = ids.shape[0]
     n = 3 * m
-    _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A)
+    # each contact's coupling range: the first and last contact of the island sharing a movable
+    # body with it (band[0], band[1]); the Delassus blocks outside it are zero, and no product
+    # below visits them, so a 10-box stack (each contact coupled to those of its two boxes, in
+    # detection's order) costs its band, not its size squared
+    full = m <= DIRECT_BAND_MIN   # a small island is taken whole: its bookkeeping would cost more than it skips
+    for p in range(m):
+        cp = ids[p]
+        band[0, p] = 0 if full else p
+        band[1, p] = m - 1 if full else p
+        for q in range(0 if full else m):
+            cq = ids[q]
+            if (ima[cq] != 0.0 and (a[cq] == a[cp] or a[cq] == b[cp])) \
+                    or (imb[cq] != 0.0 and (b[cq] == a[cp] or b[cq] == b[cp])):
+                band[0, p] = min(band[0, p], q)
+                band[1, p] = max(band[1, p], q)
+    # ranges made monotone (the first contact coupled never decreasing along the island, the last
+    # never decreasing either): every row's envelope then starts at or before the next row's, so
+    # the factor's columns are contiguous (``_cholesky``, ``_cho_solve`` visit no row outside it)
+    for p in range(m - 2, -1, -1):
+        band[0, p] = min(band[0, p], band[0, p + 1])
+    for p in range(1, m):
+        band[1, p] = max(band[1, p], band[1, p - 1])
+    _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A, band)
     rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
     rmax = 0.0
     dmax = 0.0
@@ -221,30 +253,52 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                     ns += 2
         x[:n] = 0.0
         if ns:
+            # the active rows' range in S (band[2]: the place in S of the first active row at or
+            # after each row; band[3], band[4]: a row's first and last column; band[5]: the last
+            # row whose range reaches a column)
+            if full:
+                for i in range(ns):
+                    band[3, i], band[4, i], band[5, i] = 0, ns - 1, ns - 1
+            else:
+                k = 0
+                for col in range(n + 1):
+                    while k < ns and S[k] < col:
+                        k += 1
+                    band[2, col] = k
+                for i in range(ns):
+                    p = S[i] // 3
+                    band[3, i] = band[2, 3 * band[0, p]]
+                    band[4, i] = band[2, 3 * band[1, p] + 3] - 1
+                    band[5, i] = i
+                for i in range(ns):
+                    band[5, band[3, i]] = max(band[5, band[3, i]], i)
+                for j in range(1, ns):
+                    band[5, j] = max(band[5, j], band[5, j - 1])
             for i in range(ns):
-                for j in range(ns):
+                for j in range(band[3, i], band[4, i] + 1):
                     sub[i, j] = A[S[i], S[j]]
+                for j in range(band[3, i], i + 1):
                     L[i, j] = sub[i, j]
                 L[i, i] += eps
-            if not _cholesky(L, ns, nz):
+            if not _cholesky(L, ns, nz, band):
                 return TOO_LARGE, 0.0
             for i in range(ns):
                 y[i] = rhs[S[i]]
-            _cho_solve(L, ns, y)
+            _cho_solve(L, ns, band, y)
             for _refine in range(2):   # proximal point: removes ε's bias where the rows are independent
                 for i in range(ns):
                     s = rhs[S[i]]
-                    for j in range(ns):
+                    for j in range(band[3, i], band[4, i] + 1):
                         s -= sub[i, j] * y[j]
                     r[i] = s
-                _cho_solve(L, ns, r)
+                _cho_solve(L, ns, band, r)
                 for i in range(ns):
                     y[i] += r[i]
             for i in range(ns):
                 x[S[i]] = y[i]
         for i in range(n):
             s = 0.0
-            for j in range(n):
+            for j in range(3 * band[0, i // 3], 3 * band[1, i // 3] + 3):
                 s += A[i, j] * x[j]
             ax[i] = s
         if ns:
@@ -283,7 +337,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
         # an unfinished answer can be far worse than no impulse: Gauss–Seidel starts from the
         # candidate (this, the warm start, zero) with the lowest objective, which decides where it ends
         best = 0.0
-        fx = _objective(A, rhs, x, n)
+        fx = _objective(A, rhs, x, n, band)
         if fx < best:
             best = fx
             for p in range(m):
@@ -297,7 +351,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
             for p in range(m):
                 for d in range(3):
                     y[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
-            fw = _objective(A, rhs, y, n)
+            fw = _objective(A, rhs, y, n, band)
             if fw < best:
                 for p in range(m):
                     for d in range(3):
@@ -306,7 +360,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
     residual = 0.0
     for i in range(n):
         s = -rhs[i]
-        for j in range(n):
+        for j in range(3 * band[0, i // 3], 3 * band[1, i // 3] + 3):
             s += A[i, j] * x[j]
         d = i % 3
         if d == 0 and not (x[i] > 0.0):
@@ -521,6 +575,7 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     vecs = np.empty((5, n_max))
     rows = np.empty((2, n_max), np.int64)
     S, nz, act = rows[0], rows[1], np.empty(m_max, np.bool_)
+    band = np.empty((6, n_max + 1), np.int64)
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
@@ -532,7 +587,7 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
         else:
             st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
                               mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,
-                              A, sub, L, vecs, S, nz, act)
+                              A, sub, L, vecs, S, nz, act, band)
         if st == SOLVED:
             residual = max(residual, res)
             if apply:
