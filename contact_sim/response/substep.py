@@ -75,25 +75,28 @@ def run(ctx, whole):
     # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
     # missed at the end)
     ctx.pos0 = s.pos.copy() if any_kinematic else None
-    near, f3, f1, flags, wv, pw, keep, dvw, pen, out = _substep(
+    f3, f1, flags, wv, aux, idx, out = _substep(
         cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
         cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
         *(look if look is not None else _NO_LOOK), *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
         prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials, *old,
         has_old, extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, whole,
         *solve[1:])
-    if near.shape[0]:   # speculative contacts that cannot close are not the step's
-        c = ctx.contacts = c.select(near)
-        k = len(c)
-    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, rested, n_rest, unconverged = out.tolist()
+    residual, deepest, rest_bound, drift, kick_error, sweeps, kept, rested, n_rest, unconverged, dropped, n_pen = \
+        out.tolist()
+    if dropped:   # speculative contacts that cannot close are not the step's (idx: the kept ones first)
+        k = f1.shape[1]
+        c = ctx.contacts = c.select(idx[:k])
+    n = len(s.pos)
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
     ctx.unconverged = ctx.unconverged or bool(unconverged)
     if ctx.first and k:
         ctx.max_penetration = max(ctx.max_penetration, deepest)
     ctx.rest_bound += rest_bound
-    if pen.shape[0]:   # the correction moves the bodies after the step (correction.apply)
-        correction.cap(ctx, pen, pw[0], pw[1])
+    if n_pen:   # the correction moves the bodies after the step (correction.apply)
+        pw = aux[:6 * n].reshape(2, n, 3)
+        correction.cap(ctx, idx[len(idx) - int(n_pen):], pw[0], pw[1])
     local = f3[0]
     used, resting, touching = flags[0], flags[1], flags[2]
     if rested:
@@ -109,6 +112,7 @@ def run(ctx, whole):
         _record(ctx, c, f3, f1, used, kept, drift, kick_error)
     else:
         ctx.touching, ctx.rest_mask = touching, (resting if rested else None)
+        dvw, keep = aux[6 * n:12 * n].reshape(2, n, 3), aux[12 * n:].reshape(4, k, 3)
         ctx.dv_rest = dvw[0] if rested else None
         ctx.pending = (c, f3, f1, used, keep, dvw, bool(rested))
 
@@ -243,36 +247,39 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     ``p0 (K0,3)``, ``values (K0,4)``; ``particles`` the kinematic response; ``method`` an index of
     ``settings.SOLVER_METHODS``.
 
-    Returns ``(near, f3, f1, flags, wv, pw, keep, dvw, pen, out)``: ``near (K,)`` the contacts the
-    filter kept when it dropped some, else ``(0,)`` (the other outputs are of the kept ones); ``f3
+    Returns ``(f3, f1, flags, wv, aux, idx, out)`` (the outputs are of the contacts the filter kept); ``f3
     (3,K,3)`` the points in A's frame, the friction impulses and the impulses; ``f1 (2,K)`` the
     normal impulses and the approach speeds; ``flags (3,K)`` the contacts that count, those the
     resting solve took, those touching; ``wv (K,4)`` the cache's values of the resting ones (its
-    first rows); ``pw (2,N,3)`` the correction's pseudo-velocities; ``keep (4,K,3)``, ``dvw
-    (2,N,3)``: what ``_finish`` reads (the impacts' and the resting impulses, the tangents, the
-    resting force's velocity change), filled when not ``whole``; ``pen`` the contacts the
-    correction pushes apart; ``out = [residual, deepest, rest_bound, drift, kick_error, sweeps,
-    used, resting solve ran, contacts resting, a solve stopped unconverged]``. The outputs are
-    allocated here, in blocks: from Python each allocation and argument, and here each array
-    handed back, costs more than the arithmetic."""
+    first rows); ``aux`` one block of ``pw (2,N,3)`` the correction's pseudo-velocities, then
+    ``dvw (2,N,3)``, ``keep (4,K,3)`` (``K`` 0 when ``whole``): what ``_finish`` reads (the
+    resting force's velocity change, the impacts' and the resting impulses, the tangents), filled
+    when not ``whole``; ``idx`` the contacts the filter kept (their places among the ``K`` given,
+    when it dropped some) followed by the contacts the correction pushes apart; ``out =
+    [residual, deepest, rest_bound, drift, kick_error, sweeps, used, resting solve ran, contacts
+    resting, a solve stopped unconverged, the filter dropped some, contacts the correction
+    pushes]``. The outputs are allocated here, in blocks, and the rarely read ones share one:
+    from Python each allocation and argument, and here each array handed back (~0.3 µs), costs
+    more than the arithmetic."""
     k, n = a.shape[0], pos.shape[0]
     # ---- velocity stage: the points' relative velocities, the look-ahead's filter
     rel_vel = np.empty((k, 3))
     near = np.empty(k if look else 0, np.bool_)
     kept = prepare._relative_velocity(a, b, point, pos, vel, omega, kind, particles, rel_vel, normal, depth, g, look_dt,
                                       look_base, near)
-    if look and kept < k:
+    dropped = look and kept < k
+    if dropped:
         a, b, point, normal, depth, rel_vel = a[near], b[near], point[near], normal[near], depth[near], rel_vel[near]
         k = kept
-    else:
-        near = near[:0]
-    f3, f1, flags, wv, pw = np.empty((3, k, 3)), np.empty((2, k)), np.empty((3, k), np.bool_), np.empty((k, 4)), \
-        np.zeros((2, n, 3))
-    keep, dvw = np.zeros((4, k if not whole else 0, 3)), np.zeros((2, n, 3))
+    f3, f1, flags, wv = np.empty((3, k, 3)), np.empty((2, k)), np.empty((3, k), np.bool_), np.empty((k, 4))
+    kw = k if not whole else 0
+    aux = np.zeros(12 * n + 12 * kw)   # pw, dvw, keep: one block (aux)
+    pw, dvw = aux[:6 * n].reshape((2, n, 3)), aux[6 * n:12 * n].reshape((2, n, 3))
+    keep = aux[12 * n:].reshape((4, kw, 3))
     local, friction_impulse, impulse = f3[0], f3[1], f3[2]
     normal_impulse, vn0, used, rest_mask, touching = f1[0], f1[1], flags[0], flags[1], flags[2]
     vp, wp = pw[0], pw[1]
-    out = np.zeros(10)
+    out = np.zeros(12)
     # ---- prepare: coefficients, stiffnesses, rows, points in A's frame, classes
     # the per-contact numbers, one block: restitution (as the impact rounds rule it, and the
     # material's), friction, stiffness, damping ratio, speculative target, normal velocity after
@@ -346,13 +353,31 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
                 keep[0, c, x], keep[1, c, x] = lam_i[c, x], lam_r[c, x]
                 keep[2, c, x], keep[3, c, x] = t1[c, x], t2[c, x]
         out[6] = k
-        return near, f3, f1, flags, wv, pw, keep, dvw, pen, out
+        return f3, f1, flags, wv, aux, _indices(near, dropped, k, pen, out), out
     # ---- store the impulses, advance: the whole rest of the step
     out[6] = _store(1.0, lam_i, lam_r, rested, t1, t2, normal, speculative, touching, normal_impulse,
                     friction_impulse, impulse, used)
     out[3], out[4] = _move(1.0, t, dvw, rested, pos, vel, quat, omega, principal_q, moments, inertia_body, gravity,
                            dynamic, rotating, kinematic)
-    return near, f3, f1, flags, wv, pw, keep, dvw, pen, out
+    return f3, f1, flags, wv, aux, _indices(near, dropped, k, pen, out), out
+
+
+@njit
+def _indices(near, dropped, k, pen, out):
+    """``_substep``'s ``idx``: the places of the ``k`` contacts the filter kept (``near (K,)``,
+    when ``dropped``) then the correction's ``pen``; their counts' flags into ``out[10:12]``."""
+    m = k if dropped else 0
+    idx = np.empty(m + pen.shape[0], np.int64)
+    j = 0
+    if dropped:
+        for c in range(near.shape[0]):
+            if near[c]:
+                idx[j] = c
+                j += 1
+    for p in range(pen.shape[0]):
+        idx[m + p] = pen[p]
+    out[10], out[11] = dropped, pen.shape[0]
+    return idx
 
 
 @njit
