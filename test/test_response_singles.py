@@ -152,18 +152,20 @@ def test_compiled_islands_equal_the_sparse_active_set(mu, shuffled):
 
 
 @pytest.mark.exact
+@pytest.mark.parametrize("layers", [1, 2, 6])
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_island_solve_reads_only_what_it_wrote(seed):
-    """One island of a 6-box stack (24 contacts, above ``constants.DIRECT_BAND_MIN``: each row's coupling
-    range) in a shuffled order, solved by ``active_set._island`` with every workspace filled with
-    NaN (and the integer ones with nonsense): an entry read outside what the call wrote would show
-    in the answer. The same impulses, to round-off, as the sparse active set over the system."""
+def test_island_solve_reads_only_what_it_wrote(seed, layers):
+    """One island of a stack in a shuffled order, solved by ``active_set._island`` with every
+    workspace filled with NaN (and the integer ones with nonsense): an entry read outside what the
+    call wrote would show in the answer. The same impulses, to round-off, as the sparse active set
+    over the system. 6 boxes (24 contacts, above ``constants.DIRECT_BAND_MIN``): each row's coupling
+    range; 1 and 2 boxes (4 and 8 contacts): the island taken whole."""
     from contact_sim.constants import DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
     from contact_sim.response.rows import Rows
 
-    rows, vel, omega = _box_stack(6, seed=seed)
+    rows, vel, omega = _box_stack(layers, seed=seed)
     k = len(rows)
-    assert k > constants.DIRECT_BAND_MIN
+    assert (k > constants.DIRECT_BAND_MIN) == (layers == 6)
     perm = np.random.default_rng(seed).permutation(k)
     fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
     rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[perm]) for f in fields}, movable=rows.movable)

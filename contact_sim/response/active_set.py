@@ -92,7 +92,7 @@ def islands(a, b, movable, n_bodies):
 
 @njit
 def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A, band):
-    """Dense Delassus matrix of the island's contacts ``ids (m,)`` into ``A (3m,3m)``: block ``(p,q)``
+    """The Delassus matrix of the island's contacts ``ids (m,)`` into ``A (3m,3m)``: block ``(p,q)``
     sums, over each body the two contacts share, ``s_p s_q (m⁻¹ d_p d_qᵀ + (r_p×d_p)·I⁻¹(r_q×d_q)ᵀ)``
     (``s`` = +1 on A, −1 on B; an immovable body's inverse mass and inertia are zero); the normal
     rows' diagonal gets ``compliance``. Only the blocks within each contact's coupling range
@@ -136,9 +136,10 @@ def _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, complianc
 def _cholesky(M, n, nz, band):
     """In-place lower Cholesky factor of ``M[:n,:n]`` (right-looking, the update of each column
     restricted to its non-zeros ``nz``: a banded island costs its band, not ``n³``), row ``i``
-    zero left of column ``band[3, i]`` (its envelope, which the factor keeps; ``band[5, j]`` the
-    last row whose envelope reaches column ``j``): nothing outside it is read or written. False
-    when a pivot is not positive (the caller falls back)."""
+    zero left of column ``band[3, i]`` (its envelope, which the factor keeps; never decreasing
+    with ``i``, so the rows below the diagonal of column ``j`` that reach it are ``j+1 …
+    band[5, j]``, the last one): nothing outside it is read or written. False when a pivot is not
+    positive (the caller falls back)."""
     for j in range(n):
         d = M[j, j]
         if not (d > 0.0):
@@ -216,13 +217,11 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                     or (imb[cq] != 0.0 and (b[cq] == a[cp] or b[cq] == b[cp])):
                 band[0, p] = min(band[0, p], q)
                 band[1, p] = max(band[1, p], q)
-    # ranges made monotone (the first contact coupled never decreasing along the island, the last
-    # never decreasing either): every row's envelope then starts at or before the next row's, so
-    # the factor's columns are contiguous (``_cholesky``, ``_cho_solve`` visit no row outside it)
+    # the first contact coupled made never decreasing along the island (a range only widens, over
+    # zeros): every row's envelope then starts at or before the next row's, so each column of the
+    # factor below its diagonal is one run of rows (``_cholesky``, ``_cho_solve`` rely on it)
     for p in range(m - 2, -1, -1):
         band[0, p] = min(band[0, p], band[0, p + 1])
-    for p in range(1, m):
-        band[1, p] = max(band[1, p], band[1, p - 1])
     _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A, band)
     rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
     rmax = 0.0
@@ -286,21 +285,41 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                 y[i] = rhs[S[i]]
             _cho_solve(L, ns, band, y)
             for _refine in range(2):   # proximal point: removes ε's bias where the rows are independent
-                for i in range(ns):
-                    s = rhs[S[i]]
-                    for j in range(band[3, i], band[4, i] + 1):
-                        s -= sub[i, j] * y[j]
-                    r[i] = s
+                i = 0
+                while i < ns:
+                    if i + 2 < ns and S[i + 2] == S[i] + 2:   # a contact's three rows, one range: three sums at once
+                        s0 = rhs[S[i]]
+                        s1 = rhs[S[i + 1]]
+                        s2 = rhs[S[i + 2]]
+                        for j in range(band[3, i], band[4, i] + 1):
+                            yj = y[j]
+                            s0 -= sub[i, j] * yj
+                            s1 -= sub[i + 1, j] * yj
+                            s2 -= sub[i + 2, j] * yj
+                        r[i], r[i + 1], r[i + 2] = s0, s1, s2
+                        i += 3
+                    else:
+                        s = rhs[S[i]]
+                        for j in range(band[3, i], band[4, i] + 1):
+                            s -= sub[i, j] * y[j]
+                        r[i] = s
+                        i += 1
                 _cho_solve(L, ns, band, r)
                 for i in range(ns):
                     y[i] += r[i]
             for i in range(ns):
                 x[S[i]] = y[i]
-        for i in range(n):
-            s = 0.0
-            for j in range(3 * band[0, i // 3], 3 * band[1, i // 3] + 3):
-                s += A[i, j] * x[j]
-            ax[i] = s
+        for p in range(m):   # a contact's three rows share their range: three sums at once, each in order
+            i = 3 * p
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            for j in range(3 * band[0, p], 3 * band[1, p] + 3):
+                xj = x[j]
+                s0 += A[i, j] * xj
+                s1 += A[i + 1, j] * xj
+                s2 += A[i + 2, j] * xj
+            ax[i], ax[i + 1], ax[i + 2] = s0, s1, s2
         if ns:
             worst = 0.0
             for i in range(ns):
@@ -357,11 +376,11 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                     for d in range(3):
                         lam[ids[p], d] = y[3 * p + d]
         return UNFINISHED, math.inf
+    # the scaled residual of the solved island: the last round's products (x has not changed since,
+    # but for the sign of a zero)
     residual = 0.0
     for i in range(n):
-        s = -rhs[i]
-        for j in range(3 * band[0, i // 3], 3 * band[1, i // 3] + 3):
-            s += A[i, j] * x[j]
+        s = ax[i] - rhs[i]
         d = i % 3
         if d == 0 and not (x[i] > 0.0):
             s = min(s, 0.0)
