@@ -33,7 +33,7 @@ from ..settings import COMBINE_RULES, SOLVER_METHODS
 from .. import validate
 from . import correction, prepare
 from . import toi as toi_mod
-from ..constants import (DIRECT_MAX_CONTACTS, IMPACT_SPEED_FRACTION, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
+from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
                          PGS_TOLERANCE, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
 from .cache import local_points
 from .compliance import possible as may_be_compliant, stiffness_rows
@@ -70,7 +70,7 @@ def run(ctx, whole):
     if not has_old:
         old = _NO_OLD
     look = ctx.look_ahead
-    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(world, m, ctx.dt)
+    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(ctx)
     # the kinematic bodies' work is taken where the contact points are, at the sub-step's start:
     # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
     # missed at the end)
@@ -177,8 +177,9 @@ def _body_arrays(world):
     return arrays
 
 
-def _fixed_args(world, m, dt):
-    """The arguments of ``_substep`` that stay the same from step to step, in blocks of its
+def _fixed_args(ctx):
+    """The arguments of ``_substep`` that stay the same from step to step for the step ``ctx``
+    (``StepContext``: its world, models ``m``, ``dt`` and the products it holds), in blocks of its
     argument order: ``(lead, inertia, materials, extents, solve, any_kinematic, particles)`` with
     ``lead = (g, kind)``, ``inertia = (principal_q, principal_moments, inertia_body, inv_mass)``,
     ``materials = (gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
@@ -191,10 +192,12 @@ def _fixed_args(world, m, dt):
     else None.
 
     They follow from the body arrays (``_body_arrays``: the very same tuple while no array is
-    replaced), gravity, the models ``m``, the step ``dt`` (s) and the settings; kept on the world
+    replaced), gravity, the models ``m``, the step ``dt`` (s) and the settings (``ctx.gdt``,
+    ``ctx.impact_speed`` and ``ctx.speculative`` follow from them too); kept on the world
     while those are the same objects and no settings field was assigned since
     (``validate.edits``), so a change is seen at the next step with one check instead of a
     dozen reads and conversions."""
+    world, m, dt = ctx.world, ctx.models, ctx.dt
     bodies = _body_arrays(world)
     st = world.settings
     gravity, ib = world._gravity, world.inv_inertia_body
@@ -205,18 +208,16 @@ def _fixed_args(world, m, dt):
     edits = validate.edits
     bm = world.body_masks()
     particles = m.response == "kinematic"
-    g = world.gravity_norm()
-    gdt = g * dt   # StepContext's gdt and impact_speed, the same products
-    exact_toi = m.toi in ("fractional", "swept")
+    gdt = ctx.gdt
     fixed = (
-        (g, world.kind),
+        (world.gravity_norm(), world.kind),
         bodies[:4],
         (gravity, bm.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
          m.response == "impulse" and m.resting and may_be_compliant(world), *bodies[10:12],
          float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and not particles),
         bodies[9],
-        (float(dt), float(st.contact_margin), st.speculative and not exact_toi, TOI_TOLERANCE,
-         SIMULTANEOUS_FRACTION * dt, gdt, REST_REBOUND_FRACTION * gdt, IMPACT_SPEED_FRACTION * gdt,
+        (float(dt), float(st.contact_margin), ctx.speculative, TOI_TOLERANCE,
+         SIMULTANEOUS_FRACTION * dt, gdt, REST_REBOUND_FRACTION * gdt, ctx.impact_speed,
          float(st.split_slop), float(st.split_beta), SOLVER_METHODS.index(st.solver_method),
          DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
          int(st.solver_iterations), float(st.solver_tolerance)),
