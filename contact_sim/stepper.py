@@ -36,6 +36,7 @@ energy terms the step declares.
 """
 import numpy as np
 
+from .constants import FAT_STEPS
 from .stats import StepStats
 from .response import models as _models
 from .collision import detect_world
@@ -70,11 +71,13 @@ def step(world, dt):
 
 
 # ---------------------------------------------------------------------------- helpers
-def _detect(world, margin, R=None, reach=None, floor=0.0):
+def _detect(world, margin, dt, R=None, reach=None, floor=0.0):
     """Contacts of the current state within ``margin`` (``R (N,3,3)`` the rotation matrices, when
-    known; ``reach, floor``: each pair's own margin, ``detect_world``); the detection statistics go
+    known; ``reach, floor``: each pair's own margin, ``detect_world``) in a step of ``dt`` (s): the
+    broad phase's cache covers ``FAT_STEPS`` such steps of motion; the detection statistics go
     to ``world.last_detection`` (untimed stages: the broad phase's seconds and the total)."""
-    contacts, world.last_detection = detect_world(world, margin=margin, R=R, reach=reach, floor=floor, timed=False)
+    contacts, world.last_detection = detect_world(world, margin=margin, R=R, reach=reach, floor=floor, timed=False,
+                                                  horizon=FAT_STEPS * dt)
     return contacts
 
 
@@ -118,7 +121,7 @@ def _detect_stage(ctx):
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
     # the speculative margin finds the pairs; each pair's narrow phase takes only what its bodies can close
-    c = _detect(world, det_margin, ctx.R, reach, floor)
+    c = _detect(world, det_margin, ctx.dt, ctx.R, reach, floor)
     if ctx.swept_pair is not None:   # the sweep's hit: feature swept
         c = swept.mark_swept(c, ctx.swept_pair)
         ctx.swept_pair = None
@@ -179,7 +182,7 @@ def _penalty_step(world, dt, m):
     margin, reach, floor = prepare.speculative_reach(world, dt) if world.settings.speculative else (0.0, None, 0.0)
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)
-    ctx.contacts = _detect(world, margin, ctx.R, reach, floor)
+    ctx.contacts = _detect(world, margin, dt, ctx.R, reach, floor)
     ctx.warm_out = world.contact_cache.warm   # the springs take no warm start: the cache is kept as it is
     substep.run_penalty(ctx)
     _finish(ctx, 0.0)

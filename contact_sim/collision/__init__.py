@@ -259,7 +259,7 @@ def disabled_keys(world):
                    key=(len(world), len(world.disabled_pairs)))
 
 
-def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True):
+def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, horizon=0.0):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
     ``margin`` (m) overrides ``world.settings.contact_margin``: pairs closer than it are reported
@@ -270,6 +270,9 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True):
     margin to ``min(margin, floor + reach[a] + reach[b])``; ``margin`` still finds the pairs.
     ``timed``: the seconds of each stage in the stats (the step's detection keeps the broad phase's
     and the total: its bounding volumes and narrow phase run as one compiled call, untimed inside).
+    ``horizon`` (s): when the broad phase's pair cache is rebuilt, its fat boxes also cover each
+    body's displacement over this time at its current velocity (the stepper's few steps ahead);
+    the pairs found are the same whatever it is, only how often the cache is rebuilt changes.
     """
     t0 = time.perf_counter()
     margin = float(world.settings.contact_margin if margin is None else margin)
@@ -286,17 +289,18 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True):
         if R is None:
             R = np.empty((bodies.n, 3, 3))
             rotations(quat, R)
-        ia, ib = _world_pairs(world, bodies, pos, R, margin)
+        ia, ib = _world_pairs(world, bodies, pos, R, margin, horizon)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
     return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor, timed)
 
 
-def _world_pairs(world, bodies, pos, R, margin):
+def _world_pairs(world, bodies, pos, R, margin, horizon=0.0):
     """The broad phase of ``detect_world``: pairs ``(ia (K,), ib (K,))``, ``ia < ib``, sorted, whose
     world boxes overlap within ``margin`` (planes: whose half-space reaches the box), without the
     pairs that never collide (both static, group/mask, ``world.disabled_pairs``). One compiled pass
-    (``broadphase.world_pairs``) while the pair cache holds; a rebuild of the cache first otherwise."""
+    (``broadphase.world_pairs``) while the pair cache holds; a rebuild of the cache first otherwise,
+    its fat boxes stretched by each body's velocity × ``horizon`` (s)."""
     fin, cache = bodies.finite, bodies.pair_cache
     disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
     if cache.fat_c is not None:
@@ -306,7 +310,7 @@ def _world_pairs(world, bodies, pos, R, margin):
             return ia, ib
     c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
     broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
-    cache.rebuild(c, h, margin)
+    cache.rebuild(c, h, margin, world.s.vel[fin] if horizon else None, horizon)
     # the fat boxes hold the boxes they were built from
     ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, disabled)
     assert ok

@@ -5,7 +5,7 @@ directly. Every method returns exactly the pairs whose AABBs overlap within the 
 import numpy as np
 
 from ..jit import njit
-from ..constants import BRUTE_MAX, SAP_BUDGET, FAT_FRACTION
+from ..constants import BRUTE_MAX, SAP_BUDGET, FAT_FRACTION, FAT_STRETCH_MAX
 
 _TRIU = {}          # n -> cached np.triu_indices(n, 1)
 
@@ -33,8 +33,9 @@ def candidate_pairs(c, h, margin):
 class PairCache:
     """Candidate pairs carried across steps (temporal coherence, as Box2D's fat AABBs).
 
-    The pairs are computed for *fat* boxes (each tight box grown by ``FAT_FRACTION`` of its size)
-    with twice the margin. While every tight box stays inside its fat box and the margin does not
+    The pairs are computed for *fat* boxes (each tight box grown by ``FAT_FRACTION`` of its size,
+    and stretched along the displacement its body is expected to make, as Box2D v2's predictive
+    AABBs: a falling ball keeps its cache for several steps instead of one) with twice the margin. While every tight box stays inside its fat box and the margin does not
     grow past the cached one, the cached pairs are a superset of the overlapping pairs, and one
     exact test on the tight boxes gives exactly what ``candidate_pairs`` would (a resting or slowly
     moving scene skips the sort/grid work); otherwise the cache is rebuilt from the current boxes.
@@ -47,12 +48,13 @@ class PairCache:
         self.rebuilds = 0
         self.reuses = 0
 
-    def pairs(self, c, h, margin):
-        """Same contract as ``candidate_pairs`` for boxes ``c, h (N, 3)``, pairs sorted by ``(i, j)``."""
+    def pairs(self, c, h, margin, vel=None, horizon=0.0):
+        """Same contract as ``candidate_pairs`` for boxes ``c, h (N, 3)``, pairs sorted by ``(i, j)``;
+        ``vel, horizon``: a rebuild's stretch (``rebuild``)."""
         if self.valid(c, h, margin):
             self.reuses += 1
         else:
-            self.rebuild(c, h, margin)
+            self.rebuild(c, h, margin, vel, horizon)
         oi, oj = np.empty_like(self.i), np.empty_like(self.j)
         n = overlap_filter(c, h, self.i, self.j, margin, oi, oj)
         return oi[:n], oj[:n]
@@ -62,18 +64,44 @@ class PairCache:
         return (self.fat_c is not None and len(self.fat_c) == len(c) and margin <= self.margin
                 and inside_fat(c, h, self.fat_c, self.fat_h))
 
-    def rebuild(self, c, h, margin):
-        """Fat boxes and their pairs from the boxes ``c, h (N, 3)``."""
-        self.fat_c = c.copy()
-        self.fat_h = h + FAT_FRACTION * h.max(axis=1, keepdims=True)
+    def rebuild(self, c, h, margin, vel=None, horizon=0.0):
+        """Fat boxes and their pairs from the boxes ``c, h (N, 3)``; with ``vel (N, 3)`` (m/s) each
+        fat box also covers its box moved by ``vel × horizon`` (s) (``fat_boxes``)."""
+        self.fat_c, self.fat_h = np.empty_like(c), np.empty_like(h)
+        scale = fat_boxes(c, h, _NO_VEL if vel is None else vel, float(horizon), self.fat_c, self.fat_h)
         # twice the margin (a growing look-ahead keeps the cache a while), plus round-off slack
         # of the coordinates so that the superset argument holds in floating point
-        scale = float(np.abs(c).max() + h.max()) if len(c) else 0.0
         self.margin = 2.0 * margin + 1e-9 * (1.0 + scale)
         i, j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
         order = np.lexsort((j, i))
         self.i, self.j = np.ascontiguousarray(i[order]), np.ascontiguousarray(j[order])
         self.rebuilds += 1
+
+
+_NO_VEL = np.zeros((0, 3))
+
+
+@njit
+def fat_boxes(c, h, vel, horizon, fat_c, fat_h):
+    """The fat boxes ``fat_c, fat_h (N, 3)`` of the boxes ``c, h (N, 3)``: each grown by
+    ``FAT_FRACTION`` × its largest half size and, with ``vel (N, 3)`` (m/s; empty: none),
+    stretched to cover the box moved by ``d = vel × horizon`` (m) as well (centre moved by d/2,
+    half sizes grown by |d|/2), each component of ``d`` capped at ``FAT_STRETCH_MAX`` × the
+    largest half size so that a fast body's fat box cannot take in the whole scene. Returns the
+    coordinates' scale (the largest |fat centre| + the largest fat half size, m)."""
+    big_c, big_h = 0.0, 0.0
+    for m in range(c.shape[0]):
+        hm = max(h[m, 0], h[m, 1], h[m, 2])
+        cap = FAT_STRETCH_MAX * hm
+        for i in range(3):
+            d = 0.0
+            if vel.shape[0]:
+                d = min(max(vel[m, i] * horizon, -cap), cap)
+            fat_c[m, i] = c[m, i] + 0.5 * d
+            # never less than ``inside_fat`` computes for the box itself (round-off of the move)
+            fat_h[m, i] = max(h[m, i] + FAT_FRACTION * hm + 0.5 * abs(d), abs(c[m, i] - fat_c[m, i]) + h[m, i])
+            big_c, big_h = max(big_c, abs(fat_c[m, i])), max(big_h, fat_h[m, i])
+    return big_c + big_h
 
 
 def all_pairs(c, h, margin):
