@@ -75,9 +75,10 @@ def _detect(world, margin, dt, R=None, reach=None, floor=0.0):
     """Contacts of the current state within ``margin`` (``R (N,3,3)`` the rotation matrices, when
     known; ``reach, floor``: each pair's own margin, ``detect_world``) in a step of ``dt`` (s): the
     broad phase's cache covers ``FAT_STEPS`` such steps of motion; the detection statistics go
-    to ``world.last_detection`` (untimed stages: the broad phase's seconds and the total)."""
+    to ``world.last_detection`` (untimed stages: the broad phase's seconds and the total; no
+    edge–face census: ``detect_world``'s ``census``)."""
     contacts, world.last_detection = detect_world(world, margin=margin, R=R, reach=reach, floor=floor, timed=False,
-                                                  horizon=FAT_STEPS * dt)
+                                                  horizon=FAT_STEPS * dt, census=False)
     return contacts
 
 

@@ -215,3 +215,29 @@ def test_collide_takes_poses_as_lists_tuples_arrays_or_numpy_scalars_alike():
         assert np.array_equal(c.normal, ref.normal)
     with pytest.raises(cs.ContactSimError, match="position"):
         collide(a, ((0, 0, 0), I), b, ((np.float64("nan"), 0.0, 0.22), tuple(q)))
+
+
+def test_a_step_detection_skips_the_edge_face_census_and_finds_the_same_contacts():
+    # two long boxes crossed edge into edge (no vertex inside: the edge–face test runs and finds
+    # the crossing, as in test_crossed_boxes_edge_face) and a box on the floor: the census
+    # (detect_world) and a step's detection (census=False) give the same contacts, bit for bit;
+    # only the crossing count differs (None: not taken)
+    from contact_sim.collision import detect_world
+
+    qx = Q.axis_rotation(0, [np.pi / 4])[0]
+    qy = Q.mul(Q.axis_rotation(2, [np.pi / 2])[0], qx)
+    d = 0.5 * np.sqrt(2) - 0.01
+    w = cs.World(gravity=(0.0, 0.0, 0.0))
+    w.add_body("floor", cs.Plane((0.0, 0.0, 1.0), 0.0), kind="static")
+    w.add_body("low", cs.Box((4, 0.5, 0.5)), position=(0.0, 0.0, 1.0), orientation=tuple(qx), mass=1.0)
+    w.add_body("high", cs.Box((4, 0.5, 0.5)), position=(0.0, 0.0, 1.0 + d), orientation=tuple(qy), mass=1.0)
+    w.add_body("cube", cs.Box((0.2, 0.2, 0.2)), position=(3.0, 3.0, 0.1 - 1e-4), mass=1.0)
+    full, st_full = detect_world(w, margin=0.01)
+    step, st_step = detect_world(w, margin=0.01, timed=False, census=False)
+    assert st_full.needed_edge_face == st_step.needed_edge_face == 1 and st_full.edge_face_hits == 1
+    assert st_step.edge_face_hits is None
+    assert len(full) == len(step) == 5   # the edges' contact, the cube's four corners
+    for col in ("body_a", "body_b", "point", "normal", "depth", "feature", "feature_id"):
+        assert np.array_equal(getattr(full, col), getattr(step, col)), col
+    w.step(1e-3)
+    assert w.last_detection.edge_face_hits is None and w.last_detection.needed_edge_face == 1

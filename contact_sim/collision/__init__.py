@@ -62,7 +62,9 @@ class DetectionStats:
     ``rejected_by_bounding_volume``: of those, rejected by the bounding volumes;
     ``settled_by_vertex``: polyhedron pairs where a vertex of one is inside the other;
     ``needed_edge_face``: polyhedron pairs that got past the bounding volumes and the face-axis
-    test with no vertex inside, so the edge–face test ran (``edge_face_hits`` of them crossed);
+    test with no vertex inside, so the edge–face test ran (``edge_face_hits`` of them crossed; None
+    in a step's detection, ``World.last_detection``, which skips the test where it only counts:
+    the polyhedra's separating-axis test decides their contacts);
     ``colliding_pairs``, ``contacts``: what was reported; ``unsupported_pairs``: pairs no
     kernel handles (none since mesh–mesh has one); ``seconds``: per stage (``broad``, ``bounding``, ``narrow``, ``total``;
     a step's detection, ``World.last_detection``, has ``broad`` and ``total``: its bounding volumes and narrow
@@ -74,7 +76,7 @@ class DetectionStats:
     rejected_by_bounding_volume: int = 0
     settled_by_vertex: int = 0
     needed_edge_face: int = 0
-    edge_face_hits: int = 0
+    edge_face_hits: int | None = 0
     colliding_pairs: int = 0
     contacts: int = 0
     unsupported_pairs: int = 0
@@ -198,10 +200,12 @@ _NO_REACH = np.zeros(0)
 _NO_STAGES = {"bounding": 0.0, "narrow": 0.0}
 
 
-def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0, timed=True):
+def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0, timed=True,
+            census=True):
     """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``; with ``reach (N,)``
     each pair's narrow phase takes ``min(margin, floor + reach[a] + reach[b])`` (``detect_world``).
-    ``timed``: the two stages' seconds in ``stats.seconds`` (else the total only)."""
+    ``timed``: the two stages' seconds in ``stats.seconds`` (else the total only); ``census``: the
+    edge–face crossings counted (``stats.edge_face_hits``, else None)."""
     if R is None:
         R = np.empty((len(quat), 3, 3))
         rotations(np.ascontiguousarray(quat, float), R)
@@ -212,7 +216,7 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
         stats.seconds = dict(timings, **(_NO_STAGES if timed else {}), total=time.perf_counter() - t0)
         return Contacts.empty(), stats
     ia, ib = np.ascontiguousarray(ia, np.int64), np.ascontiguousarray(ib, np.int64)
-    counters = np.zeros(3, np.int64)
+    counters = np.zeros(3 if census else 2, np.int64)
     reach = _NO_REACH if reach is None else reach
     if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank), filter, narrow phase
         seconds = np.zeros(2)
@@ -237,7 +241,9 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
     # friction_impulse, relative_normal_velocity, feature, feature_id
     c = Contacts(body_a, body_b, rows_f[:, 0:3], normal, rows_f[:, 6], vec[0], num[0], vec[1], num[1], rows_i[:, 1],
                  rows_i[:, 2])
-    stats.settled_by_vertex, stats.needed_edge_face, stats.edge_face_hits = counters.tolist()
+    counts = counters.tolist()
+    stats.settled_by_vertex, stats.needed_edge_face = counts[0], counts[1]
+    stats.edge_face_hits = counts[2] if census else None
     stats.unsupported_pairs = unsupported
     stats.colliding_pairs = pairs
     stats.contacts = k
@@ -259,7 +265,7 @@ def disabled_keys(world):
                    key=(len(world), len(world.disabled_pairs)))
 
 
-def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, horizon=0.0):
+def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, horizon=0.0, census=True):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
     ``margin`` (m) overrides ``world.settings.contact_margin``: pairs closer than it are reported
@@ -273,6 +279,9 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, 
     ``horizon`` (s): when the broad phase's pair cache is rebuilt, its fat boxes also cover each
     body's displacement over this time at its current velocity (the stepper's few steps ahead);
     the pairs found are the same whatever it is, only how often the cache is rebuilt changes.
+    ``census``: count the edge–face crossings (``DetectionStats.edge_face_hits``; a step's
+    detection does not: for polyhedra the test only counts, and costs a third of a resting box
+    pair's narrow phase).
     """
     t0 = time.perf_counter()
     margin = float(world.settings.contact_margin if margin is None else margin)
@@ -292,7 +301,7 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, 
         ia, ib = _world_pairs(world, bodies, pos, R, margin, horizon)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
-    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor, timed)
+    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor, timed, census)
 
 
 def _world_pairs(world, bodies, pos, R, margin, horizon=0.0):

@@ -10,6 +10,10 @@ over its pairs with the arguments ``KERNEL_ARGS`` and returns the number of cont
            pos (N, 3), R (N, 3, 3), margins (K,), counters (3,), # poses; each pair's margin; [vertex, edge_face, edge_hits]
            out_i (4K, 3), out_f (4K, 7)) -> rows               # (pair, feature, feature id), (point, normal, depth)
 
+``counters`` may also be ``(2,)``: then the edge–face crossings are not counted, and a kernel
+skips an edge–face test whose answer only counts (the polyhedra's: their separating-axis test
+decides the contact; a step's detection does not take the census, 1.3 µs a resting box pair).
+
 ``pair_kernels.pair_contacts`` groups a batch's pairs by type pair (``group_by_type``) and calls each
 group's kernel through ``pair_kernels.call``, all in one compiled call per detection.
 """

@@ -453,6 +453,7 @@ def mesh_mesh(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             c0 = c
             c = _crossings(VA, XB, tris, planes, p0A, t0A, p0B, t0B, nodes, boxes, perm, root[sa], root[sb], Rr, tr,
                            tol, tol, Ra, pa, P, Nn, D, F, I, c, border)
-            counters[2] += c > c0
+            if counters.shape[0] > 2:   # the census (not a step's)
+                counters[2] += c > c0
         k = emit_deepest4(out_i, out_f, k, i, P, Nn, D, F, I, c)
     return k

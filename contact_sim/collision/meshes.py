@@ -286,6 +286,7 @@ def mesh_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
                     for r in range(c):   # the normal from B to A: A moves opposite to P's way out
                         Nn[r, 0], Nn[r, 1], Nn[r, 2] = -a0, -a1, -a2
                         D[r] = depth
-            counters[2] += c > 0
+            if counters.shape[0] > 2:   # the census (not a step's)
+                counters[2] += c > 0
         k = emit_deepest4(out_i, out_f, k, i, P, Nn, D, F, I, c)
     return k

@@ -300,8 +300,8 @@ def poly_poly(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b, 
             counters[1] += 1
             # a separating axis (within the margin) means no edge can cross a face: the test (every
             # edge of one against every face of the other, 267 ms for two 1000-vertex hulls) is
-            # needed only for pairs that touch
-            if max(face_sep, esep) <= 0:
+            # needed only for pairs that touch; and only for the census (``counters (3,)``, not a step's)
+            if counters.shape[0] > 2 and max(face_sep, esep) <= 0:
                 counters[2] += edge_crosses_face(VA, EA, EA.shape[0], NB, dB, npb, fB, loops, VB) or \
                     edge_crosses_face(VB, EB, EB.shape[0], NA, dA, npa, fA, loops, VA)
         if esep > margin:
