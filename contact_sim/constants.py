@@ -31,8 +31,8 @@ SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64
                     # crossover: ~20 candidates per box)
 FAT_FRACTION = 0.2  # a fat box is the tight AABB grown by this × its largest half size
 FAT_STEPS = 8       # and stretched along the body's displacement over this many steps at its velocity
-                    # (Box2D v2's aabbMultiplier), each component at most FAT_STRETCH_MAX × its largest half size
-FAT_STRETCH_MAX = 4.0
+                    # (Box2D v2's aabbMultiplier: a falling body keeps the cache for several steps)
+FAT_STRETCH_MAX = 4.0  # each component of that stretch at most this × the box's largest half size
 
 # ---- Narrow phase (``collision``)
 TOUCH_TOLERANCE = 1e-9   # × the smaller body's size: a distance this short is touching, its direction noise
