@@ -35,7 +35,8 @@ class PairCache:
 
     The pairs are computed for *fat* boxes (each tight box grown by ``FAT_FRACTION`` of its size,
     and stretched along the displacement its body is expected to make, as Box2D v2's predictive
-    AABBs: a falling ball keeps its cache for several steps instead of one) with twice the margin. While every tight box stays inside its fat box and the margin does not
+    AABBs: a falling ball keeps its cache for several steps instead of one) with twice the
+    margin. While every tight box stays inside its fat box and the margin does not
     grow past the cached one, the cached pairs are a superset of the overlapping pairs, and one
     exact test on the tight boxes gives exactly what ``candidate_pairs`` would (a resting or slowly
     moving scene skips the sort/grid work); otherwise the cache is rebuilt from the current boxes.
