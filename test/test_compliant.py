@@ -390,3 +390,32 @@ def test_a_pose_that_presses_a_compliant_floor_counts_its_springs_work():
         if i == 0:   # the spring's own work; the step's impulses then move nothing kinematic yet
             assert ls.pose_work == pytest.approx(0.5 * k * ((d0 + 1e-3) ** 2 - d0 ** 2), rel=1e-9)
         assert w.energy() - e0 <= ls.kinematic_work + ls.pose_work + ls.rest_work_bound + 1e-12
+
+
+@pytest.mark.parametrize("on_ground", [False, True])
+def test_a_kinematic_spring_pushes_a_ball_the_same_whether_or_not_it_touches_the_ground(on_ground):
+    """A 1 kg ball at rest on the floor (no gravity), 5 cm inside a still kinematic sphere level
+    with it (the contact compliant by ``settings.kinematic_stiffness`` k, damping ratio ζ = 1): the
+    spring's row is along x and the floor's takes nothing, so the step's impulse is the soft row's
+    exact answer ``λ = T k d m / (h + m)``, ``h = T (T k/2 + 2ζ√(k m))``. Whether the sphere's own
+    overlap with the floor is a contact (``on_ground``) or not (the pair disabled) changes nothing:
+    it pushes no dynamic body (``energy.push_speed``). It once counted as a push at rest, and the push cap then held every
+    body of the solve to its start speed: the ball stayed inside a spring that did not push (fresh
+    draws, seed 20261209: test/cases/call_sequences_balls_born_deep_in_a_compliant_kinematic_sphere.yaml)."""
+    k, m, d = 1e5, 1.0, 0.05
+    w = cs.World(gravity=(0.0, 0.0, 0.0), settings=cs.Settings(dt=DT, kinematic_stiffness=k))
+    w.add_body("floor", cs.Plane(), kind="static")
+    w.add_body("pad", cs.Sphere(0.5), kind="kinematic", position=[0.0, 0.0, 0.1])
+    w.add_body("ball", cs.Sphere(0.1), mass=m, position=[0.6 - d, 0.0, 0.1])
+    if not on_ground:
+        w.disable_collisions([("floor", "pad")])
+    w.step()
+    c = w.contacts
+    pad = (c.body_a == w.index("pad")) & (c.body_b == w.index("ball")) | (c.body_a == w.index("ball")) & (
+        c.body_b == w.index("pad"))
+    assert pad.sum() == 1 and len(c) == (3 if on_ground else 2)   # and the ball on the floor
+    h = DT * (0.5 * DT * k + 2.0 * np.sqrt(k * m))
+    lam = DT * k * d * m / (h + m)
+    np.testing.assert_allclose(c.normal_impulse[pad], [lam], rtol=1e-12)
+    np.testing.assert_allclose(w.body("ball").velocity, [lam / m, 0.0, 0.0], rtol=1e-12, atol=1e-15)
+

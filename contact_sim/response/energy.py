@@ -276,15 +276,17 @@ def restitution_cap(idx, mass, particle, quat, inertia_body, kinetic0, vel_c, om
 
 
 @njit
-def push_speed(a, b, point, kinematic, pos, vel, omega):
+def push_speed(a, b, point, kinematic, dynamic, pos, vel, omega):
     """The speed (m/s) of the fastest kinematic contact point among the contacts ``a, b (K,)`` at
-    ``point (K,3)`` (the body's velocity field ``v + ω × (p − x)`` there; A's when both are
-    kinematic), −1 when no contact has a kinematic body."""
+    ``point (K,3)`` where a kinematic body meets a ``dynamic`` one (the kinematic body's velocity
+    field ``v + ω × (p − x)`` there), −1 when no contact is such a push. A kinematic body against
+    a static or another kinematic one pushes nothing: counted as a push at rest (u = 0), it capped
+    every body of the solve to its start speed, springs that release their energy included."""
     best = -1.0
     for c in range(a.shape[0]):
-        if kinematic[a[c]]:
+        if kinematic[a[c]] and dynamic[b[c]]:
             k = a[c]
-        elif kinematic[b[c]]:
+        elif kinematic[b[c]] and dynamic[a[c]]:
             k = b[c]
         else:
             continue

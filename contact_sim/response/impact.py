@@ -106,7 +106,7 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     kinetic0 = kinetic_in(bodies0, mass, particle, quat, inertia_body, vel, omega, pos, frame, code == FRAME) \
         if bounces and code != NO_FRAME else 0.0
     # where kinematic bodies push, no body ends faster than a push can make it (energy.push_cap_kernel)
-    u = push_speed(ta, tb, point[ti], kinematic, pos, vel, omega)
+    u = push_speed(ta, tb, point[ti], kinematic, dynamic, pos, vel, omega)
     pb = bodies0
     # the pushed bodies' velocities before the solve: only the push cap reads them
     v0, w0 = (vel[pb], omega[pb]) if u >= 0.0 else (vel[:0], omega[:0])

@@ -94,7 +94,7 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
     if soft.shape[0]:
         rig = np.flatnonzero(compliance == 0.0)
         ca, cb, cpoint = ca[rig], cb[rig], cpoint[rig]
-    u = push_speed(ca, cb, cpoint, kinematic, pos, vel, omega)
+    u = push_speed(ca, cb, cpoint, kinematic, dynamic, pos, vel, omega)
     if u >= 0.0:
         pb = dynamic_bodies(ca, cb, dynamic)
         vref = vel_ref[pb]
