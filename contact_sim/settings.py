@@ -62,7 +62,8 @@ class Settings(Declared):
                                 "are stopped exactly at touching)")
     split_slop: float = declare(1e-7, Number(ge=0, le="max_size", unit="m"),
                                 "m: penetrations up to this are left to the resting solve (round-off of resting "
-                                "contacts; correcting them costs a whole solve per step)")
+                                "contacts; correcting them costs a whole solve per step), and the position "
+                                "correction's solve stops once a sweep moves no contact by more than this")
     max_impacts_per_step: int = declare(8, Number(ge=1, le=10_000, integer=True),
                                         "fractional time of impact: impacts handled per step")
     contact_margin: float = declare(1e-4, Number(ge=0, le="max_size", unit="m"),

@@ -394,3 +394,43 @@ def test_position_correction_pushes_a_squeezed_body_out_at_most_at_split_max_spe
     np.testing.assert_allclose(w.body("deep").position, [0, 20, 0.5], rtol=0, atol=1e-12)
     for b in ("ball", "deep"):
         np.testing.assert_array_equal(w.body(b).velocity, [0.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("slop", [0.0, 1e-7, 1e-5])
+def test_the_correction_solve_stops_once_a_sweep_moves_no_contact_by_more_than_split_slop(slop):
+    """``correction.plan`` on a column of 12 point masses (0.1 kg), each 2 mm into the one below, the
+    lowest 2 mm into static ground, by Gauss–Seidel with the contacts listed top down (the order
+    it converges slowest in: a sweep carries the push-out one contact down). Converged, each
+    contact's push-out is ``split_beta · d / dt`` exactly, so body ``i`` moves up at ``i β d/dt``.
+    The solve stops at the first sweep whose largest impulse change ``δ`` moves no contact by more
+    than ``split_slop`` over the step (``δ · K_nn · dt``, ``K_nn`` the rows' largest): the rows a
+    contact shares a body with (two in a column) were updated by at most that after it, so every
+    contact's push-out is within ``2 · split_slop`` of its target. With ``split_slop`` 0 it runs
+    to ``tolerance`` (0 here: to a fixed point of the sweep, round-off)."""
+    from contact_sim.response import correction
+
+    n, m, d, beta, dt = 12, 0.1, 2e-3, 0.5, 1 / 240
+    c = np.arange(n)[::-1]                              # contact c: body c+1 on body c, top first
+    a, b = (c + 1).astype(np.int64), c.astype(np.int64)
+    dynamic = np.ones(n + 1, bool)
+    dynamic[0] = False                                  # the ground
+    ima = np.full(n, 1 / m)
+    imb = np.where(dynamic[b], 1 / m, 0.0)
+    dirs = np.tile(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), (n, 1, 1))
+    zero = np.zeros((n, 3, 3))
+    K = np.zeros((n, 3, 3))
+    for x in range(3):
+        K[:, x, x] = ima + imb
+    vp, wp = np.zeros((n + 1, 3)), np.zeros((n + 1, 3))
+    pen = correction.plan(a, b, np.full(n, d), dirs, zero, zero, zero, zero, ima, imb, K, np.zeros(0, bool), dynamic,
+                          beta, slop, dt, solver.SOLVER_METHODS.index("gs"), 0, 100_000, 0.0, vp, wp)
+    assert len(pen) == n
+    push = (vp[a, 2] - vp[b, 2]) * dt                  # each contact's push-out over the step (m)
+    err = np.abs(push - beta * d)
+    if slop == 0.0:
+        np.testing.assert_allclose(vp[:, 2], np.arange(n + 1) * beta * d / dt, rtol=1e-12, atol=0)
+    else:
+        assert err.max() <= 2 * slop * (1 + 1e-9)
+        assert err.max() > 0.0                          # stopped before converging
+    np.testing.assert_array_equal(vp[:, :2], 0.0)
+    np.testing.assert_array_equal(wp, 0.0)

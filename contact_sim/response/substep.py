@@ -330,7 +330,7 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     pen = np.zeros(0, np.int64)
     if first and k and counts.deepest > split_slop:
         pen = correction.plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, split_beta,
-                              dt, method, direct_max, max_iterations, tolerance, vp, wp)
+                              split_slop, dt, method, direct_max, max_iterations, tolerance, vp, wp)
     # ---- resting contact: the constant force over the rest of the step, warm started, on every
     # contact but those that just rebounded (none when every contact rebounded)
     rested = resting and k > 0 and (counts.touching > 0 or not exact_toi) \
