@@ -399,9 +399,10 @@ def test_a_kinematic_spring_pushes_a_ball_the_same_whether_or_not_it_touches_the
     spring's row is along x and the floor's takes nothing, so the step's impulse is the soft row's
     exact answer ``λ = T k d m / (h + m)``, ``h = T (T k/2 + 2ζ√(k m))``. Whether the sphere's own
     overlap with the floor is a contact (``on_ground``) or not (the pair disabled) changes nothing:
-    it pushes no dynamic body (``energy.push_speed``). It once counted as a push at rest, and the push cap then held every
-    body of the solve to its start speed: the ball stayed inside a spring that did not push (fresh
-    draws, seed 20261209: test/cases/call_sequences_balls_born_deep_in_a_compliant_kinematic_sphere.yaml)."""
+    it pushes no dynamic body (``energy.push_speed``). Counted as a push at rest, it made the push
+    cap hold every body of the solve to its start speed: the ball stayed inside a spring that did
+    not push (fresh draws, seed 20261209:
+    test/cases/call_sequences_balls_born_deep_in_a_compliant_kinematic_sphere.yaml)."""
     k, m, d = 1e5, 1.0, 0.05
     w = cs.World(gravity=(0.0, 0.0, 0.0), settings=cs.Settings(dt=DT, kinematic_stiffness=k))
     w.add_body("floor", cs.Plane(), kind="static")

@@ -52,9 +52,9 @@ def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dyn
     contact's push-out over the step by more than ``split_slop`` (m): an impulse change ``δ`` on a
     row of effective inverse mass ``K_nn`` moves its contact by ``δ·K_nn·dt``, so the impulse
     tolerance is ``split_slop / (dt · max K_nn)`` (never tighter than ``tolerance``). Penetrations
-    up to the slop are the resting solve's, not the correction's; converging the push-out finer
-    than that bought nothing, and from zero (no warm start) a settling 1000-sphere pile took all
-    ``max_iterations`` sweeps, a quarter of its step."""
+    up to the slop are the resting solve's, not the correction's, so a finer push-out buys
+    nothing, and from zero (no warm start) a settled 1000-sphere pile's correction would take
+    all ``max_iterations`` sweeps every step."""
     pen = penetrating(depth, soft, a, b, dynamic)
     p = pen.shape[0]
     if p:
@@ -69,6 +69,7 @@ def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dyn
                    imb[pen], K[pen], target, zeros, zeros, zeros, False, np.zeros((p, 3)), False, dynamic, direct_max,
                    max_iterations, tol, vp, wp, np.zeros((p, 3)))
     return pen
+
 
 def cap(ctx, pen, vp, wp):
     """``ctx.pseudo = (vp, wp)`` (N,3), the plan's solution for the penetrating contacts ``pen``,

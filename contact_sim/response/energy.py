@@ -280,8 +280,9 @@ def push_speed(a, b, point, kinematic, dynamic, pos, vel, omega):
     """The speed (m/s) of the fastest kinematic contact point among the contacts ``a, b (K,)`` at
     ``point (K,3)`` where a kinematic body meets a ``dynamic`` one (the kinematic body's velocity
     field ``v + ω × (p − x)`` there), −1 when no contact is such a push. A kinematic body against
-    a static or another kinematic one pushes nothing: counted as a push at rest (u = 0), it capped
-    every body of the solve to its start speed, springs that release their energy included."""
+    a static or another kinematic one pushes nothing (no impulse acts there); counted as a push at
+    rest (u = 0), it would hold every body of the solve to its start speed, the springs of
+    compliant contacts releasing their energy included."""
     best = -1.0
     for c in range(a.shape[0]):
         if kinematic[a[c]] and dynamic[b[c]]:
