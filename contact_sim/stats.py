@@ -13,8 +13,9 @@ class StepStats:
 
     iterations: int = 0            # solver sweeps of the last solve (1 for the active set)
     residual: float = 0.0          # largest impulse change of the last sweep (N·s)
-    unconverged: bool = False      # a solve stopped at settings.solver_iterations with an impulse still
-                                   # changing by more than settings.solver_tolerance (see residual)
+    unconverged: bool = False      # a solve stopped with an impulse still changing by more than
+                                   # settings.solver_tolerance (see residual): at settings.solver_iterations,
+                                   # or Gauss–Seidel stalled (no progress in PGS_STALL_SWEEPS sweeps)
     max_penetration: float = 0.0   # deepest overlap at the start of the step (m)
     contacts: int = 0              # contact points recorded for the step
     impacts: int = 0               # time-of-impact events handled within the step

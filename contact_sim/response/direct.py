@@ -143,7 +143,7 @@ def solve_direct(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None,
     lam, solved, residual = solve_exact(rows, vel, omega, target_n=target_n, mu_s=mu_s, mu_d=mu_d, warm=warm,
                                         compliance=compliance)
     if not solved.all():
-        return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf), False
+        return SolveResult(lam, DIRECT_MAX_ROUNDS, np.inf, True), False
     if k:
         apply(rows, vel, omega, lam)
     return SolveResult(lam, 1, residual), True

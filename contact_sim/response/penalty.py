@@ -45,7 +45,7 @@ def penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
     than ``friction_tolerance`` × the largest one or after ``iterations`` sweeps (a fixed 12 left a
     light ball squeezed between the ground and a ball 866 times heavier with a quarter of its
     springs' forces: +612 J in a step; 20 converge there). Writes ``lam (K,3)`` (zeros in).
-    Returns ``(sweeps, residual, friction sweeps)``."""
+    Returns ``(sweeps, residual, friction sweeps, the normal rows' solve stopped unconverged)``."""
     k = a.shape[0]
     target, gamma = np.empty(k), np.empty(k)
     for c in range(k):
@@ -53,11 +53,11 @@ def penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
         gamma[c] = 1.0 / (dt * (dt * stiffness + damp))
         target[c] = stiffness * depth[c] / (dt * stiffness + damp)
     zeros = np.zeros(k)
-    it, residual = solve_rows(SOFT, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma, zeros, zeros,
-                              False, np.zeros((k, 3)), False, movable, direct_max, iterations, tolerance, v_end, w_end,
-                              lam)
+    it, residual, stopped = solve_rows(SOFT, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma, zeros,
+                                       zeros, False, np.zeros((k, 3)), False, movable, direct_max, iterations, tolerance,
+                                       v_end, w_end, lam)
     sweeps = 0
     if friction and k and np.any(mu > 0.0):
         sweeps = soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma, mu, v_reg,
                                       lam, v_end, w_end, iterations, friction_tolerance)
-    return it, residual, sweeps
+    return it, residual, sweeps, stopped

@@ -120,4 +120,5 @@ class SolveResult:
     impulse: np.ndarray     # (K,3) accumulated (normal, t1, t2) impulses on A
     iterations: int
     residual: float         # largest impulse change of the last sweep (N·s)
+    unconverged: bool = False   # an iterative solve stopped above its tolerance (sweep limit, or stalled)
 

@@ -30,7 +30,7 @@ from ..settings import SOLVER_METHODS
 from . import pgs
 from .active_set import SOLVED, TOO_LARGE, islands, solve_islands
 from ..constants import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DIRECT_MAX_CONTACTS, DIRECT_MAX_ROUNDS,
-                         DIRECT_REGULARISATION)
+                         DIRECT_REGULARISATION, PGS_STALL_SWEEPS)
 from .direct import _active_set, delassus, solve_direct, solve_exact
 from .pgs import apply_ids, sweeps
 from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
@@ -41,7 +41,7 @@ __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_veloci
 
 
 def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
-          compliance=None):
+          compliance=None, stall=PGS_STALL_SWEEPS):
     """Projected Gauss–Seidel, sequential over the contacts in a compiled loop (``pgs.sweeps``),
     updating ``vel, omega (N,3)`` in place.
 
@@ -53,7 +53,8 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
     metric (kinetic friction, maximal dissipation). ``warm (K,3)`` starting impulses (applied
     first). ``compliance (K,)`` softens the normal rows to ``n·v_rel + compliance·λn ≥ target_n``
     (the implicit spring–damper of the penalty response). Sweeps stop when no impulse changed by
-    more than ``tolerance`` (N·s) or after ``iterations``. Returns ``SolveResult``.
+    more than ``tolerance`` (N·s), after ``iterations``, or after ``stall`` sweeps in a row without
+    a new smallest change (0: never; ``pgs.sweeps``). Returns ``SolveResult``.
     """
     k = len(rows.a)
     lam = np.zeros((k, 3)) if warm is None else np.array(warm, dtype=float)
@@ -70,15 +71,15 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
     v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
     w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
     c = np.ascontiguousarray
-    it, residual = pgs.sweeps(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs), c(rows.ang_a),
+    it, residual, stopped = pgs.sweeps(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs), c(rows.ang_a),
                               c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
                               c(rows.imb, dtype=float), c(rows.K), c(target_n, dtype=float), comp, mus, mud,
-                              friction, lam, v, w, int(iterations), float(tolerance))
+                                 friction, lam, v, w, int(iterations), float(tolerance), int(stall))
     if v is not vel:
         vel[...] = v
     if w is not omega:
         omega[...] = w
-    return SolveResult(lam, int(it), float(residual))
+    return SolveResult(lam, int(it), float(residual), bool(stopped))
 
 
 # ---------------------------------------------------------------------------- shared row algebra
@@ -187,7 +188,7 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
         residual = float(np.abs(delta).max())
         if residual <= tolerance:
             break
-    return SolveResult(lam, it, residual)
+    return SolveResult(lam, it, residual, residual > tolerance)
 
 
 def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, tolerance=1e-9, warm=None,
@@ -206,7 +207,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
     v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
     w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
     kinetic = mu_s is not None
-    it, residual = solve_rows(
+    it, residual, stopped = solve_rows(
         SOLVER_METHODS.index(method), c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs),
         c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
         c(rows.imb, dtype=float), c(rows.K), c(target_n, dtype=float),
@@ -219,7 +220,7 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
         vel[...] = v
     if w is not omega:
         omega[...] = w
-    return SolveResult(lam, int(it), float(residual))
+    return SolveResult(lam, int(it), float(residual), bool(stopped))
 
 
 #: ``settings.SOLVER_METHODS`` by index, as the kernels take them; ``SOFT``: the penalty response's
@@ -236,7 +237,9 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
     ``λn ≥ 0`` and Coulomb friction when ``kinetic`` and some ``mu_s > 0``; ``warm (K,3)`` the
     starting impulses (read when ``use_warm``); ``movable (N,)`` the bodies the solve moves.
     Writes the impulses into ``lam (K,3)`` (zeros in) and updates ``vel, omega (N,3)``. Returns
-    ``(sweeps, residual)``.
+    ``(sweeps, residual, unconverged)``: ``unconverged`` when an iterative solve stopped with an
+    impulse still changing by more than ``tolerance``, at ``iterations`` sweeps or stalled
+    (``pgs.sweeps``).
 
     ``auto``: the exact active set per island (``direct``) up to ``direct_max`` contacts,
     Gauss–Seidel above; a set of more than ``DIRECT_FIRST`` contacts with an island larger than
@@ -250,13 +253,13 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
     effective mass (``K = 0``)."""
     k = a.shape[0]
     if k == 0:
-        return 0, 0.0
+        return 0, 0.0, False
     n_live = 0
     for c in range(k):
         n_live += movable[a[c]] or movable[b[c]]
     if n_live < k:
         if n_live == 0:
-            return 0, 0.0
+            return 0, 0.0, False
         li = np.empty(n_live, np.int64)
         j = 0
         for c in range(k):
@@ -264,13 +267,13 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
                 li[j] = c
                 j += 1
         lam_l = np.zeros((n_live, 3))
-        it, residual = solve_rows(method, a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li], iang_b[li],
+        it, residual, stopped = solve_rows(method, a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li], iang_b[li],
                                   ima[li], imb[li], K[li], target[li], compliance[li], mu_s[li], mu_d[li], kinetic,
                                   warm[li], use_warm, movable, direct_max, iterations, tolerance, vel, omega, lam_l)
         for j in range(n_live):
             for x in range(3):
                 lam[li[j], x] = lam_l[j, x]
-        return it, residual
+        return it, residual, stopped
     order, start = islands(a, b, movable, vel.shape[0])
     if method == SOFT:
         return _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, movable,
@@ -279,12 +282,12 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
         if DIRECT_FIRST < k <= direct_max and _largest(start) > DIRECT_ISLAND_MAX:
             v0, w0 = vel.copy(), omega.copy()
             lam_g = np.zeros((k, 3))
-            it, residual = _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
+            it, residual, stopped = _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
                                          compliance, mu_s, mu_d, kinetic, warm, use_warm, movable, iterations,
                                          tolerance, vel, omega, lam_g)
-            if residual <= tolerance:
+            if not stopped:
                 lam[:] = lam_g
-                return it, residual
+                return it, residual, False
             vel[:] = v0
             omega[:] = w0
         method = DIRECT if k <= direct_max else GS
@@ -301,7 +304,7 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
         with objmode(it="int64", residual="float64"):
             it, residual = _jacobi_py(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, mu_s, mu_d,
                                       kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam)
-        return it, residual
+        return it, residual, it >= iterations and residual > tolerance
     ids = np.arange(k)
     return _sweep_ids(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
                       kinetic, warm, use_warm, iterations, tolerance, vel, omega, lam)
@@ -346,7 +349,7 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     """The active set island by island (``active_set.solve_islands``; an island larger than
     ``DIRECT_ISLAND_MAX`` or whose factorisation failed by the sparse ``direct._active_set``), the
     solved islands' impulses applied, Gauss–Seidel finishing the others (sliding friction, an
-    inconsistent set) from the start the active set left. Returns ``(sweeps, residual)``."""
+    inconsistent set) from the start the active set left. Returns ``(sweeps, residual, unconverged)``."""
     friction, mus, mud, residual, status = _islands(DIRECT_ISLAND_MAX, a, b, order, start, dirs, ang_a, ang_b, iang_a,
                                                     iang_b, ima, imb, target, compliance, mu_s, mu_d, kinetic, warm,
                                                     use_warm, vel, omega, lam)
@@ -357,10 +360,10 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
         apply_ids(big, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega)
     unfinished = _where(status, SOLVED, False)
     if unfinished.shape[0] == 0:
-        return 1, residual
-    sweeps_, res = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
+        return 1, residual, False
+    sweeps_, res, stopped = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
                               mu_s, mu_d, kinetic, lam, True, iterations, tolerance, vel, omega, lam)
-    return sweeps_, max(res, residual)
+    return sweeps_, max(res, residual), stopped
 
 
 @njit
@@ -368,7 +371,7 @@ def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, t
           iterations, tolerance, vel, omega, lam):
     """``solve_rows``' ``SOFT`` method: the active set on every island (the sparse one for an island
     too large for the dense kernel), applied only when every island solved; otherwise Gauss–Seidel
-    on all the rows from zero. Returns ``(sweeps, residual)``."""
+    on all the rows from zero. Returns ``(sweeps, residual, unconverged)``."""
     k = a.shape[0]
     zeros = np.zeros(k)
     warm = np.zeros((k, 3))
@@ -385,7 +388,7 @@ def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, t
         if np.all(status == SOLVED):
             apply_ids(np.arange(k), a, b, dirs, iang_a, iang_b, ima, imb, lam_d, vel, omega)
             lam[:] = lam_d
-            return 1, residual
+            return 1, residual, False
     return _sweep_ids(np.arange(k), a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, zeros,
                       zeros, False, warm, False, iterations, tolerance, vel, omega, lam)
 
@@ -417,12 +420,12 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
                   kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam):
     """Islands of one contact (a body touching only static geometry) exactly, by the island
     kernel; Gauss–Seidel (``pgs.sweeps``) for the coupled rest and for a single contact that
-    slides, from ``warm``. Returns ``(sweeps, residual)``."""
+    slides, from ``warm``. Returns ``(sweeps, residual, unconverged)``."""
     status = _islands(1, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
                       mu_d, kinetic, warm, use_warm, vel, omega, lam)[4]
     rest = _where(status, SOLVED, False)
     if rest.shape[0] == 0:
-        return 1, 0.0
+        return 1, 0.0, False
     for j in range(rest.shape[0]):
         for x in range(3):
             lam[rest[j], x] = 0.0
@@ -453,7 +456,7 @@ def _sweep_ids(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, targe
                warm, use_warm, iterations, tolerance, vel, omega, lam):
     """Gauss–Seidel (``solve``: the warm impulses applied, then ``pgs.sweeps``) on the contacts
     ``ids (U,)`` from ``warm[ids]`` (zero unless ``use_warm``); writes their impulses into ``lam``.
-    Returns ``(sweeps, residual)``."""
+    Returns ``(sweeps, residual, unconverged)``."""
     u = ids.shape[0]
     ua, ub = a[ids], b[ids]
     udirs, uang_a, uang_b, uiang_a, uiang_b, uK = dirs[ids], ang_a[ids], ang_b[ids], iang_a[ids], iang_b[ids], K[ids]
@@ -463,13 +466,13 @@ def _sweep_ids(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, targe
     zeros = np.zeros(u)
     if use_warm and np.any(ulam != 0.0):
         apply_ids(np.arange(u), ua, ub, udirs, uiang_a, uiang_b, uima, uimb, ulam, vel, omega)
-    it, residual = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, target[ids],
-                          compliance[ids], mu_s[ids] if friction else zeros, mu_d[ids] if friction else zeros,
-                          friction, ulam, vel, omega, iterations, tolerance)
+    it, residual, stopped = sweeps(ua, ub, udirs, uang_a, uang_b, uiang_a, uiang_b, uima, uimb, uK, target[ids],
+                                   compliance[ids], mu_s[ids] if friction else zeros, mu_d[ids] if friction else zeros,
+                                   friction, ulam, vel, omega, iterations, tolerance, PGS_STALL_SWEEPS)
     for i in range(u):
         for x in range(3):
             lam[ids[i], x] = ulam[i, x]
-    return it, residual
+    return it, residual, stopped
 
 
 def _rows_of(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, movable):

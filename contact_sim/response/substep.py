@@ -474,11 +474,10 @@ def run_penalty(ctx):
         float(st.penalty.stiffness), float(st.penalty.damping), float(st.penalty.friction_velocity), float(ctx.dt),
         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
         int(st.solver_iterations), float(st.solver_tolerance), PGS_TOLERANCE)
-    iters, residual, sweeps, kept, drift = out.tolist()
+    iters, residual, sweeps, kept, drift, stopped = out.tolist()
     ctx.iterations, ctx.residual = int(iters), residual
     # the friction solve stopped by the sweep limit, not its tolerance, counts as unconverged too
-    ctx.unconverged = (iters >= st.solver_iterations and residual > st.solver_tolerance) \
-        or sweeps >= st.solver_iterations
+    ctx.unconverged = bool(stopped) or sweeps >= st.solver_iterations
     ctx.drift += drift
     c.normal_impulse, c.friction_impulse, c.impulse = f1[0], f3[0], f3[1]
     c.relative_normal_velocity = f1[1]
@@ -497,7 +496,7 @@ def _penalty_substep(a, b, point, normal, depth, kind, pos, vel, quat, omega, pr
     """``run_penalty``'s kernel, on ``K > 0`` contacts (arrays as ``_substep``'s). Returns ``(f3
     (2,K,3), f1 (2,K), used (K,), out)``: the friction impulses and the impulses, the normal
     impulses and the approach speeds, the contacts that count (inside, or pushed), ``out = [sweeps,
-    residual, friction sweeps, used, drift]``."""
+    residual, friction sweeps, used, drift, the normal rows' solve stopped unconverged]``."""
     k, n = a.shape[0], pos.shape[0]
     # ---- velocity stage, rows
     rel_vel = np.empty((k, 3))
@@ -509,7 +508,7 @@ def _penalty_substep(a, b, point, normal, depth, kind, pos, vel, quat, omega, pr
     ima, imb = num[0], num[1]
     build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, rel_vel, dynamic, True, t1, t2, ra, rb, ang_a, ang_b,
                iang_a, iang_b, ima, imb, K, dirs)
-    f3, f1, used, out = np.empty((2, k, 3)), np.empty((2, k)), np.empty(k, np.bool_), np.zeros(5)
+    f3, f1, used, out = np.empty((2, k, 3)), np.empty((2, k)), np.empty(k, np.bool_), np.zeros(6)
     friction_impulse, impulse, normal_impulse, vn0 = f3[0], f3[1], f1[0], f1[1]
     inside = np.empty(k, np.bool_)
     for c in range(k):
@@ -524,9 +523,9 @@ def _penalty_substep(a, b, point, normal, depth, kind, pos, vel, quat, omega, pr
             v_end[i, x] = vel[i, x] + gravity_rows[i, x] * dt
     w_end = omega.copy()
     lam = np.zeros((k, 3))
-    it, residual, sweeps = penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, mu_d, kinetic,
-                                         stiffness, damping, v_reg, dt, dynamic, direct_max, iterations, tolerance,
-                                         friction_tolerance, v_end, w_end, lam)
+    it, residual, sweeps, stopped = penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, mu_d,
+                                                  kinetic, stiffness, damping, v_reg, dt, dynamic, direct_max,
+                                                  iterations, tolerance, friction_tolerance, v_end, w_end, lam)
     # ---- store: a speculative contact that did nothing is none
     kept = _store(1.0, lam, lam, False, t1, t2, normal, True, inside, normal_impulse, friction_impulse, impulse, used)
     # ---- move: bodies in contact x += dt·v⁺ (the kick, then half of gravity's kick shifted so that
@@ -551,5 +550,5 @@ def _penalty_substep(a, b, point, normal, depth, kind, pos, vel, quat, omega, pr
     for i in range(n):
         for x in range(3):
             vel[i, x] = vel[i, x] - shift[i, x]
-    out[0], out[1], out[2], out[3], out[4] = it, residual, sweeps, kept, drift
+    out[0], out[1], out[2], out[3], out[4], out[5] = it, residual, sweeps, kept, drift, stopped
     return f3, f1, used, out
