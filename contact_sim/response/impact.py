@@ -115,9 +115,10 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
         target[j] = 0.0 if touching[ti[j]] else spec_target[ti[j]]
     lam_t = np.zeros((nt, 3))
     zeros = np.zeros(nt)
-    it, residual, unconverged = solve_rows(method, ta, tb, dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti], ima[ti], imb[ti],
-                              K[ti], target, zeros, mu_s[ti], mu_d[ti], kinetic, np.zeros((nt, 3)), False, dynamic,
-                              direct_max, max_iterations, tolerance, vel, omega, lam_t)
+    it, residual, unconverged = solve_rows(method, ta, tb, dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti],
+                                           ima[ti], imb[ti], K[ti], target, zeros, mu_s[ti], mu_d[ti], kinetic,
+                                           np.zeros((nt, 3)), False, dynamic, direct_max, max_iterations, tolerance,
+                                           vel, omega, lam_t)
     scale = 1.0
     if u >= 0.0:
         scale = push_cap_kernel(pb, u, mass, particle, quat, inertia_body, v0, w0, vel_ref[pb], omega_ref[pb], vel,
@@ -140,10 +141,10 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
             target_h[j] = -e[hi[j]] * vn[hi[j]] if hit[hi[j]] else 0.0
         zeros_h = np.zeros(nh)
         lam_h = np.zeros((nh, 3))
-        it_h, residual_h, stopped_h = solve_rows(method, a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi], iang_b[hi],
-                                      ima[hi], imb[hi], K[hi], target_h, zeros_h, zeros_h, zeros_h, False,
-                                      np.zeros((nh, 3)), False, dynamic, direct_max, max_iterations, tolerance, vel,
-                                      omega, lam_h)
+        it_h, residual_h, stopped_h = solve_rows(method, a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi],
+                                                 iang_b[hi], ima[hi], imb[hi], K[hi], target_h, zeros_h, zeros_h,
+                                                 zeros_h, False, np.zeros((nh, 3)), False, dynamic, direct_max,
+                                                 max_iterations, tolerance, vel, omega, lam_h)
         unconverged = unconverged or stopped_h
         f = 1.0 if code == NO_FRAME else restitution_cap_in(bodies0, mass, particle, quat, inertia_body, kinetic0,
                                                             vel_c, omega_c, vel, omega, pos, frame, code == FRAME)

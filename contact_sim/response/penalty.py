@@ -53,9 +53,9 @@ def penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
         gamma[c] = 1.0 / (dt * (dt * stiffness + damp))
         target[c] = stiffness * depth[c] / (dt * stiffness + damp)
     zeros = np.zeros(k)
-    it, residual, stopped = solve_rows(SOFT, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma, zeros,
-                                       zeros, False, np.zeros((k, 3)), False, movable, direct_max, iterations, tolerance,
-                                       v_end, w_end, lam)
+    it, residual, stopped = solve_rows(SOFT, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma,
+                                       zeros, zeros, False, np.zeros((k, 3)), False, movable, direct_max, iterations,
+                                       tolerance, v_end, w_end, lam)
     sweeps = 0
     if friction and k and np.any(mu > 0.0):
         sweeps = soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma, mu, v_reg,

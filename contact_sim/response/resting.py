@@ -83,9 +83,9 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
                                                   smu_d, warm)
     if soft.shape[0]:   # the compliant rows: their spring's target and compliance (compliance.soft_rows)
         soft_rows(ri, K, depth, vn1, stiff, zeta, t, target, compliance)
-    it, residual, unconverged = solve_rows(method, sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK, target,
-                              compliance, smu_s, smu_d, kinetic, warm, use_warm, dynamic, direct_max, max_iterations,
-                              tolerance, v_end, w_end, lam)
+    it, residual, unconverged = solve_rows(method, sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK,
+                                           target, compliance, smu_s, smu_d, kinetic, warm, use_warm, dynamic,
+                                           direct_max, max_iterations, tolerance, v_end, w_end, lam)
     # where kinematic bodies push, no body ends faster than a push can make it (energy.push_cap_kernel),
     # measured from the impact stage's start; the push cap is the rigid contacts' answer to a
     # squeeze, a compliant one obeys its spring law (what it stores is counted: World.contact_energy)

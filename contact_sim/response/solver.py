@@ -71,10 +71,11 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
     v = vel if vel.flags.c_contiguous and vel.dtype == np.float64 else np.ascontiguousarray(vel, dtype=float)
     w = omega if omega.flags.c_contiguous and omega.dtype == np.float64 else np.ascontiguousarray(omega, dtype=float)
     c = np.ascontiguousarray
-    it, residual, stopped = pgs.sweeps(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs), c(rows.ang_a),
-                              c(rows.ang_b), c(rows.iang_a), c(rows.iang_b), c(rows.ima, dtype=float),
-                              c(rows.imb, dtype=float), c(rows.K), c(target_n, dtype=float), comp, mus, mud,
-                                 friction, lam, v, w, int(iterations), float(tolerance), int(stall))
+    it, residual, stopped = pgs.sweeps(c(rows.a, dtype=np.int64), c(rows.b, dtype=np.int64), c(rows.dirs),
+                                       c(rows.ang_a), c(rows.ang_b), c(rows.iang_a), c(rows.iang_b),
+                                       c(rows.ima, dtype=float), c(rows.imb, dtype=float), c(rows.K),
+                                       c(target_n, dtype=float), comp, mus, mud, friction, lam, v, w, int(iterations),
+                                       float(tolerance), int(stall))
     if v is not vel:
         vel[...] = v
     if w is not omega:
@@ -267,9 +268,10 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
                 li[j] = c
                 j += 1
         lam_l = np.zeros((n_live, 3))
-        it, residual, stopped = solve_rows(method, a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li], iang_b[li],
-                                  ima[li], imb[li], K[li], target[li], compliance[li], mu_s[li], mu_d[li], kinetic,
-                                  warm[li], use_warm, movable, direct_max, iterations, tolerance, vel, omega, lam_l)
+        it, residual, stopped = solve_rows(method, a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li],
+                                           iang_b[li], ima[li], imb[li], K[li], target[li], compliance[li], mu_s[li],
+                                           mu_d[li], kinetic, warm[li], use_warm, movable, direct_max, iterations,
+                                           tolerance, vel, omega, lam_l)
         for j in range(n_live):
             for x in range(3):
                 lam[li[j], x] = lam_l[j, x]
@@ -282,9 +284,9 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
         if DIRECT_FIRST < k <= direct_max and _largest(start) > DIRECT_ISLAND_MAX:
             v0, w0 = vel.copy(), omega.copy()
             lam_g = np.zeros((k, 3))
-            it, residual, stopped = _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
-                                         compliance, mu_s, mu_d, kinetic, warm, use_warm, movable, iterations,
-                                         tolerance, vel, omega, lam_g)
+            it, residual, stopped = _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
+                                                  K, target, compliance, mu_s, mu_d, kinetic, warm, use_warm, movable,
+                                                  iterations, tolerance, vel, omega, lam_g)
             if not stopped:
                 lam[:] = lam_g
                 return it, residual, False
@@ -361,8 +363,9 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
     unfinished = _where(status, SOLVED, False)
     if unfinished.shape[0] == 0:
         return 1, residual, False
-    sweeps_, res, stopped = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
-                              mu_s, mu_d, kinetic, lam, True, iterations, tolerance, vel, omega, lam)
+    sweeps_, res, stopped = _sweep_ids(unfinished, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
+                                       compliance, mu_s, mu_d, kinetic, lam, True, iterations, tolerance, vel, omega,
+                                       lam)
     return sweeps_, max(res, residual), stopped
 
 
