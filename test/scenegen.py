@@ -105,6 +105,20 @@ def flat_tile_mesh(half, n=3):
     return cs.TriMesh(np.array(tile["vertices"]), np.array(tile["faces"]))
 
 
+def random_contacts(rng, nb, k):
+    """``nb`` bodies' centres, velocities and spins ``(nb, 3)`` and ``k`` contacts between random
+    pairs of them, with random unit normals, at the pairs' midpoints, drawn from the numpy
+    generator ``rng`` in that order: the solver tests' coupled systems. Returns ``(pos, vel, omega,
+    a, b, normal, point)``."""
+    pos = rng.normal(size=(nb, 3))
+    vel, omega = rng.normal(size=(nb, 3)), rng.normal(size=(nb, 3))
+    a = rng.integers(0, nb, k)
+    b = (a + rng.integers(1, nb, k)) % nb
+    normal = rng.normal(size=(k, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return pos, vel, omega, a, b, normal, 0.5 * (pos[a] + pos[b])
+
+
 @st.composite
 def scenes(draw, max_bodies=6, responses=RESPONSES, tois=TOIS, kinematic=True, elastic=None, gravity=True,
            separated=False, kinds=SHAPES):

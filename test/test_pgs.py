@@ -10,6 +10,7 @@ import pytest
 from contact_sim import dynamics, quat
 from contact_sim.constants import PGS_STALL_SWEEPS
 from contact_sim.response import solver
+from scenegen import random_contacts
 
 LIMIT = 400
 
@@ -22,13 +23,8 @@ def _problem(seed, nb=20, k=60):
     inv_mass = 1 / rng.uniform(0.5, 3, nb)
     inv_i_body = np.stack([np.diag(1 / rng.uniform(0.05, 0.5, 3)) for _ in range(nb)])
     inv_i = dynamics.world_inverse_inertia(quat.normalize(rng.normal(size=(nb, 4))), inv_i_body)
-    pos = rng.normal(size=(nb, 3))
-    vel, omega = rng.normal(size=(nb, 3)), rng.normal(size=(nb, 3))
-    a = rng.integers(0, nb, k)
-    b = (a + rng.integers(1, nb, k)) % nb
-    n = rng.normal(size=(k, 3))
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    rows = solver.build_rows(a, b, 0.5 * (pos[a] + pos[b]), n, pos, inv_mass, inv_i, vel, omega)
+    pos, vel, omega, a, b, normal, point = random_contacts(rng, nb, k)
+    rows = solver.build_rows(a, b, point, normal, pos, inv_mass, inv_i, vel, omega)
     return rows, vel, omega
 
 

@@ -8,6 +8,7 @@ import pytest
 import contact_sim as cs
 from contact_sim import dynamics, quat
 from contact_sim.response import MassRatioWarning, solver
+from scenegen import random_contacts
 
 pytestmark = pytest.mark.exact   # quick exact-answer tests: CI runs them again without the JIT
 
@@ -147,13 +148,7 @@ def test_many_contacts_momentum_conserved():
     rng = np.random.default_rng(7)
     nb, k = 6, 15
     inv_mass, inv_i, inertia = _random_bodies(rng, nb)
-    pos = rng.normal(size=(nb, 3))
-    vel, omega = rng.normal(size=(nb, 3)), rng.normal(size=(nb, 3))
-    a = rng.integers(0, nb, k)
-    b = (a + rng.integers(1, nb, k)) % nb
-    n = rng.normal(size=(k, 3))
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    point = 0.5 * (pos[a] + pos[b])
+    pos, vel, omega, a, b, n, point = random_contacts(rng, nb, k)
     rows = solver.build_rows(a, b, point, n, pos, inv_mass, inv_i, vel, omega)
     P0 = (vel / inv_mass[:, None]).sum(0)
     L0 = (np.einsum("kij,kj->ki", inertia, omega) + np.cross(pos, vel / inv_mass[:, None])).sum(0)
