@@ -464,7 +464,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             for _ in range(substeps):
                 world.step(dt)
                 parts.append(world.contacts)
-                if world.last_solve.unconverged:   # a solve stopped at its iteration limit (diagnostics)
+                if world.last_solve.unconverged:   # a solve stopped unconverged: limit or stall (diagnostics)
                     self.counts["unconverged_steps"] += 1
         except Exception as exc:  # an engine failure (ContactSimError from its guard, or a bug) must not take the node down
             world.restore(saved)   # the bodies, time, contact cache (warm starts) and joint records

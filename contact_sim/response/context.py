@@ -50,7 +50,7 @@ class StepContext:
     records: list = field(default_factory=list)   # [(Contacts, local (k,3))] of the sub-steps
     iterations: int = 0
     residual: float = 0.0
-    unconverged: bool = False      # a solve stopped at the iteration limit, still changing (note)
+    unconverged: bool = False      # a solve stopped still changing: at the iteration limit, or stalled
     max_penetration: float = 0.0
     pseudo: tuple = None           # (vp, wp) (N,3) split-impulse pseudo-velocities
     warm_out: tuple = None         # what the contact cache keeps of the last resting solve

@@ -29,8 +29,8 @@ def impact_stage(a, b, point, normal, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     """The impacts of a sub-step on its ``K`` contacts (rows as ``rows.Rows``' arrays): writes the
     impulses ``lam (K,3)`` (zeros in) and the normal velocities after ``vn1 (K,)``, updates the
     bodies' ``vel, omega (N,3)`` and marks in ``bounced (K,)`` every contact that bounced. Returns
-    ``(sweeps, residual, unconverged)`` (a solve stopped at ``max_iterations`` with impulses still
-    changing by more than ``tolerance``).
+    ``(sweeps, residual, unconverged)`` (a solve stopped, at ``max_iterations`` or stalled, with
+    impulses still changing by more than ``tolerance``: ``solver.solve_rows``).
 
     Impacts come in rounds. The first takes the touching pairs that approach and the closing
     speculative ones, at the approach speeds recorded at preparation (``vn0``). Its impulses can

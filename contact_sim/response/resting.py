@@ -133,7 +133,7 @@ def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, vel_end, omega_end, target
     ``½λ·u_start ≤ ½|λ|·|u_start|``: the constant-force model's first-order error while the point
     moves. ``½λ·u_end`` is ``½λn·target ≤ 0`` plus ``½λn·(u_end,n − target)`` plus ``½λt·u_end,t``;
     a converged solve makes the last two zero or negative (complementarity; friction sticking or
-    opposing the slide), a solve stopped at the iteration limit may not (a body wedged between a
+    opposing the slide), a solve stopped unconverged (limit or stall) may not (a body wedged between a
     plane and a static mesh that overlaps it: opposite normals at one point, and Gauss–Seidel
     creeps along the squeeze its friction grows with). Their positive parts are counted, so the
     bound holds for whatever impulses the solve returned."""
