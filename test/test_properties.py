@@ -14,8 +14,8 @@ calls (step, set_pose, set_state, reset, detect, collide). Invariants:
   half-kicks around a turning body (``kick_error_bound``: the rotational energy those kicks move
   times the angle turned), and the linearisation of contact constraints on turning bodies
   (``linearisation_bound``: a pivoting body's centre follows the tangent, not the circle, for a
-  step: ``Σ m |g| r (|ω| dt)²/2``; a penalty spring's depth is off by the same ``r (|ω| dt)²/2``,
-  ``spring_turn_bound``), and the first-order error of the resting-contact model (a
+  step: ``Σ m |g| r (|ω| dt)²/2``; a penalty spring's depth is off by its curvature along the
+  step, ``spring_curvature_bound``), and the first-order error of the resting-contact model (a
   constant force over the step: its work on a contact point that moves during the step is right
   to within ``½|λ|·|v_point|``, ``rest_work_bound``); beyond those, 1e-9 of the scene's energy scale
   per step. Under the
@@ -166,22 +166,59 @@ def linearisation_bound(world, dt):
     return float(np.sum(world.mass[d] * np.linalg.norm(world.gravity) * ext * turn * turn) * 0.5)
 
 
-def spring_turn_bound(world, dt, omega0):
-    """Energy (J) the springs (``springs``) may gain by the same linearisation: the step computes
-    each spring's force for the depth its point reaches along the tangent, ``d − dt·v_n⁺``, but the
-    body turns on the circle, so the depth it ends with is off by up to ``δ = r (|ω| dt)²/2`` per
-    turning body (``r`` its extent; ``ω`` the larger of the spin before, ``omega0 (N,3)``, and
-    after), and ``½k(d + δ)² − ½kd² ≤ k (|d| δ + δ²/2)``, summed over the springs."""
-    from contact_sim.response.toi import _extents
+def spring_curvature_bound(world, dt, vel0, omega0):
+    """Energy (J) the springs (``springs``) may gain by the step's linearisation of their depth: the
+    step computes each spring's force for the depth its point reaches along the normal,
+    ``d − dt·v_n⁺``, a first-order guess; the depth it ends with differs by the depth's curvature
+    along the way, ``δ`` per spring (velocities the larger of before, ``vel0, omega0 (N,3)``, and
+    after):
 
+    * a body turning by ``θ = |ω|·dt`` carries what touches on a circle, not the tangent: ``L θ²/2``
+      off it, ``L`` the lever arm from its centre to the contact point, or to the centre of the
+      sphere it touches (a box turning beside a sphere swings the sphere's centre round in its
+      frame);
+    * a sphere's depth against a sphere or a box is ``r − dist`` of its centre, whose curvature is
+      at most ``1/ρ``, ``ρ`` the distance from the centre to the other sphere's centre or to the
+      box's surface: a centre moving by ``u`` relative to the other body (its own motion, the
+      other's, and the other's turning ``θ`` times the lever arm ``L``) bends the depth by
+      ``min(u²/(2ρ), 2u)`` (``dist`` moves by at most ``u``), and by ``θ·s`` more when the box
+      turns under a centre that moves by ``s`` against it (the path in the box's frame bends:
+      Coriolis); 0 against a plane. A box sunk deep in
+      a large sphere and sliding past its centre bends most (fresh draws, seed 20261240: a box at
+      70 m/s 2.9 m from a kinematic sphere's centre, its depth 0.42 m off the linear guess in one
+      step);
+
+    and ``½k(d + δ)² − ½kd² ≤ k (|d| δ + δ²/2)``, summed over the springs."""
     c, k = springs(world)
-    dyn = world.kind == 2
-    ext = np.where(np.isfinite(_extents(world)), _extents(world), 0.0)
-    w = np.maximum(np.linalg.norm(omega0, axis=1), np.linalg.norm(world.s.omega, axis=1))
-    delta = np.where(dyn, ext * (w * dt) ** 2 / 2, 0.0)
-    dc = delta[c.body_a] + delta[c.body_b]
-    d = np.abs(c.depth)
-    return float(np.sum(k * (d * dc + 0.5 * dc * dc)))
+    s, shapes = world.s, world.shapes
+    if not len(c):
+        return 0.0
+    moving = world.kind != 0
+    speed = np.where(moving, np.maximum(np.linalg.norm(vel0, axis=1), np.linalg.norm(s.vel, axis=1)), 0.0)
+    spin = np.where(moving, np.maximum(np.linalg.norm(omega0, axis=1), np.linalg.norm(s.omega, axis=1)), 0.0)
+    sphere = np.array([sh.type == "sphere" for sh in shapes])
+    radius = np.array([sh.radius if sh.type == "sphere" else 0.0 for sh in shapes])
+    total = 0.0
+    for a, b, point, depth, kk in zip(c.body_a.tolist(), c.body_b.tolist(), c.point, c.depth, k):
+        delta = 0.0
+        for x, y in ((a, b), (b, a)):
+            if sphere[x]:
+                continue   # a sphere turning about its centre keeps its surface
+            q = s.pos[y] if sphere[y] else point   # what x's turning carries round
+            delta += np.linalg.norm(q - s.pos[x]) * (spin[x] * dt) ** 2 / 2
+        for x, y in ((a, b), (b, a)):
+            if sphere[x] and shapes[y].type in ("sphere", "box"):
+                lever = np.linalg.norm(s.pos[x] - s.pos[y])
+                turn = 0.0 if sphere[y] else spin[y] * dt   # a box's frame turns under the centre
+                shift = dt * (speed[x] + speed[y])
+                u = shift + turn * lever
+                rho = lever if sphere[y] else max(radius[x] - abs(depth), 0.0)
+                # the centre's path in y's frame bends too (Coriolis): turn·shift
+                delta += (2 * u if rho <= 0.0 else min(u * u / (2 * rho), 2 * u)) + turn * shift
+                break
+        d = abs(depth)
+        total += kk * (d * delta + 0.5 * delta * delta)
+    return float(total)
 
 
 def step_checked(world, dt=None):
@@ -193,13 +230,13 @@ def step_checked(world, dt=None):
     scale = energy_scale(world)
     h = world.settings.dt if dt is None else dt
     lin = linearisation_bound(world, h)
-    omega0 = world.s.omega.copy()
+    vel0, omega0 = world.s.vel.copy(), world.s.omega.copy()
     world.step(dt)
     assert finite(world)
     ls = world.last_solve
     spring1, pairs1 = spring_energy(world)
     e1 = world.energy() + (spring1 if penalty else 0.0)
-    lin += spring_energy(world, new_since=pairs0)[0] + spring_turn_bound(world, h, omega0)
+    lin += spring_energy(world, new_since=pairs0)[0] + spring_curvature_bound(world, h, vel0, omega0)
     conservative = potential and conservative_springs(world, pairs1)
     if penalty and not conservative:
         # per-point springs that are no potential field: finite, not conserved (docs/limits.md)
