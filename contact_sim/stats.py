@@ -12,8 +12,9 @@ class StepStats:
     else did."""
 
     iterations: int = 0            # solver sweeps of the last solve (1 for the active set)
-    residual: float = 0.0          # largest impulse change of the last sweep (N·s)
-    unconverged: bool = False      # a solve stopped with an impulse still changing by more than
+    residual: float = 0.0          # m/s: the largest velocity change a row made in the last sweep, or
+                                   # how far a row of the exact active set misses its target
+    unconverged: bool = False      # a solve stopped with a velocity still changing by more than
                                    # settings.solver_tolerance (see residual): at settings.solver_iterations,
                                    # or Gauss–Seidel stalled (no progress in PGS_STALL_SWEEPS sweeps)
     max_penetration: float = 0.0   # deepest overlap at the start of the step (m)

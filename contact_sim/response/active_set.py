@@ -376,8 +376,8 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                     for d in range(3):
                         lam[ids[p], d] = y[3 * p + d]
         return UNFINISHED, math.inf
-    # the scaled residual of the solved island: the last round's products (x has not changed since,
-    # but for the sign of a zero)
+    # the residual of the solved island (m/s: how far a row's velocity misses its target): the
+    # last round's products (x has not changed since, but for the sign of a zero)
     residual = 0.0
     for i in range(n):
         s = ax[i] - rhs[i]
@@ -386,7 +386,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
             s = min(s, 0.0)
         if d != 0 and not friction:
             s = 0.0
-        residual = max(residual, abs(s) / max(A[i, i], _TINY))
+        residual = max(residual, abs(s))
         lam[ids[i // 3], d] = x[i]
     return SOLVED, residual
 
@@ -559,7 +559,7 @@ def _single(c, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, c
             s = min(s, 0.0)
         if i != 0 and not friction:
             s = 0.0
-        residual = max(residual, abs(s) / max(A[i, i], _TINY))
+        residual = max(residual, abs(s))
         lam[c, i] = vecs[3, i]
     return SOLVED, residual
 
@@ -577,8 +577,8 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     a solved island, the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``,
     ``UNFINISHED``, ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to
     the caller). With ``apply`` the solved islands' impulses are applied to ``vel, omega`` (islands
-    share no movable body, so each sees the velocities before). Returns the largest scaled
-    residual of the solved islands."""
+    share no movable body, so each sees the velocities before). Returns the largest
+    residual of the solved islands (m/s: how far a row's velocity misses its target)."""
     k = a.shape[0]
     v0 = np.empty((k, 3))
     for c in range(k):

@@ -78,7 +78,8 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
     (tangential velocity zero). Returns ``(lam (K,3), solved (K,) bool, residual)``: the impulses of
     the solved islands, and for the others (a sticking impulse outside the static cone, an
     inconsistent set, too many rounds) the start of lowest contact objective for Gauss–Seidel;
-    ``residual`` is the largest scaled row residual of the solved ones. ``vel, omega (N,3)`` are
+    ``residual`` is the largest row residual of the solved ones (m/s: how far a row's velocity
+    misses its target). ``vel, omega (N,3)`` are
     left as they are, or with ``apply_solved`` get the solved islands' impulses. ``island_max``
     (default ``DIRECT_ISLAND_MAX``) bounds the islands the kernel takes; larger ones go through the
     sparse path, or with ``sparse`` false are left unsolved (zero impulse)."""
@@ -210,5 +211,5 @@ def _active_set(rows, v0, target_n, mu_s, mu_d, warm, A=None):
     resid[:, 0] = np.where(lam[:, 0] > 0, resid[:, 0], np.minimum(resid[:, 0], 0.0))
     if not friction:
         resid[:, 1:] = 0.0
-    residual = float(np.max(np.abs(resid) / np.maximum(diag.reshape(k, 3), _TINY))) if k else 0.0
+    residual = float(np.max(np.abs(resid))) if k else 0.0
     return lam, True, residual

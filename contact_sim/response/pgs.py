@@ -130,13 +130,15 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
     warm start on entry (already applied to the velocities) and the result on return; ``vel, omega
     (N,3)`` updated in place.
 
-    Stops when a sweep changes no impulse by more than ``tolerance`` (N·s), after ``iterations``
-    sweeps, or when ``stall`` sweeps in a row (0: never) brought no new smallest change. With
-    friction the sweeps need not converge: Coulomb's cone, whose radius follows the normal impulse,
+    Stops when a sweep changes no contact's velocity by more than ``tolerance`` (m/s: each row's
+    impulse change times its effective inverse mass, the diagonal of ``K`` plus the normal row's
+    compliance, as Bullet measures its residual), after ``iterations`` sweeps, or when ``stall``
+    sweeps in a row (0: never) brought no new smallest change. With friction the sweeps need not
+    converge: Coulomb's cone, whose radius follows the normal impulse,
     makes the problem no convex program's optimality condition, and on a pile of spheres the
-    largest change settles on a plateau (about 2e-5 N·s, the same after 20 sweeps as after 1000)
+    largest change settles on a plateau (the same after 20 sweeps as after 1000: docs/limits.md)
     where each further sweep only moves impulses around the cycle. Returns ``(sweeps done, largest
-    impulse change of the last sweep, stopped above tolerance)``."""
+    velocity change of the last sweep (m/s), stopped above tolerance)``."""
     k = a.shape[0]
     # per contact, one block: K_tt⁻¹ row by row (columns 0-3), then the normal row's 1/(K_nn + c)
     # (column 4); zero where singular
@@ -187,7 +189,10 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
             lam[c, 1] = new1
             lam[c, 2] = new2
             _apply(c, ia, ib, d0, d1, d2, dirs, iang_a, iang_b, ima, imb, vel, omega)
-            residual = max(residual, abs(d0), abs(d1), abs(d2))
+            # the velocity change each row made at its own contact (m/s): |Δλ| times the row's
+            # effective inverse mass (and compliance), so the tolerance is one speed at any mass
+            residual = max(residual, abs(d0) * (K[c, 0, 0] + compliance[c]), abs(d1) * K[c, 1, 1],
+                           abs(d2) * K[c, 2, 2])
         done = it + 1
         if residual <= tolerance:
             break

@@ -119,6 +119,6 @@ def apply(rows, vel, omega, lam):
 class SolveResult:
     impulse: np.ndarray     # (K,3) accumulated (normal, t1, t2) impulses on A
     iterations: int
-    residual: float         # largest impulse change of the last sweep (N·s)
+    residual: float         # m/s: largest velocity change a row made in the last sweep (pgs.sweeps)
     unconverged: bool = False   # an iterative solve stopped above its tolerance (sweep limit, or stalled)
 

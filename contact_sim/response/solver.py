@@ -52,9 +52,9 @@ def solve(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=20, to
     taken, otherwise the impulse on the kinetic disc ``mu_d·λn`` nearest to it in the contact's
     metric (kinetic friction, maximal dissipation). ``warm (K,3)`` starting impulses (applied
     first). ``compliance (K,)`` softens the normal rows to ``n·v_rel + compliance·λn ≥ target_n``
-    (the implicit spring–damper of the penalty response). Sweeps stop when no impulse changed by
-    more than ``tolerance`` (N·s), after ``iterations``, or after ``stall`` sweeps in a row without
-    a new smallest change (0: never; ``pgs.sweeps``). Returns ``SolveResult``.
+    (the implicit spring–damper of the penalty response). Sweeps stop when no contact's velocity
+    changed by more than ``tolerance`` (m/s), after ``iterations``, or after ``stall`` sweeps in a
+    row without a new smallest change (0: never; ``pgs.sweeps``). Returns ``SolveResult``.
     """
     k = len(rows.a)
     lam = np.zeros((k, 3)) if warm is None else np.array(warm, dtype=float)
@@ -186,7 +186,7 @@ def solve_jacobi(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations
         delta = new - lam
         lam = new
         push(delta)
-        residual = float(np.abs(delta).max())
+        residual = float((np.abs(delta) * np.diagonal(ks, axis1=1, axis2=2)).max())   # m/s, as pgs.sweeps
         if residual <= tolerance:
             break
     return SolveResult(lam, it, residual, residual > tolerance)
@@ -238,8 +238,8 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
     ``λn ≥ 0`` and Coulomb friction when ``kinetic`` and some ``mu_s > 0``; ``warm (K,3)`` the
     starting impulses (read when ``use_warm``); ``movable (N,)`` the bodies the solve moves.
     Writes the impulses into ``lam (K,3)`` (zeros in) and updates ``vel, omega (N,3)``. Returns
-    ``(sweeps, residual, unconverged)``: ``unconverged`` when an iterative solve stopped with an
-    impulse still changing by more than ``tolerance``, at ``iterations`` sweeps or stalled
+    ``(sweeps, residual, unconverged)``: ``unconverged`` when an iterative solve stopped with a
+    velocity still changing by more than ``tolerance`` (m/s), at ``iterations`` sweeps or stalled
     (``pgs.sweeps``).
 
     ``auto``: the exact active set per island (``direct``) up to ``direct_max`` contacts,
