@@ -183,10 +183,9 @@ def spring_curvature_bound(world, dt, vel0, omega0):
       other's, and the other's turning ``θ`` times the lever arm ``L``) bends the depth by
       ``min(u²/(2ρ), 2u)`` (``dist`` moves by at most ``u``), and by ``θ·s`` more when the box
       turns under a centre that moves by ``s`` against it (the path in the box's frame bends:
-      Coriolis); 0 against a plane. A box sunk deep in
-      a large sphere and sliding past its centre bends most (fresh draws, seed 20261240: a box at
-      70 m/s 2.9 m from a kinematic sphere's centre, its depth 0.42 m off the linear guess in one
-      step);
+      Coriolis); 0 against a plane. A box sunk deep in a large sphere and turning past its centre
+      bends most (fresh draws, seed 20261240: a box at 75 m/s and 49 rad/s, 2.9 m from a
+      kinematic sphere's centre, its depth 0.43 m off the linear guess in one step);
 
     and ``½k(d + δ)² − ½kd² ≤ k (|d| δ + δ²/2)``, summed over the springs."""
     c, k = springs(world)
