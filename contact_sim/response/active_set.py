@@ -9,13 +9,24 @@ contact of the island that shares a movable body with it): its matrix, products 
 factor visit no block outside it (a stack's matrix is banded in detection order), so the cost
 follows the island's coupling, not its size squared or cubed; a smaller island is taken whole.
 
-The method per island is ``direct.solve_direct``'s, row for row: rows of the active contacts
-(normal, and both tangents of a contact with friction, sticking) solved by regularised Cholesky
-``(A_SS + εI) x = r`` with two steps of iterative refinement (exact to rounding for full rank,
-least-norm for redundant contacts: four points on a face); contacts with a negative normal
-impulse leave the set, satisfied-but-violated ones join, until neither happens. A sticking
-impulse outside the static cone (sliding), an inconsistent set or too many rounds leaves the
-island unfinished, with the start of lowest contact objective for Gauss–Seidel to finish from.
+The method per island is ``direct.solve_direct``'s: the rows of the active contacts (normal, and
+both tangents of a contact with friction, sticking) are solved for the least-norm impulses that
+meet them (exact to rounding for full rank; for redundant contacts, four points on a face, the
+least-norm split); contacts with a negative normal impulse leave the set, satisfied-but-violated
+ones join, until neither happens. A sticking impulse outside the static cone (sliding), an
+inconsistent set or too many rounds leaves the island unfinished, with the start of lowest contact
+objective for Gauss–Seidel to finish from.
+
+Where the active rows fix every freedom of the island's bodies (a box's four contacts with
+friction: 12 rows on 6 freedoms; a 10-box stack: 120 rows on 60) the solve is in the bodies'
+freedoms (``_island_body``): the least-norm impulses ``A⁺r = J G⁻¹ H⁻¹ M⁻¹Jᵀ r`` from the factors
+of ``G = JᵀJ`` and ``H = M⁻¹JᵀJM⁻¹`` (``6B × 6B`` for ``B`` bodies, banded along a stack), the
+Delassus matrix never formed, refined while a row misses by more than its round-off. Every
+update is ``J`` times something, so the impulses stay in the range of ``J``: the least-norm
+split to rounding (the rows' regularised solve below, ``(A_SS + εI) x = r`` with two steps of
+refinement, leaves ε's trace in it: 1e-5 of the impulses in the stack). Elsewhere (fewer active
+rows than freedoms, a freedom no active row fixes, compliant rows, an inconsistent set) the rows'
+method (``_island``) solves it.
 
 Shapes: ``K`` contacts, ``N`` bodies; rows as in ``rows.Rows``.
 """
@@ -24,7 +35,7 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..constants import DIRECT_BAND_MIN
+from ..constants import DIRECT_BAND_MIN, DIRECT_PIVOT_FRACTION, DIRECT_REFINEMENTS, DIRECT_ROUNDOFF
 from .pgs import _apply, _row_velocity
 
 _TINY = 1e-300
@@ -189,6 +200,339 @@ def _objective(A, rhs, x, n, band):
             s += A[i, j] * x[j]
         f += x[i] * (0.5 * s - rhs[i])
     return f
+
+
+#: ``_island_body``'s answer when the island is the row-space method's (``_island`` goes on)
+_ROWS = -1
+
+
+@njit
+def _number_bodies(ids, a, b, ima, imb, act, every_contact, local, listed, nb_old, first):
+    """The movable bodies of the island's contacts ``ids`` that are active (``act (m,)``, or every
+    contact with ``every_contact``) numbered in order of first appearance: ``local[body]`` (−1 for
+    the others; the ``nb_old`` bodies numbered before are cleared first), ``listed`` the bodies by
+    number, and ``first[i]`` the lowest number of a body sharing such a contact with body ``i``,
+    made never decreasing (each body's block row of the body-space matrices starts there).
+    Returns the number of bodies."""
+    for i in range(nb_old):
+        local[listed[i]] = -1
+    nb = 0
+    for p in range(ids.shape[0]):
+        if not (every_contact or act[p]):
+            continue
+        c = ids[p]
+        if ima[c] != 0.0 and local[a[c]] < 0:
+            local[a[c]] = nb
+            listed[nb] = a[c]
+            first[nb] = nb
+            nb += 1
+        if imb[c] != 0.0 and local[b[c]] < 0:
+            local[b[c]] = nb
+            listed[nb] = b[c]
+            first[nb] = nb
+            nb += 1
+    for p in range(ids.shape[0]):
+        c = ids[p]
+        if (every_contact or act[p]) and ima[c] != 0.0 and imb[c] != 0.0:
+            i = local[a[c]]
+            j = local[b[c]]
+            lo = min(i, j)
+            first[i] = min(first[i], lo)
+            first[j] = min(first[j], lo)
+    for i in range(nb - 2, -1, -1):
+        first[i] = min(first[i], first[i + 1])
+    return nb
+
+
+@njit(inline="always")
+def _row_vector(c, d, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, jv, bv):
+    """Row ``d`` of contact ``c`` in its bodies' freedoms (A's six, linear then angular, then B's):
+    the Jacobian ``jv (12,)`` (the row's velocity is ``jv · v``) and ``bv = M⁻¹ jv`` (the
+    velocity change of a unit impulse on the row)."""
+    for x in range(3):
+        jv[x], jv[3 + x], jv[6 + x], jv[9 + x] = dirs[c, d, x], ang_a[c, d, x], -dirs[c, d, x], -ang_b[c, d, x]
+        bv[x], bv[3 + x] = ima[c] * dirs[c, d, x], iang_a[c, d, x]
+        bv[6 + x], bv[9 + x] = -(imb[c] * dirs[c, d, x]), -iang_b[c, d, x]
+
+
+@njit(inline="always")
+def _body_apply(ids, rows, nr, w, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv):
+    """``dv (n,)``: the bodies' velocity change in their freedoms (6 per movable body, numbered by
+    ``local``) from the impulses ``w`` on the rows ``rows[:nr]`` (row ``3p + d``: contact
+    ``ids[p]``, direction ``d``; ``pgs._apply``'s arithmetic)."""
+    for i in range(n):
+        dv[i] = 0.0
+    for s in range(nr):
+        ws = w[s]
+        if ws == 0.0:
+            continue
+        p = rows[s] // 3
+        d = rows[s] - 3 * p
+        c = ids[p]
+        if ima[c] != 0.0:
+            base = 6 * local[a[c]]
+            for x in range(3):
+                dv[base + x] += ima[c] * (dirs[c, d, x] * ws)
+                dv[base + 3 + x] += iang_a[c, d, x] * ws
+        if imb[c] != 0.0:
+            base = 6 * local[b[c]]
+            for x in range(3):
+                dv[base + x] -= imb[c] * (dirs[c, d, x] * ws)
+                dv[base + 3 + x] -= iang_b[c, d, x] * ws
+
+
+@njit(inline="always")
+def _body_rows(ids, rows, nr, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, out):
+    """``out[s]``: the velocity of row ``rows[s]`` (as ``_body_apply``'s) for the freedoms'
+    velocities ``dv`` (``pgs._row_velocity``'s arithmetic; a body not numbered, immovable or
+    touched by no impulse, does not move)."""
+    for s in range(nr):
+        p = rows[s] // 3
+        d = rows[s] - 3 * p
+        c = ids[p]
+        t = 0.0
+        if ima[c] != 0.0 and local[a[c]] >= 0:
+            base = 6 * local[a[c]]
+            for x in range(3):
+                t += dirs[c, d, x] * dv[base + x] + ang_a[c, d, x] * dv[base + 3 + x]
+        if imb[c] != 0.0 and local[b[c]] >= 0:
+            base = 6 * local[b[c]]
+            for x in range(3):
+                t -= dirs[c, d, x] * dv[base + x] + ang_b[c, d, x] * dv[base + 3 + x]
+        out[s] = t
+
+
+@njit(inline="always")
+def _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, band, G, H, jv, bv):
+    """The lower envelopes (``band[3]``) of ``G = JᵀJ`` and ``H = (M⁻¹Jᵀ)ᵀ(M⁻¹Jᵀ)`` (``n × n``,
+    the bodies' freedoms) over the active rows ``S[:ns]``: each row adds its outer products on its
+    bodies' blocks. Returns the largest diagonal of ``A = J M⁻¹ Jᵀ`` on them (a row's ``jv · bv``)."""
+    for i in range(n):
+        for j in range(band[3, i], i + 1):
+            G[i, j] = 0.0
+            H[i, j] = 0.0
+    dmax = 0.0
+    for s in range(ns):
+        p = S[s] // 3
+        d = S[s] - 3 * p
+        c = ids[p]
+        _row_vector(c, d, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, jv, bv)
+        ba = 6 * local[a[c]] if ima[c] != 0.0 else -1
+        bb = 6 * local[b[c]] if imb[c] != 0.0 else -1
+        diag = 0.0
+        for u in range(12):
+            if (u < 6 and ba >= 0) or (u >= 6 and bb >= 0):
+                diag += jv[u] * bv[u]
+        dmax = max(dmax, diag)
+        for side in range(2):
+            base, off = (ba, 0) if side == 0 else (bb, 6)
+            if base < 0:
+                continue
+            for u in range(6):
+                for w in range(u + 1):
+                    G[base + u, base + w] += jv[off + u] * jv[off + w]
+                    H[base + u, base + w] += bv[off + u] * bv[off + w]
+        if ba >= 0 and bb >= 0:   # the block between the two bodies, below the diagonal
+            hi, lo, oh, ol = (ba, bb, 0, 6) if ba > bb else (bb, ba, 6, 0)
+            for u in range(6):
+                for w in range(6):
+                    G[hi + u, lo + w] += jv[oh + u] * jv[ol + w]
+                    H[hi + u, lo + w] += bv[oh + u] * bv[ol + w]
+    return dmax
+
+
+@njit(inline="always")
+def _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H, band, t, out):
+    """``out[:ns]``: the least-norm impulses on the active rows ``S`` whose velocity change is
+    ``r[:ns]`` (``A⁺ r`` with ``A = J M⁻¹ Jᵀ``), from the factors of ``G = JᵀJ`` and ``H = M⁻¹JᵀJM⁻¹``
+    (``_body_space``): the body impulse ``p = H⁻¹ M⁻¹Jᵀ r`` is the one whose velocity change the rows
+    see as ``r``, and ``J G⁻¹ p`` the least-norm row impulses giving it."""
+    _body_apply(ids, S, ns, r, a, b, dirs, iang_a, iang_b, ima, imb, local, n, t)
+    _cho_solve(H, n, band, t)
+    _cho_solve(G, n, band, t)
+    _body_rows(ids, S, ns, a, b, dirs, ang_a, ang_b, ima, imb, local, t, out)
+
+
+@njit
+def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, compliance, mu_s, mu_d, friction, warm,
+                 use_warm, consistency, max_rounds, lam, G, H, vecs, dofs, S, nz, act, band, local, listed, first,
+                 jv, bv, rhs_s, every, target):
+    """``_island``'s active set solved in the bodies' freedoms instead of the rows: where the active
+    rows fix every freedom of the island's ``nb`` bodies (a box's four contacts with friction, 12
+    rows on 6 freedoms; a 10-box stack's 120 rows on 60), the least-norm impulses ``A⁺ r`` come
+    from two ``6nb × 6nb`` factors (``_least_norm``) instead of the ``3m × 3m`` Delassus matrix,
+    which is never formed (every product goes through the bodies: ``_body_apply``, ``_body_rows``).
+    The same rounds, tests and results as ``_island``; returns ``(_ROWS, 0)`` when the island is
+    the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
+    row fixes (a factor's pivot below ``DIRECT_PIVOT_FRACTION`` of its diagonal), or active rows that
+    cannot all hold (``_island`` then decides)."""
+    m = ids.shape[0]
+    n3 = 3 * m
+    for p in range(m):
+        if compliance[ids[p]] != 0.0:
+            return _ROWS, 0.0
+    residual = 0.0
+    rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
+    t, dv, diag = dofs[0], dofs[1], dofs[2]
+    rmax = 0.0
+    for p in range(m):
+        c = ids[p]
+        for d in range(3):
+            rhs[3 * p + d] = -v0[c, d]
+        rhs[3 * p] += target[c]
+        act[p] = v0[c, 0] <= target[c] or (use_warm and warm[c, 0] > 0.0)
+    for i in range(n3):
+        rmax = max(rmax, abs(rhs[i]))
+    tol = 1e-12 + 1e-9 * rmax
+    converged = False
+    status = UNFINISHED
+    nb = 0
+    n = 0
+    for _ in range(max_rounds + m // 4):
+        ns = 0
+        for p in range(m):
+            if act[p]:
+                S[ns] = 3 * p
+                ns += 1
+                if friction and mu_s[ids[p]] > 0.0:
+                    S[ns] = 3 * p + 1
+                    S[ns + 1] = 3 * p + 2
+                    ns += 2
+        x[:n3] = 0.0
+        # the freedoms: the bodies the active contacts touch (a body touched by none gets no impulse)
+        nb = _number_bodies(ids, a, b, ima, imb, act, False, local, listed, nb, first)
+        n = 6 * nb
+        if ns:
+            if ns < n:   # fewer rows than freedoms: some freedom is free
+                status = _ROWS
+                break
+            # the envelope (band[3]: a row's first column; band[5]: the last row reaching a column)
+            for i in range(n):
+                band[3, i] = 6 * first[i // 6]
+                band[5, i] = i
+            for i in range(n):
+                band[5, band[3, i]] = max(band[5, band[3, i]], i)
+            for j in range(1, n):
+                band[5, j] = max(band[5, j], band[5, j - 1])
+            dmax = _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, band, G,
+                                  H, jv, bv)
+            for i in range(n):
+                diag[i] = G[i, i]
+            ok = _cholesky(G, n, nz, band)
+            for i in range(n):
+                ok = ok and G[i, i] * G[i, i] >= DIRECT_PIVOT_FRACTION * diag[i]
+                diag[i] = H[i, i]
+            ok = ok and _cholesky(H, n, nz, band)
+            for i in range(n):
+                ok = ok and H[i, i] * H[i, i] >= DIRECT_PIVOT_FRACTION * diag[i]
+            if not ok:
+                status = _ROWS
+                break
+            for s in range(ns):
+                rhs_s[s] = rhs[S[s]]
+            _least_norm(ids, S, ns, rhs_s, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H,
+                        band, t, y)
+            # a row's velocity sums terms of up to its diagonal times the largest impulse: its round-off
+            scale = rmax
+            for s in range(ns):
+                scale = max(scale, dmax * abs(y[s]))
+            for refine in range(DIRECT_REFINEMENTS + 1):
+                # the rows' velocities (all rows: the set's tests read them too); while an active row
+                # misses by more than round-off, the miss is solved again (iterative refinement)
+                _body_apply(ids, S, ns, y, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv)
+                _body_rows(ids, every, n3, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, ax)
+                worst = 0.0
+                for s in range(ns):
+                    r[s] = rhs_s[s] - ax[S[s]]
+                    worst = max(worst, abs(r[s]))
+                if worst <= DIRECT_ROUNDOFF * scale or refine == DIRECT_REFINEMENTS:
+                    break
+                _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H,
+                            band, t, r)
+                for s in range(ns):
+                    y[s] += r[s]
+            for s in range(ns):
+                x[S[s]] = y[s]
+        else:
+            for i in range(n3):
+                ax[i] = 0.0
+        if ns:
+            worst = 0.0
+            for i in range(ns):
+                worst = max(worst, abs(ax[S[i]] - rhs[S[i]]))
+            if worst > consistency * (rmax + _TINY):
+                status = _ROWS   # inconsistent (or a factor too poor to tell): the rows' method decides
+                break
+        change = False
+        for p in range(m):
+            if act[p] and x[3 * p] < 0.0:
+                act[p] = False
+                change = True
+            elif not act[p] and v0[ids[p], 0] + ax[3 * p] < target[ids[p]] - tol:
+                act[p] = True
+                change = True
+        if not change:
+            converged = True
+            status = SOLVED
+            break
+    if status == _ROWS:
+        for i in range(nb):
+            local[listed[i]] = -1
+        return _ROWS, 0.0
+    for p in range(m):
+        c = ids[p]
+        x[3 * p] = max(x[3 * p], 0.0)
+        if friction:
+            mag = math.sqrt(x[3 * p + 1] ** 2 + x[3 * p + 2] ** 2)
+            if mag > mu_s[c] * x[3 * p] * (1 + 1e-12) + 1e-300:
+                converged = False
+                scale = mu_d[c] * x[3 * p] / max(mag, _TINY)
+                x[3 * p + 1] *= scale
+                x[3 * p + 2] *= scale
+        else:
+            x[3 * p + 1] = 0.0
+            x[3 * p + 2] = 0.0
+    if not converged:
+        # as _island: Gauss–Seidel starts from the candidate of lowest objective ½ x·Ax − x·rhs
+        best = 0.0
+        for k in range(2):
+            if k == 1:
+                if not use_warm:
+                    break
+                for p in range(m):
+                    for d in range(3):
+                        x[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
+                nb = _number_bodies(ids, a, b, ima, imb, act, True, local, listed, nb, first)
+                n = 6 * nb
+            _body_apply(ids, every, n3, x, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv)
+            _body_rows(ids, every, n3, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, ax)
+            f = 0.0
+            for i in range(n3):
+                f += x[i] * (0.5 * ax[i] - rhs[i])
+            if f < best:
+                best = f
+                for p in range(m):
+                    for d in range(3):
+                        lam[ids[p], d] = x[3 * p + d]
+            elif k == 0:
+                for p in range(m):
+                    for d in range(3):
+                        lam[ids[p], d] = 0.0
+        for i in range(nb):
+            local[listed[i]] = -1
+        return UNFINISHED, math.inf
+    for i in range(n3):
+        s = ax[i] - rhs[i]
+        d = i % 3
+        if d == 0 and not (x[i] > 0.0):
+            s = min(s, 0.0)
+        if d != 0 and not friction:
+            s = 0.0
+        residual = max(residual, abs(s))
+        lam[ids[i // 3], d] = x[i]
+    for i in range(nb):
+        local[listed[i]] = -1
+    return SOLVED, residual
 
 
 @njit
@@ -595,6 +939,16 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     rows = np.empty((2, n_max), np.int64)
     S, nz, act = rows[0], rows[1], np.empty(m_max, np.bool_)
     band = np.empty((6, n_max + 1), np.int64)
+    # the body-space method's (_island_body): freedoms' vectors (6 for each of up to two bodies a
+    # contact), the bodies' numbering, a row's Jacobian and velocity change
+    dofs = np.empty((3, 4 * n_max))
+    rhs_s = np.empty(n_max)
+    every = np.arange(n_max)
+    local = np.full(vel.shape[0], -1, np.int64)
+    numbering = np.empty((2, 2 * m_max + 1), np.int64)
+    listed, first = numbering[0], numbering[1]
+    entries = np.empty((2, 12))
+    jv, bv = entries[0], entries[1]
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
@@ -604,9 +958,13 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
             st, res = _single(ids[0], a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s,
                               mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S)
         else:
-            st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
-                              mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,
-                              A, sub, L, vecs, S, nz, act, band)
+            st, res = _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, compliance, mu_s, mu_d,
+                                   friction, warm, use_warm, consistency, max_rounds, lam, A, sub, vecs, dofs, S, nz,
+                                   act, band, local, listed, first, jv, bv, rhs_s, every, target)
+            if st == _ROWS:
+                st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
+                                  mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,
+                                  A, sub, L, vecs, S, nz, act, band)
         if st == SOLVED:
             residual = max(residual, res)
             if apply:
