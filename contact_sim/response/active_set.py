@@ -345,8 +345,8 @@ def _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, im
 def _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H, band, t, out):
     """``out[:ns]``: the least-norm impulses on the active rows ``S`` whose velocity change is
     ``r[:ns]`` (``A⁺ r`` with ``A = J M⁻¹ Jᵀ``), from the factors of ``G = JᵀJ`` and ``H = M⁻¹JᵀJM⁻¹``
-    (``_body_space``): the body impulse ``p = H⁻¹ M⁻¹Jᵀ r`` is the one whose velocity change the rows
-    see as ``r``, and ``J G⁻¹ p`` the least-norm row impulses giving it."""
+    (``_body_matrices``): the body impulse ``p = H⁻¹ M⁻¹Jᵀ r`` is the one whose velocity change the
+    rows see as ``r``, and ``J G⁻¹ p`` the least-norm row impulses giving it."""
     _body_apply(ids, S, ns, r, a, b, dirs, iang_a, iang_b, ima, imb, local, n, t)
     _cho_solve(H, n, band, t)
     _cho_solve(G, n, band, t)
@@ -362,8 +362,9 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     rows on 6 freedoms; a 10-box stack's 120 rows on 60), the least-norm impulses ``A⁺ r`` come
     from two ``6nb × 6nb`` factors (``_least_norm``) instead of the ``3m × 3m`` Delassus matrix,
     which is never formed (every product goes through the bodies: ``_body_apply``, ``_body_rows``).
-    The same rounds, tests and results as ``_island``; returns ``(_ROWS, 0)`` when the island is
-    the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
+    The same rounds and tests as ``_island`` (its answer to round-off, and the least-norm split
+    exactly where ``_island``'s regularisation leaves a trace); returns ``(_ROWS, 0)`` when the
+    island is the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
     row fixes (a factor's pivot below ``DIRECT_PIVOT_FRACTION`` of its diagonal), or active rows that
     cannot all hold (``_island`` then decides)."""
     m = ids.shape[0]
