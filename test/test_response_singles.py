@@ -307,49 +307,6 @@ def test_body_space_solve_reads_only_what_it_wrote(seed, layers):
 
 
 @pytest.mark.exact
-def test_an_island_with_a_free_freedom_is_the_rows_method():
-    """A box on one edge (two contacts with friction: 6 rows on 6 freedoms, but it can turn about
-    the edge), a frictionless box on its face (4 rows on 6 freedoms) and a stack whose second face
-    separates (the three boxes above it float: their common motion is fixed by no row): the
-    body-space solve declines each (``_ROWS``, ``local`` handed back −1), and ``solve_islands``
-    gives the rows' method's impulses (``_island``'s), bit for bit."""
-    from contact_sim.constants import DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
-    from contact_sim.response.rows import Rows
-
-    rows, vel, omega = _box_stack(1, seed=4)
-    edge = np.flatnonzero(rows.ra[:, 0] < 0)   # the two contacts of the edge x = −h
-    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
-    chain, chain_vel, chain_omega = _box_stack(4, seed=4)
-    chain_vel[2, 2] = chain_vel[1, 2] + 0.05   # the second box leaves the first
-    cases = ((Rows(**{f: np.ascontiguousarray(getattr(rows, f)[edge]) for f in fields}, movable=rows.movable), 0.6,
-              vel, omega), (rows, 0.0, vel, omega), (chain, 0.6, chain_vel, chain_omega))
-    for sub, mu, vel, omega in cases:
-        k = len(sub)
-        a, b = sub.a.astype(np.int64), sub.b.astype(np.int64)
-        v0 = solver.row_velocity(sub, vel, omega)
-        mus, target = np.full(k, mu), np.zeros(k)
-        ws = _body_space_workspace(k, len(vel))
-        status, _, _ = _island_body(sub, v0, target, mus, ws)
-        assert status == active_set._ROWS and np.all(ws["local"] == -1)
-        n = 3 * k
-        mats, vecs = np.empty((3, n, n)), np.empty((5, n))
-        lam_rows = np.zeros((k, 3))
-        st_rows, res_rows = active_set._island(
-            np.arange(k), a, b, sub.dirs, sub.ang_a, sub.ang_b, sub.iang_a, sub.iang_b, sub.ima, sub.imb, v0, target,
-            np.zeros(k), mus, mus, mu > 0, np.zeros((k, 3)), False, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
-            DIRECT_MAX_ROUNDS, lam_rows, mats[0], mats[1], mats[2], vecs, np.empty(n, np.int64),
-            np.empty(n, np.int64), np.empty(k, bool), np.empty((6, n + 1), np.int64))
-        order, start = active_set.islands(a, b, sub.movable, len(vel))
-        lam, status_k = np.zeros((k, 3)), np.empty(k, np.int64)
-        res = active_set.solve_islands(a, b, order, start, sub.dirs, sub.ang_a, sub.ang_b, sub.iang_a, sub.iang_b,
-                                       sub.ima, sub.imb, target, np.zeros(k), mus, mus, mu > 0, np.zeros((k, 3)), False,
-                                       constants.DIRECT_ISLAND_MAX, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
-                                       DIRECT_MAX_ROUNDS, vel.copy(), omega.copy(), False, lam, status_k)
-        assert len(start) == 2 and np.all(status_k == st_rows)
-        # (the kernel computes the rows' velocities itself: the residual may differ in its last bits)
-        assert lam.tobytes() == lam_rows.tobytes() and (abs(res - res_rows) < 1e-15 or st_rows != active_set.SOLVED)
-
-@pytest.mark.exact
 def test_islands_group_contacts_through_movable_bodies():
     """Contacts join an island through a movable body, never through a static one; a contact of
     two immovable bodies is its own island; islands come in the order of their first contact."""
@@ -401,3 +358,155 @@ def test_rows_apply_kernel_equals_the_numpy_form_bit_for_bit():
         np.add.at(w1, b, -np.einsum("kd,kdi->ki", lam, rows.iang_b))
         R.apply(rows, vel, omega, lam)
         assert np.array_equal(vel, v1) and np.array_equal(omega, w1)
+
+
+def _random_chain(seed, bodies, square=False):
+    """A chain of ``bodies`` rigid bodies on a static ground (body 0), each touching the one below
+    (or the ground) through a random, tilted normal, with random masses (0.1–10 kg) and random full
+    inertia tensors, each faster down than the one below: in no axis-aligned or symmetric
+    arrangement. The contacts are 3–5 random points (some then leave the set) or, ``square``, the
+    corners of a randomly turned square centred under the body (every face stays pressed)."""
+    rng = np.random.default_rng(seed)
+    n = bodies + 1
+    pos = np.zeros((n, 3))
+    pos[1:, 2] = 0.3 * np.arange(1, n)
+    inv_mass = np.r_[0.0, 1.0 / rng.uniform(0.1, 10.0, bodies)]
+    inv_inertia = np.zeros((n, 3, 3))
+    for i in range(1, n):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        inv_inertia[i] = q @ np.diag(1.0 / rng.uniform(0.01, 1.0, 3)) @ q.T
+    vel = rng.normal(0, 0.05, (n, 3))
+    vel[0] = 0.0
+    vel[1:, 2] = -0.2 * np.arange(1, n)
+    omega = rng.normal(0, 0.05, (n, 3))
+    omega[0] = 0.0
+    if square:
+        vel[1:, :2] = 0.0
+        omega[:] = 0.0
+    a, b, point, normal = [], [], [], []
+    for i in range(1, n):
+        nrm = np.array([*rng.normal(0, 0.2, 2), 1.0])
+        nrm /= np.linalg.norm(nrm)
+        if square:
+            u = np.cross(nrm, [1.0, 0.0, 0.0])
+            u /= np.linalg.norm(u)
+            v = np.cross(nrm, u)
+            turn = rng.uniform(0, np.pi)
+            u, v = np.cos(turn) * u + np.sin(turn) * v, -np.sin(turn) * u + np.cos(turn) * v
+            offsets = [0.1 * (su * u + sv * v) - 0.15 * nrm for su in (-1, 1) for sv in (-1, 1)]
+        else:
+            offsets = [np.array([*rng.uniform(-0.15, 0.15, 2), -0.15]) for _ in range(rng.integers(3, 6))]
+        for off in offsets:
+            a.append(i)
+            b.append(i - 1)
+            point.append(pos[i] + off)
+            normal.append(nrm)
+    return (solver.build_rows(np.array(a), np.array(b), np.array(point), np.array(normal), pos, inv_mass,
+                              inv_inertia, vel, omega), vel, omega)
+
+
+def _both_methods(rows, vel, omega, mu):
+    """The island ``rows`` (one island) solved by ``solve_islands`` (the body-space method where it
+    takes it) and by the rows' method alone (``_island``), with friction ``mu``: ``(body-space
+    status, solve_islands' (status, impulses), _island's (status, impulses), v0)``."""
+    from contact_sim.constants import DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
+
+    k = len(rows)
+    a, b = rows.a.astype(np.int64), rows.b.astype(np.int64)
+    v0 = solver.row_velocity(rows, vel, omega)
+    mus, target = np.full(k, mu), np.zeros(k)
+    order, start = active_set.islands(a, b, rows.movable, len(vel))
+    assert len(start) == 2
+    lam, status = np.zeros((k, 3)), np.empty(k, np.int64)
+    active_set.solve_islands(a, b, order, start, rows.dirs, rows.ang_a, rows.ang_b, rows.iang_a, rows.iang_b, rows.ima,
+                             rows.imb, target, np.zeros(k), mus, mus, mu > 0, np.zeros((k, 3)), False,
+                             constants.DIRECT_ISLAND_MAX, DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS,
+                             vel.copy(), omega.copy(), False, lam, status)
+    n = 3 * k
+    mats, vecs = np.empty((3, n, n)), np.empty((5, n))
+    lam_rows = np.zeros((k, 3))
+    st_rows, _ = active_set._island(
+        np.arange(k), a, b, rows.dirs, rows.ang_a, rows.ang_b, rows.iang_a, rows.iang_b, rows.ima, rows.imb, v0,
+        target, np.zeros(k), mus, mus, mu > 0, np.zeros((k, 3)), False, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
+        DIRECT_MAX_ROUNDS, lam_rows, mats[0], mats[1], mats[2], vecs, np.empty(n, np.int64), np.empty(n, np.int64),
+        np.empty(k, bool), np.empty((6, n + 1), np.int64))
+    ws = _body_space_workspace(k, len(vel))
+    st_body, _, _ = _island_body(rows, v0, target, mus, ws)
+    assert np.all(ws["local"] == -1)
+    return st_body, (status[0], lam), (st_rows, lam_rows), v0
+
+
+def _check_body_answer(rows, vel, omega, mu, least_norm=1e-10):
+    """``_both_methods``' answers agree: the same status, and where it is solved the same
+    velocities after to round-off (where the body-space method declined, ``solve_islands`` runs the
+    rows' method itself, on the rows' velocities it computes: the same but for their last bits);
+    where the body-space method solved, zero impulse on the contacts that do not push and the
+    least-norm impulses on those that do, to ``least_norm`` of the largest (LAPACK's
+    pseudo-inverse of their dense Delassus block). Returns the body-space status."""
+    st_body, (status, lam), (st_rows, lam_rows), v0 = _both_methods(rows, vel, omega, mu)
+    assert status == st_rows and st_body in (status, active_set._ROWS)
+    if status != active_set.SOLVED:
+        return st_body
+    after = []
+    for x in (lam, lam_rows):
+        v, w = vel.copy(), omega.copy()
+        solver.apply(rows, v, w, x)
+        after.append(np.concatenate([v, w]))
+    speed = np.abs(after[1]).max() + np.abs(np.concatenate([vel, omega])).max()
+    assert np.abs(after[0] - after[1]).max() <= 1e-12 * speed
+    if st_body == active_set._ROWS:
+        return st_body
+    push = lam[:, 0] > 0
+    assert push.any() and np.all(lam[~push] == 0)
+    S = np.flatnonzero(np.repeat(push, 3) & np.tile([True, mu > 0, mu > 0], len(rows)))
+    A = _dense_delassus(rows, len(vel))[np.ix_(S, S)]
+    ref = np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (-v0).ravel()[S]
+    assert np.abs(lam.ravel()[S] - ref).max() <= least_norm * np.abs(ref).max()
+    return st_body
+
+
+@pytest.mark.exact
+def test_fewer_rows_than_freedoms_is_the_rows_method():
+    """A frictionless box on its face (4 normal rows on 6 freedoms): the rows' system is the
+    smaller, the body-space method declines at once, and ``solve_islands`` gives the rows'
+    impulses."""
+    rows, vel, omega = _box_stack(1, seed=4)
+    assert _check_body_answer(rows, vel, omega, 0.0) == active_set._ROWS
+
+
+@pytest.mark.exact
+def test_a_free_freedom_is_the_rows_method():
+    """A box pressed on one edge (two sticking contacts: 6 rows on 6 freedoms, but it turns about
+    the edge freely) and a 4-box stack whose second face separates (the three boxes above it float:
+    their common motion is fixed by no row): ``G = JᵀJ`` is singular (a pivot below
+    ``DIRECT_PIVOT_FRACTION`` of its diagonal), the body impulse is not unique, and the
+    body-space method declines; ``solve_islands`` gives the rows' answer."""
+    from contact_sim.response.rows import Rows
+
+    rows, vel, omega = _box_stack(1, seed=4)
+    vel = _pressed(vel, 1)
+    edge = np.flatnonzero(rows.ra[:, 0] < 0)   # the two contacts of the edge x = −h
+    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
+    edge_rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[edge]) for f in fields}, movable=rows.movable)
+    assert _check_body_answer(edge_rows, vel, omega, 0.6) == active_set._ROWS
+    chain, chain_vel, chain_omega = _box_stack(4, seed=4)
+    chain_vel = _pressed(chain_vel, 4)
+    chain_vel[2, 2] = chain_vel[1, 2] + 0.05   # the second box leaves the first
+    assert _check_body_answer(chain, chain_vel, chain_omega, 0.6) == active_set._ROWS
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("square", [False, True])
+@pytest.mark.parametrize("seed", range(12))
+def test_body_space_answer_on_random_chains(seed, square):
+    """Random chains (1–6 bodies, tilted faces, masses 100× apart, full inertia tensors), with
+    friction that holds and without: where the body-space method takes one, its answer is the rows'
+    method's to round-off and the least-norm one to 1e-10; where it declines (a body left on two
+    contacts turns about them), ``solve_islands`` gives the rows' answer (``_check_body_answer``).
+    It takes every chain of pressed square faces with friction (solved, or unfinished where the
+    sticking impulses leave the cone, as the rows' method finds too)."""
+    rows, vel, omega = _random_chain(seed, 1 + seed % 6, square)
+    taken = _check_body_answer(rows, vel, omega, 1.5)
+    _check_body_answer(rows, vel, omega, 0.0)
+    if square:
+        assert taken != active_set._ROWS
