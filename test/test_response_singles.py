@@ -97,6 +97,17 @@ def _box_stack(layers, seed=0):
     return rows, vel, omega
 
 
+def _after(rows, vel, omega, *impulses):
+    """The bodies' velocities ``(2N·3,)`` (linear, then angular) after each of ``impulses`` on
+    ``rows``, from ``vel, omega``."""
+    out = []
+    for x in impulses:
+        v, w = vel.copy(), omega.copy()
+        solver.apply(rows, v, w, x)
+        out.append(np.concatenate([v, w]).ravel())
+    return out
+
+
 @pytest.mark.exact
 @pytest.mark.parametrize("shuffled", [False, True])
 @pytest.mark.parametrize("mu", [0.0, 0.6])
@@ -183,11 +194,7 @@ def test_island_solve_reads_only_what_it_wrote(seed, layers):
         False, DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, A, sub, L, vecs, S, nz, act, band)
     ref, ok, _ = direct._active_set(rows, v0, target, mus, mus, None)
     assert status == active_set.SOLVED and ok and residual < 1e-9
-    after = []
-    for x in (lam, ref):
-        v, w = vel.copy(), omega.copy()
-        solver.apply(rows, v, w, x)
-        after.append(np.concatenate([v, w]))
+    after = _after(rows, vel, omega, lam, ref)
     assert np.allclose(after[0], after[1], rtol=0, atol=1e-12)
 
 
@@ -298,11 +305,7 @@ def test_body_space_solve_reads_only_what_it_wrote(seed, layers):
     ref, ok, _ = direct._active_set(rows, v0, target, mus, mus, None)
     assert status == active_set.SOLVED and ok and residual < 1e-14
     assert np.all(ws["local"] == -1)
-    after = []
-    for x in (lam, ref):
-        v, w = vel.copy(), omega.copy()
-        solver.apply(rows, v, w, x)
-        after.append(np.concatenate([v, w]))
+    after = _after(rows, vel, omega, lam, ref)
     assert np.allclose(after[0], after[1], rtol=0, atol=1e-12)
 
 
@@ -447,11 +450,7 @@ def _check_body_answer(rows, vel, omega, mu, least_norm=1e-10):
     assert status == st_rows and st_body in (status, active_set._ROWS)
     if status != active_set.SOLVED:
         return st_body
-    after = []
-    for x in (lam, lam_rows):
-        v, w = vel.copy(), omega.copy()
-        solver.apply(rows, v, w, x)
-        after.append(np.concatenate([v, w]))
+    after = _after(rows, vel, omega, lam, lam_rows)
     speed = np.abs(after[1]).max() + np.abs(np.concatenate([vel, omega])).max()
     assert np.abs(after[0] - after[1]).max() <= 1e-12 * speed
     if st_body == active_set._ROWS:

@@ -202,6 +202,97 @@ def _objective(A, rhs, x, n, band):
     return f
 
 
+@njit(inline="always")
+def _start(ids, v0, target, warm, use_warm, rhs, act):
+    """An island's right-hand side ``rhs (3m,)`` (each row's velocity change to its target: ``−v0``,
+    plus the normal row's target) and its first active set ``act (m,)``: every contact that is not
+    separating (a resting stack starts with all its layers active: only the approaching ones would
+    add one layer per round), or that pushed in the warm start. Returns the largest ``|rhs|``."""
+    m = ids.shape[0]
+    for p in range(m):
+        c = ids[p]
+        for d in range(3):
+            rhs[3 * p + d] = -v0[c, d]
+        rhs[3 * p] += target[c]
+        act[p] = v0[c, 0] <= target[c] or (use_warm and warm[c, 0] > 0.0)
+    rmax = 0.0
+    for i in range(3 * m):
+        rmax = max(rmax, abs(rhs[i]))
+    return rmax
+
+
+@njit(inline="always")
+def _active_rows(ids, act, friction, mu_s, S):
+    """The rows of the active contacts into ``S``: the normal row, and both tangents of a contact
+    with friction (sticking). Returns how many."""
+    ns = 0
+    for p in range(ids.shape[0]):
+        if act[p]:
+            S[ns] = 3 * p
+            ns += 1
+            if friction and mu_s[ids[p]] > 0.0:
+                S[ns] = 3 * p + 1
+                S[ns + 1] = 3 * p + 2
+                ns += 2
+    return ns
+
+
+@njit(inline="always")
+def _next_set(ids, act, x, ax, v0, target, tol):
+    """The active set's change after a round (``x`` its impulses, ``ax`` their velocity change): a
+    contact pulling (negative normal impulse) leaves, one left out that its pushing neighbours
+    drive into its target (by more than ``tol``) joins. Returns whether any changed."""
+    change = False
+    for p in range(ids.shape[0]):
+        if act[p] and x[3 * p] < 0.0:
+            act[p] = False
+            change = True
+        elif not act[p] and v0[ids[p], 0] + ax[3 * p] < target[ids[p]] - tol:
+            act[p] = True
+            change = True
+    return change
+
+
+@njit(inline="always")
+def _into_cone(ids, x, friction, mu_s, mu_d):
+    """The island's answer ``x (3m,)`` made admissible: no pulling normal impulse, a sticking
+    impulse outside the static cone scaled onto the kinetic one (sliding: the set is then not the
+    answer), no tangential impulse without friction. Returns whether every contact was inside."""
+    inside = True
+    for p in range(ids.shape[0]):
+        c = ids[p]
+        x[3 * p] = max(x[3 * p], 0.0)
+        if friction:
+            mag = math.sqrt(x[3 * p + 1] ** 2 + x[3 * p + 2] ** 2)
+            if mag > mu_s[c] * x[3 * p] * (1 + 1e-12) + 1e-300:
+                inside = False
+                scale = mu_d[c] * x[3 * p] / max(mag, _TINY)
+                x[3 * p + 1] *= scale
+                x[3 * p + 2] *= scale
+        else:
+            x[3 * p + 1] = 0.0
+            x[3 * p + 2] = 0.0
+    return inside
+
+
+@njit(inline="always")
+def _solved(ids, x, ax, rhs, friction, lam):
+    """A solved island's impulses ``x`` into ``lam``'s rows of ``ids``. Returns its residual (m/s:
+    how far a row's velocity, ``ax − rhs`` from the last round's products, misses its target; a
+    normal row that does not push only where it approaches, a tangent only with friction)."""
+    residual = 0.0
+    for i in range(3 * ids.shape[0]):
+        s = ax[i] - rhs[i]
+        d = i % 3
+        if d == 0 and not (x[i] > 0.0):
+            s = min(s, 0.0)
+        if d != 0 and not friction:
+            s = 0.0
+        residual = max(residual, abs(s))
+        lam[ids[i // 3], d] = x[i]
+    return residual
+
+
 #: ``_island_body``'s answer when the island is the row-space method's (``_island`` goes on)
 _ROWS = -1
 
@@ -372,33 +463,16 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     for p in range(m):
         if compliance[ids[p]] != 0.0:
             return _ROWS, 0.0
-    residual = 0.0
     rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
     t, dv, diag = dofs[0], dofs[1], dofs[2]
-    rmax = 0.0
-    for p in range(m):
-        c = ids[p]
-        for d in range(3):
-            rhs[3 * p + d] = -v0[c, d]
-        rhs[3 * p] += target[c]
-        act[p] = v0[c, 0] <= target[c] or (use_warm and warm[c, 0] > 0.0)
-    for i in range(n3):
-        rmax = max(rmax, abs(rhs[i]))
+    rmax = _start(ids, v0, target, warm, use_warm, rhs, act)
     tol = 1e-12 + 1e-9 * rmax
     converged = False
     status = UNFINISHED
     nb = 0
     n = 0
     for _ in range(max_rounds + m // 4):
-        ns = 0
-        for p in range(m):
-            if act[p]:
-                S[ns] = 3 * p
-                ns += 1
-                if friction and mu_s[ids[p]] > 0.0:
-                    S[ns] = 3 * p + 1
-                    S[ns + 1] = 3 * p + 2
-                    ns += 2
+        ns = _active_rows(ids, act, friction, mu_s, S)
         x[:n3] = 0.0
         # the freedoms: the bodies the active contacts touch (a body touched by none gets no impulse)
         nb = _number_bodies(ids, a, b, ima, imb, act, False, local, listed, nb, first)
@@ -464,15 +538,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
             if worst > consistency * (rmax + _TINY):
                 status = _ROWS   # inconsistent (or a factor too poor to tell): the rows' method decides
                 break
-        change = False
-        for p in range(m):
-            if act[p] and x[3 * p] < 0.0:
-                act[p] = False
-                change = True
-            elif not act[p] and v0[ids[p], 0] + ax[3 * p] < target[ids[p]] - tol:
-                act[p] = True
-                change = True
-        if not change:
+        if not _next_set(ids, act, x, ax, v0, target, tol):
             converged = True
             status = SOLVED
             break
@@ -480,19 +546,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
         for i in range(nb):
             local[listed[i]] = -1
         return _ROWS, 0.0
-    for p in range(m):
-        c = ids[p]
-        x[3 * p] = max(x[3 * p], 0.0)
-        if friction:
-            mag = math.sqrt(x[3 * p + 1] ** 2 + x[3 * p + 2] ** 2)
-            if mag > mu_s[c] * x[3 * p] * (1 + 1e-12) + 1e-300:
-                converged = False
-                scale = mu_d[c] * x[3 * p] / max(mag, _TINY)
-                x[3 * p + 1] *= scale
-                x[3 * p + 2] *= scale
-        else:
-            x[3 * p + 1] = 0.0
-            x[3 * p + 2] = 0.0
+    converged = _into_cone(ids, x, friction, mu_s, mu_d) and converged
     if not converged:
         # as _island: Gauss–Seidel starts from the candidate of lowest objective ½ x·Ax − x·rhs
         best = 0.0
@@ -522,15 +576,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
         for i in range(nb):
             local[listed[i]] = -1
         return UNFINISHED, math.inf
-    for i in range(n3):
-        s = ax[i] - rhs[i]
-        d = i % 3
-        if d == 0 and not (x[i] > 0.0):
-            s = min(s, 0.0)
-        if d != 0 and not friction:
-            s = 0.0
-        residual = max(residual, abs(s))
-        lam[ids[i // 3], d] = x[i]
+    residual = _solved(ids, x, ax, rhs, friction, lam)
     for i in range(nb):
         local[listed[i]] = -1
     return SOLVED, residual
@@ -569,32 +615,15 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
         band[0, p] = min(band[0, p], band[0, p + 1])
     _delassus(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, compliance, A, band)
     rhs, y, r, x, ax = vecs[0], vecs[1], vecs[2], vecs[3], vecs[4]
-    rmax = 0.0
+    rmax = _start(ids, v0, target, warm, use_warm, rhs, act)
     dmax = 0.0
-    for p in range(m):
-        c = ids[p]
-        for d in range(3):
-            rhs[3 * p + d] = -v0[c, d]
-            dmax = max(dmax, A[3 * p + d, 3 * p + d])
-        rhs[3 * p] += target[c]
-        # every contact that is not separating starts pushing (a resting stack starts with all
-        # its layers active: only the approaching ones would add one layer per round)
-        act[p] = v0[c, 0] <= target[c] or (use_warm and warm[c, 0] > 0.0)
     for i in range(n):
-        rmax = max(rmax, abs(rhs[i]))
+        dmax = max(dmax, A[i, i])
     eps = regularisation * max(dmax, _TINY)
     tol = 1e-12 + 1e-9 * rmax
     converged = False
     for _ in range(max_rounds + m // 4):
-        ns = 0
-        for p in range(m):
-            if act[p]:
-                S[ns] = 3 * p
-                ns += 1
-                if friction and mu_s[ids[p]] > 0.0:
-                    S[ns] = 3 * p + 1
-                    S[ns + 1] = 3 * p + 2
-                    ns += 2
+        ns = _active_rows(ids, act, friction, mu_s, S)
         x[:n] = 0.0
         if ns:
             # the active rows' range in S (band[2]: the place in S of the first active row at or
@@ -673,30 +702,10 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                 # the active rows cannot all hold (more sticking points than freedoms, pulling
                 # different ways): no set containing them is right; Gauss–Seidel takes over
                 break
-        change = False
-        for p in range(m):
-            if act[p] and x[3 * p] < 0.0:
-                act[p] = False
-                change = True
-            elif not act[p] and v0[ids[p], 0] + ax[3 * p] < target[ids[p]] - tol:
-                act[p] = True
-                change = True
-        if not change:
+        if not _next_set(ids, act, x, ax, v0, target, tol):
             converged = True
             break
-    for p in range(m):
-        c = ids[p]
-        x[3 * p] = max(x[3 * p], 0.0)
-        if friction:
-            mag = math.sqrt(x[3 * p + 1] ** 2 + x[3 * p + 2] ** 2)
-            if mag > mu_s[c] * x[3 * p] * (1 + 1e-12) + 1e-300:
-                converged = False
-                scale = mu_d[c] * x[3 * p] / max(mag, _TINY)
-                x[3 * p + 1] *= scale
-                x[3 * p + 2] *= scale
-        else:
-            x[3 * p + 1] = 0.0
-            x[3 * p + 2] = 0.0
+    converged = _into_cone(ids, x, friction, mu_s, mu_d) and converged
     if not converged:
         # an unfinished answer can be far worse than no impulse: Gauss–Seidel starts from the
         # candidate (this, the warm start, zero) with the lowest objective, which decides where it ends
@@ -721,19 +730,9 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
                     for d in range(3):
                         lam[ids[p], d] = y[3 * p + d]
         return UNFINISHED, math.inf
-    # the residual of the solved island (m/s: how far a row's velocity misses its target): the
-    # last round's products (x has not changed since, but for the sign of a zero)
-    residual = 0.0
-    for i in range(n):
-        s = ax[i] - rhs[i]
-        d = i % 3
-        if d == 0 and not (x[i] > 0.0):
-            s = min(s, 0.0)
-        if d != 0 and not friction:
-            s = 0.0
-        residual = max(residual, abs(s))
-        lam[ids[i // 3], d] = x[i]
-    return SOLVED, residual
+    # the residual of the solved island: the last round's products (x has not changed since, but
+    # for the sign of a zero)
+    return SOLVED, _solved(ids, x, ax, rhs, friction, lam)
 
 
 @njit
