@@ -2,12 +2,13 @@
 
 Contacts that share no movable body never push on each other, so the Delassus matrix ``A = J M⁻¹ Jᵀ``
 is block diagonal over *islands* (connected components of the contact graph through movable
-bodies; Box2D's islands). Each island is solved on its own, dense: a resting box's four contacts
-are a 12 × 12 system, a 10-box stack's 40 contacts 120 × 120. An island of more than
-``DIRECT_BAND_MIN`` contacts is kept to each contact's coupling range (from the first to the last
-contact of the island that shares a movable body with it): its matrix, products and Cholesky
-factor visit no block outside it (a stack's matrix is banded in detection order), so the cost
-follows the island's coupling, not its size squared or cubed; a smaller island is taken whole.
+bodies; Box2D's islands). Each island is solved on its own. In the contacts' rows (``_island``)
+it is dense: a resting box's four contacts are a 12 × 12 system, a 10-box stack's 40 contacts
+120 × 120; an island of more than ``DIRECT_BAND_MIN`` contacts is kept to each contact's
+coupling range (from the first to the last contact of the island that shares a movable body
+with it): its matrix, products and Cholesky factor visit no block outside it (a stack's matrix
+is banded in detection order), so the cost follows the island's coupling, not its size squared
+or cubed; a smaller island is taken whole.
 
 The method per island is ``direct.solve_direct``'s: the rows of the active contacts (normal, and
 both tangents of a contact with friction, sticking) are solved for the least-norm impulses that
