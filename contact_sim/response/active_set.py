@@ -940,16 +940,20 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     rows = np.empty((2, n_max), np.int64)
     S, nz, act = rows[0], rows[1], np.empty(m_max, np.bool_)
     band = np.empty((6, n_max + 1), np.int64)
-    # the body-space method's (_island_body): freedoms' vectors (6 for each of up to two bodies a
-    # contact), the bodies' numbering, a row's Jacobian and velocity change
-    dofs = np.empty((3, 4 * n_max))
-    rhs_s = np.empty(n_max)
-    every = np.arange(n_max)
-    local = np.full(vel.shape[0], -1, np.int64)
-    numbering = np.empty((2, 2 * m_max + 1), np.int64)
-    listed, first = numbering[0], numbering[1]
-    entries = np.empty((2, 12))
-    jv, bv = entries[0], entries[1]
+    # the body-space method's (_island_body), in two blocks and the numbering (empty where every
+    # island is a single contact): freedoms' vectors (6 for each of up to two bodies a contact), the
+    # active rows' right-hand side, a row's Jacobian and velocity change; every row's index, the
+    # bodies' numbering
+    nf = n_max if m_max > 1 else 0
+    nb_max = 2 * m_max + 1 if m_max > 1 else 0
+    floats = np.empty(13 * nf + 24)
+    ints = np.empty(nf + 2 * nb_max, np.int64)
+    dofs = floats[:12 * nf].reshape((3, 4 * nf))
+    rhs_s, jv, bv = floats[12 * nf:13 * nf], floats[13 * nf:13 * nf + 12], floats[13 * nf + 12:]
+    every, listed, first = ints[:nf], ints[nf:nf + nb_max], ints[nf + nb_max:]
+    for j in range(nf):
+        every[j] = j
+    local = np.full(vel.shape[0] if m_max > 1 else 0, -1, np.int64)
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
