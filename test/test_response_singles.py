@@ -270,13 +270,17 @@ def _body_space_workspace(k, n_bodies):
 
 
 def _island_body(rows, v0, target, mus, ws):
+    """``active_set._island_body`` on the island ``rows`` (every contact), with friction where some
+    ``mus`` is positive (as ``solver.solve_rows`` decides), no warm start, the workspace ``ws``:
+    ``(status, residual, impulses (K,3))``."""
     from contact_sim.constants import DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS
 
     k = len(rows)
     lam = np.full((k, 3), np.nan)
     status, residual = active_set._island_body(
         np.arange(k), rows.a.astype(np.int64), rows.b.astype(np.int64), rows.dirs, rows.ang_a, rows.ang_b,
-        rows.iang_a, rows.iang_b, rows.ima, rows.imb, v0, np.zeros(k), mus, mus, True, np.zeros((k, 3)), False,
+        rows.iang_a, rows.iang_b, rows.ima, rows.imb, v0, np.zeros(k), mus, mus, bool(mus.max() > 0),
+        np.zeros((k, 3)), False,
         DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, ws["G"], ws["H"], ws["vecs"], ws["dofs"], ws["S"], ws["nz"],
         ws["act"], ws["band"], ws["local"], ws["listed"], ws["first"], ws["jv"], ws["bv"], ws["rhs_s"], ws["every"],
         target)
