@@ -294,6 +294,31 @@ def _solved(ids, x, ax, rhs, friction, lam):
     return residual
 
 
+@njit(inline="always")
+def _warm_candidate(ids, warm, y):
+    """The warm start of the island's contacts as a candidate ``y (3m,)`` (a non-finite value 0)."""
+    for p in range(ids.shape[0]):
+        for d in range(3):
+            y[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
+
+
+@njit(inline="always")
+def _lowest_start(ids, x, fx, y, fy, use_warm, lam):
+    """Gauss–Seidel's start for an unfinished island into ``lam``'s rows of ``ids``: of zero, the
+    set's answer ``x`` (contact objective ``fx``) and the warm start ``y`` (``fy``, when
+    ``use_warm``), the one of lowest objective (an unfinished answer can be far worse than no
+    impulse, and the start decides where Gauss–Seidel ends)."""
+    best = 0.0   # zero's objective
+    chosen = 0
+    if fx < best:
+        best = fx
+        chosen = 1
+    if use_warm and fy < best:
+        chosen = 2
+    for p in range(ids.shape[0]):
+        for d in range(3):
+            lam[ids[p], d] = x[3 * p + d] if chosen == 1 else (y[3 * p + d] if chosen == 2 else 0.0)
+
 #: ``_island_body``'s answer when the island is the row-space method's (``_island`` goes on)
 _ROWS = -1
 
@@ -550,30 +575,24 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     converged = _into_cone(ids, x, friction, mu_s, mu_d) and converged
     if not converged:
         # as _island: Gauss–Seidel starts from the candidate of lowest objective ½ x·Ax − x·rhs
-        best = 0.0
-        for k in range(2):
-            if k == 1:
-                if not use_warm:
-                    break
-                for p in range(m):
-                    for d in range(3):
-                        x[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
+        fx = 0.0
+        fy = 0.0
+        for k in range(2 if use_warm else 1):
+            z = x if k == 0 else y
+            if k == 1:   # the warm start may push on any contact: every body numbered
+                _warm_candidate(ids, warm, y)
                 nb = _number_bodies(ids, a, b, ima, imb, act, True, local, listed, nb, first)
                 n = 6 * nb
-            _body_apply(ids, every, n3, x, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv)
+            _body_apply(ids, every, n3, z, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv)
             _body_rows(ids, every, n3, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, ax)
             f = 0.0
             for i in range(n3):
-                f += x[i] * (0.5 * ax[i] - rhs[i])
-            if f < best:
-                best = f
-                for p in range(m):
-                    for d in range(3):
-                        lam[ids[p], d] = x[3 * p + d]
-            elif k == 0:
-                for p in range(m):
-                    for d in range(3):
-                        lam[ids[p], d] = 0.0
+                f += z[i] * (0.5 * ax[i] - rhs[i])
+            if k == 0:
+                fx = f
+            else:
+                fy = f
+        _lowest_start(ids, x, fx, y, fy, use_warm, lam)
         for i in range(nb):
             local[listed[i]] = -1
         return UNFINISHED, math.inf
@@ -708,28 +727,11 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
             break
     converged = _into_cone(ids, x, friction, mu_s, mu_d) and converged
     if not converged:
-        # an unfinished answer can be far worse than no impulse: Gauss–Seidel starts from the
-        # candidate (this, the warm start, zero) with the lowest objective, which decides where it ends
-        best = 0.0
-        fx = _objective(A, rhs, x, n, band)
-        if fx < best:
-            best = fx
-            for p in range(m):
-                for d in range(3):
-                    lam[ids[p], d] = x[3 * p + d]
-        else:
-            for p in range(m):
-                for d in range(3):
-                    lam[ids[p], d] = 0.0
+        fw = 0.0
         if use_warm:
-            for p in range(m):
-                for d in range(3):
-                    y[3 * p + d] = warm[ids[p], d] if math.isfinite(warm[ids[p], d]) else 0.0
+            _warm_candidate(ids, warm, y)
             fw = _objective(A, rhs, y, n, band)
-            if fw < best:
-                for p in range(m):
-                    for d in range(3):
-                        lam[ids[p], d] = y[3 * p + d]
+        _lowest_start(ids, x, _objective(A, rhs, x, n, band), y, fw, use_warm, lam)
         return UNFINISHED, math.inf
     # the residual of the solved island: the last round's products (x has not changed since, but
     # for the sign of a zero)
