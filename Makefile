@@ -55,6 +55,7 @@ bench: $(STAMP)
 	$(PY) -m pip install --quiet pybullet mujoco $(QUIET)
 	$(PY) bench/bench_detect.py
 	$(PY) bench/bench_response.py
+	$(PY) bench/step_anatomy.py
 	$(PY) bench/bench_default.py
 	$(PY) bench/bench_accuracy.py
 	$(PY) bench/bench_node.py

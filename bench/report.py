@@ -120,7 +120,38 @@ def response():
     out += [f"- {e} ({', '.join(dict.fromkeys(sc))}): {st}" for (e, st), sc in scenes.items()]
     if os.path.isfile(os.path.join(RESULTS, "response_peers.png")):
         out += ["", f"![response ratios]({CHARTS}response_peers.png)"]
-    return out + [""] + response_protocol()
+    return out + [""] + anatomy() + response_protocol()
+
+
+def anatomy():
+    """Where a step's time goes, from ``bench/step_anatomy.py``'s CSV."""
+    r = rows("step_anatomy.csv")
+    if not r:
+        return []
+    unit = {k: r[0][f"unit_{k}_ns"] for k in ("call", "array", "scalar", "returned", "alloc")}
+
+    def share(x, part):
+        return f"{f(x[part], '.1f')} ({f(100 * float(x[part]) / float(x['step_us']), '.0f')} %)"
+
+    out = ["#### Where a step's time goes (`bench/step_anatomy.py`)", "",
+           "The response scenes' step split three ways: the Python between the compiled calls (glue), the calls' "
+           "boundary (numba unboxing each argument and boxing each array handed back, from the unit costs measured "
+           "first), and the compiled kernels. `World.step` is timed, then stepped again with every compiled "
+           "function Python calls recording its arguments, and each call is replayed alone (µs a step over "
+           f"{r[0].get('steps', '?')} steps after 300 to settle):", ""]
+    out += table(["scene", "step", "glue", "boundary", "kernels", "calls / arguments / arrays back a step",
+                  "kernels ÷ the peer's step"],
+                 [[x["scene"], f(x["step_us"], ".1f"), share(x, "glue_us"), share(x, "boundary_us"),
+                   share(x, "kernels_us"), f"{f(x['calls_per_step'], '.1f')} / {f(x['args_per_step'], '.0f')} / "
+                   f"{f(x['arrays_back_per_step'], '.1f')}", f"{f(x['kernels_over_peer'], '.2f')} ({x['peer']})"]
+                  for x in r])
+    out += ["", f"Unit costs on this machine: a call {f(unit['call'], '.0f')} ns, an array argument "
+                f"{f(unit['array'], '.0f')}, a scalar {f(unit['scalar'], '.0f')}, an array handed back "
+                f"{f(unit['returned'], '.0f')} (numba finds the array's Python type through a pickle, per array), an "
+                f"allocation inside compiled code {f(unit['alloc'], '.0f')}. The last column is the step's kernels "
+                "alone against the peer's whole step (its last run in `response_peers.csv`): what a step with no "
+                "Python around its kernels and no boundary would reach with today's kernels.", ""]
+    return out
 
 
 def response_protocol():

@@ -62,3 +62,21 @@ def test_default_scene_benchmark_writes_every_phase(tmp_path):
     for r in rows:
         p50, p99, mx = float(r["p50_ms"]), float(r["p99_ms"]), float(r["max_ms"])
         assert float(r["wall_s_per_sim_s"]) > 0 and 0 < p50 <= p99 <= mx, r
+
+
+def test_step_anatomy_splits_a_step_into_glue_boundary_and_kernels(tmp_path):
+    """``bench/step_anatomy.py`` on the ball and the stack: every part non-negative, the three
+    summing to the step's time, the compiled calls found and replayed (a stack step reaches the
+    narrow phase and the resting solve: some kernel time), the CSV written."""
+    proc = subprocess.run([sys.executable, os.path.join(REPO, "bench", "step_anatomy.py"), "--scenes",
+                           "ball_1,stack_10", "--steps", "30", "--out", str(tmp_path)], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-4000:]
+    with open(tmp_path / "step_anatomy.csv", newline="") as fh:
+        rows = {r["scene"]: r for r in csv.DictReader(fh)}
+    assert set(rows) == {"ball_1", "stack_10"}
+    for r in rows.values():
+        parts = [float(r[k]) for k in ("glue_us", "boundary_us", "kernels_us")]
+        assert min(parts) >= 0 and float(r["calls_per_step"]) >= 1, r
+        assert sum(parts) == pytest.approx(float(r["step_us"]), rel=1e-9) or float(r["kernels_us"]) == 0, r
+    assert float(rows["stack_10"]["kernels_us"]) > 0
