@@ -150,7 +150,9 @@ def anatomy():
                 f"{f(unit['returned'], '.0f')} (numba finds the array's Python type through a pickle, per array), an "
                 f"allocation inside compiled code {f(unit['alloc'], '.0f')}. The last column is the step's kernels "
                 "alone against the peer's whole step (its last run in `response_peers.csv`): what a step with no "
-                "Python around its kernels and no boundary would reach with today's kernels.", ""]
+                "Python around its kernels and no boundary would reach with today's kernels. A call replayed alone finds "
+                "its data in the cache: the glue also holds what the kernels lose to a colder cache inside the step, "
+                "an upper bound on the Python's share.", ""]
     return out
 
 
