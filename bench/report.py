@@ -153,6 +153,10 @@ def anatomy():
                 "Python around its kernels and no boundary would reach with today's kernels. A call replayed alone finds "
                 "its data in the cache: the glue also holds what the kernels lose to a colder cache inside the step, "
                 "an upper bound on the Python's share.", ""]
+    if all(x.get("glue_by_function") for x in r):
+        out += ["The glue's largest parts by engine function (µs a step; a cProfile run's split scaled to the glue, "
+                "indicative: cProfile inflates functions called often):", ""]
+        out += [f"- {x['scene']}: {x['glue_by_function']}" for x in r] + [""]
     return out
 
 

@@ -17,7 +17,8 @@ argument, an array handed back, an allocation inside compiled code. Part 2 takes
 4. estimates the boundary from the calls' argument and result counts and part 1's unit costs; the
    rest of the compiled time is the kernels'.
 
-Python glue = the step's time − the compiled calls' time. Replayed alone a call finds its data in
+Python glue = the step's time − the compiled calls' time; its largest parts by function come from
+a cProfile run of as many steps, scaled to it (indicative: cProfile inflates small functions). Replayed alone a call finds its data in
 the cache, so the glue also holds what the kernels lose to a colder cache inside the step: an
 upper bound on the Python's share (on 100 bodies, 37–52 µs against ~28 on ten, where the
 Python does the same few things a step). ``kernels ÷ peer``: the step's kernels
@@ -191,9 +192,51 @@ def anatomy(name, steps, units):
         boundary += units["call"] + arrays * units["array"] + scalars * units["scalar"] + back * units["returned"]
     compiled, boundary = compiled / steps, boundary / steps
     compiled = min(compiled, step_s)
-    return dict(scene=name, steps=steps, step_us=1e6 * step_s, glue_us=1e6 * (step_s - compiled), boundary_us=1e6 * boundary,
+    glue = step_s - compiled
+    return dict(scene=name, steps=steps, step_us=1e6 * step_s, glue_us=1e6 * glue, boundary_us=1e6 * boundary,
                 kernels_us=1e6 * max(compiled - boundary, 0.0), calls_per_step=len(calls) / steps,
-                args_per_step=n_args / steps, arrays_back_per_step=n_back / steps)
+                args_per_step=n_args / steps, arrays_back_per_step=n_back / steps,
+                glue_by_function=_glue_by_function(w, steps, set(wrapped.values()), glue))
+
+
+_ENGINE = os.sep + "contact_sim" + os.sep
+
+
+def _name(path, fn):
+    """``module.function`` of an engine source file, the module dotted below the package."""
+    mod = path.rsplit(_ENGINE, 1)[1][:-3].replace(os.sep, ".")
+    return f"{mod[:-len('.__init__')] if mod.endswith('.__init__') else mod}.{fn}"
+
+
+def _glue_by_function(world, steps, dispatchers, glue, top=6):
+    """The glue's largest parts by engine function: ``"name µs; ..."``. cProfile's own time of
+    each Python function of the engine (numpy and builtins counted with their caller; the compiled
+    calls left out), scaled so that they sum to ``glue`` (s a step): cProfile's cost per call
+    inflates functions that are called often, so the split is indicative, not exact."""
+    import cProfile
+    import pstats
+
+    compiled = {(d.py_func.__code__.co_filename, d.py_func.__code__.co_firstlineno) for d in dispatchers}
+    prof = cProfile.Profile()
+    prof.enable()
+    for _ in range(steps):
+        world.step()
+    prof.disable()
+    own = {}
+    for (path, line, fn), (_, _, tottime, _, callers) in pstats.Stats(prof).stats.items():
+        if (path, line) in compiled:
+            continue
+        if _ENGINE in path:
+            key = _name(path, fn)
+        else:   # a builtin or numpy: its engine caller's
+            mine = [c for c in callers if _ENGINE in c[0] and (c[0], c[1]) not in compiled]
+            if not mine:
+                continue
+            key = _name(mine[0][0], mine[0][2])
+        own[key] = own.get(key, 0.0) + tottime
+    total = sum(own.values()) or 1.0
+    parts = sorted(own.items(), key=lambda kv: -kv[1])[:top]
+    return "; ".join(f"{k} {1e6 * glue * v / total:.1f}" for k, v in parts)
 
 
 def peer_ms():
@@ -236,6 +279,9 @@ def main(argv=None):
               f"{r['boundary_us']:7.1f} ({pct['boundary_us']:3.0f}%) {r['kernels_us']:7.1f} ({pct['kernels_us']:3.0f}%) "
               f"{r['calls_per_step']:6.1f} {r['args_per_step']:6.0f} {r['arrays_back_per_step']:5.1f} "
               f"{r['kernels_over_peer']:8.2f} {r['peer']}")
+    print("glue by function (µs a step, cProfile's split scaled to the glue):")
+    for r in rows:
+        print(f"  {r['scene']}: {r['glue_by_function']}")
     os.makedirs(args.out, exist_ok=True)
     path = os.path.join(args.out, "step_anatomy.csv")
     with open(path, "w", newline="") as f:

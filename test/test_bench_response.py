@@ -67,7 +67,8 @@ def test_default_scene_benchmark_writes_every_phase(tmp_path):
 def test_step_anatomy_splits_a_step_into_glue_boundary_and_kernels(tmp_path):
     """``bench/step_anatomy.py`` on the ball and the stack: every part non-negative, the three
     summing to the step's time, the compiled calls found and replayed (a stack step reaches the
-    narrow phase and the resting solve: some kernel time), the CSV written."""
+    narrow phase and the resting solve: some kernel time), the glue's six largest parts named by
+    engine function, the CSV written."""
     proc = subprocess.run([sys.executable, os.path.join(REPO, "bench", "step_anatomy.py"), "--scenes",
                            "ball_1,stack_10", "--steps", "30", "--out", str(tmp_path)], capture_output=True, text=True,
                           timeout=300)
@@ -80,3 +81,5 @@ def test_step_anatomy_splits_a_step_into_glue_boundary_and_kernels(tmp_path):
         assert min(parts) >= 0 and float(r["calls_per_step"]) >= 1, r
         assert sum(parts) == pytest.approx(float(r["step_us"]), rel=1e-9) or float(r["kernels_us"]) == 0, r
     assert float(rows["stack_10"]["kernels_us"]) > 0
+    parts = rows["stack_10"]["glue_by_function"].split("; ")
+    assert len(parts) == 6 and all(p.split(" ")[0].count(".") >= 1 and float(p.split(" ")[1]) >= 0 for p in parts)
