@@ -20,7 +20,7 @@ argument, an array handed back, an allocation inside compiled code. Part 2 takes
 Python glue = the step's time − the compiled calls' time; its largest parts by function come from
 a cProfile run of as many steps, scaled to it (indicative: cProfile inflates small functions). Replayed alone a call finds its data in
 the cache, so the glue also holds what the kernels lose to a colder cache inside the step: an
-upper bound on the Python's share (on 100 bodies, 37–52 µs against ~28 on ten, where the
+upper bound on the Python's share (on 100 bodies, 30–52 µs against ~28 on ten, where the
 Python does the same few things a step). ``kernels ÷ peer``: the step's kernels
 alone against the peer's whole step (``bench/results/response_peers.csv``, the last peer run): the
 ratio a step with no Python and no boundary would have at today's kernels.
