@@ -150,9 +150,9 @@ def anatomy():
                 f"{f(unit['returned'], '.0f')} (numba finds the array's Python type through a pickle, per array), an "
                 f"allocation inside compiled code {f(unit['alloc'], '.0f')}. The last column is the step's kernels "
                 "alone against the peer's whole step (its last run in `response_peers.csv`): what a step with no "
-                "Python around its kernels and no boundary would reach with today's kernels. A call replayed alone finds "
-                "its data in the cache: the glue also holds what the kernels lose to a colder cache inside the step, "
-                "an upper bound on the Python's share.", ""]
+                "Python around its kernels and no boundary would reach with today's kernels. A call replayed alone "
+                "finds its data in the cache: the glue also holds what the kernels lose to a colder cache inside the "
+                "step, an upper bound on the Python's share.", ""]
     if all(x.get("glue_by_function") for x in r):
         out += ["The glue's largest parts by engine function (µs a step; a cProfile run's split scaled to the glue, "
                 "indicative: cProfile inflates functions called often):", ""]

@@ -18,12 +18,12 @@ argument, an array handed back, an allocation inside compiled code. Part 2 takes
    rest of the compiled time is the kernels'.
 
 Python glue = the step's time − the compiled calls' time; its largest parts by function come from
-a cProfile run of as many steps, scaled to it (indicative: cProfile inflates small functions). Replayed alone a call finds its data in
-the cache, so the glue also holds what the kernels lose to a colder cache inside the step: an
-upper bound on the Python's share (on 100 bodies, 30–52 µs against ~28 on ten, where the
-Python does the same few things a step). ``kernels ÷ peer``: the step's kernels
-alone against the peer's whole step (``bench/results/response_peers.csv``, the last peer run): the
-ratio a step with no Python and no boundary would have at today's kernels.
+a cProfile run of as many steps, scaled to it (indicative: cProfile inflates small functions).
+Replayed alone a call finds its data in the cache, so the glue also holds what the kernels lose to
+a colder cache inside the step: an upper bound on the Python's share (on 100 bodies, 30–52 µs
+against ~28 on ten, where the Python does the same few things a step). ``kernels ÷ peer``: the
+step's kernels alone against the peer's whole step (``bench/results/response_peers.csv``, the last
+peer run): the ratio a step with no Python and no boundary would have at today's kernels.
 
 Prints a table and writes ``step_anatomy.csv`` into ``--out``. Times drift on this shared machine
 (2×), so the split within a scene is what to read, not the absolute values.
@@ -31,7 +31,6 @@ Prints a table and writes ``step_anatomy.csv`` into ``--out``. Times drift on th
 import argparse
 import csv
 import os
-import statistics
 import sys
 import time
 
@@ -261,6 +260,11 @@ def main(argv=None):
     unknown = [s for s in scenes if s not in br.SCENES]
     if unknown:
         ap.error(f"unknown scene(s) {', '.join(unknown)}; known: {', '.join(br.SCENES)}")
+    from contact_sim.jit import COMPILED
+
+    if not COMPILED:
+        ap.error("the kernels are not compiled (numba missing or NUMBA_DISABLE_JIT set): there is no boundary "
+                 "to measure and no compiled call to replay")
     units = unit_costs()
     print("boundary unit costs (ns): " + ", ".join(f"{k} {1e9 * v:.0f}" for k, v in units.items()))
     peers = peer_ms()
@@ -276,7 +280,8 @@ def main(argv=None):
         rows.append(r)
         pct = {k: 100 * r[k] / r["step_us"] for k in ("glue_us", "boundary_us", "kernels_us")}
         print(f"{name:12s} {r['step_us']:8.1f} {r['glue_us']:7.1f} ({pct['glue_us']:3.0f}%) "
-              f"{r['boundary_us']:7.1f} ({pct['boundary_us']:3.0f}%) {r['kernels_us']:7.1f} ({pct['kernels_us']:3.0f}%) "
+              f"{r['boundary_us']:7.1f} ({pct['boundary_us']:3.0f}%) "
+              f"{r['kernels_us']:7.1f} ({pct['kernels_us']:3.0f}%) "
               f"{r['calls_per_step']:6.1f} {r['args_per_step']:6.0f} {r['arrays_back_per_step']:5.1f} "
               f"{r['kernels_over_peer']:8.2f} {r['peer']}")
     print("glue by function (µs a step, cProfile's split scaled to the glue):")
