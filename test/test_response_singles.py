@@ -172,14 +172,11 @@ def test_island_solve_reads_only_what_it_wrote(seed, layers):
     over the system. 6 boxes (24 contacts, above ``constants.DIRECT_BAND_MIN``): each row's coupling
     range; 1 and 2 boxes (4 and 8 contacts): the island taken whole."""
     from contact_sim.constants import DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
-    from contact_sim.response.rows import Rows
-
     rows, vel, omega = _box_stack(layers, seed=seed)
     k = len(rows)
     assert (k > constants.DIRECT_BAND_MIN) == (layers == 6)
     perm = np.random.default_rng(seed).permutation(k)
-    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
-    rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[perm]) for f in fields}, movable=rows.movable)
+    rows = rows.select(perm)
     v0 = solver.row_velocity(rows, vel, omega)
     mus, target = np.full(k, 0.6), np.zeros(k)
     n = 3 * k
@@ -236,12 +233,8 @@ def test_redundant_contacts_get_the_least_norm_split_to_rounding(layers, shuffle
     vel = _pressed(vel, layers)
     k = len(rows)
     if shuffled:
-        from contact_sim.response.rows import Rows
-
         perm = np.random.default_rng(layers).permutation(k)
-        fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K",
-                  "dirs")
-        rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[perm]) for f in fields}, movable=rows.movable)
+        rows = rows.select(perm)
     mus, target = np.full(k, 0.6), np.zeros(k)
     v0 = solver.row_velocity(rows, vel, omega)
     lam, solved, residual = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
@@ -294,14 +287,11 @@ def test_body_space_solve_reads_only_what_it_wrote(seed, layers):
     """``_island_body`` on a stack in a shuffled order with its workspace filled with NaN and
     nonsense: the same velocities after, to round-off, as the sparse active set over the system,
     and the body numbering it borrowed (``local``) handed back all −1."""
-    from contact_sim.response.rows import Rows
-
     rows, vel, omega = _box_stack(layers, seed=seed)
     vel = _pressed(vel, layers)
     k = len(rows)
     perm = np.random.default_rng(seed).permutation(k)
-    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
-    rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[perm]) for f in fields}, movable=rows.movable)
+    rows = rows.select(perm)
     v0 = solver.row_velocity(rows, vel, omega)
     mus, target = np.full(k, 0.6), np.zeros(k)
     ws = _body_space_workspace(k, layers + 1)
@@ -484,13 +474,10 @@ def test_a_free_freedom_is_the_rows_method():
     their common motion is fixed by no row): ``G = JᵀJ`` is singular (a pivot below
     ``DIRECT_PIVOT_FRACTION`` of its diagonal), the body impulse is not unique, and the
     body-space method declines; ``solve_islands`` gives the rows' answer."""
-    from contact_sim.response.rows import Rows
-
     rows, vel, omega = _box_stack(1, seed=4)
     vel = _pressed(vel, 1)
     edge = np.flatnonzero(rows.ra[:, 0] < 0)   # the two contacts of the edge x = −h
-    fields = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
-    edge_rows = Rows(**{f: np.ascontiguousarray(getattr(rows, f)[edge]) for f in fields}, movable=rows.movable)
+    edge_rows = rows.select(edge)
     assert _check_body_answer(edge_rows, vel, omega, 0.6) == active_set._ROWS
     chain, chain_vel, chain_omega = _box_stack(4, seed=4)
     chain_vel = _pressed(chain_vel, 4)
