@@ -417,8 +417,10 @@ def test_the_correction_solve_stops_once_a_sweep_moves_no_contact_by_more_than_s
     for x in range(3):
         K[:, x, x] = ima + imb
     vp, wp = np.zeros((n + 1, 3)), np.zeros((n + 1, 3))
+    inv_mass, inv_inertia = np.where(dynamic, 1 / m, 0.0), np.zeros((n + 1, 3, 3))   # point masses
     pen = correction.plan(a, b, np.full(n, d), dirs, zero, zero, zero, zero, ima, imb, K, np.zeros(0, bool), dynamic,
-                          beta, slop, dt, solver.SOLVER_METHODS.index("gs"), 0, 100_000, 0.0, vp, wp)
+                          inv_mass, inv_inertia, beta, slop, dt, solver.SOLVER_METHODS.index("gs"), 0, 100_000, 0.0,
+                          vp, wp)
     assert len(pen) == n
     push = (vp[a, 2] - vp[b, 2]) * dt                  # each contact's push-out over the step (m)
     err = np.abs(push - beta * d)

@@ -6,6 +6,7 @@ import pytest
 
 from contact_sim import constants
 from contact_sim.response import active_set, direct, solver
+from contact_sim.response.rows import body_mass
 
 
 def _spheres_on_ground(k, spin, seed=5):
@@ -129,7 +130,8 @@ def test_compiled_islands_equal_the_sparse_active_set(mu, shuffled):
     if shuffled:
         perm = np.random.default_rng(7).permutation(len(cat["a"]))
         cat = {f: v[perm] for f, v in cat.items()}
-    rows = Rows(**cat, movable=np.concatenate([p[0].movable for p in parts]))
+    rows = Rows(**cat, **{f: np.concatenate([getattr(p[0], f) for p in parts])
+                          for f in ("movable", "inv_mass", "inv_inertia")})
     vel = np.concatenate([p[1] for p in parts])
     omega = np.concatenate([p[2] for p in parts])
     k = len(rows)
@@ -254,7 +256,7 @@ def _body_space_workspace(k, n_bodies):
     every index nonsense (but ``local``, which must come in −1 and is put back so)."""
     n = 3 * k
     junk = -(10 ** 9)
-    return dict(G=np.full((n, n), np.nan), H=np.full((n, n), np.nan), vecs=np.full((5, n), np.nan),
+    return dict(G=np.full((n, n), np.nan), mb=np.full((2 * k + 1, 10), np.nan), vecs=np.full((5, n), np.nan),
                 dofs=np.full((3, 4 * n), np.nan), S=np.full(n, junk, np.int64), nz=np.full(n, junk, np.int64),
                 act=np.zeros(k, bool), band=np.full((6, n + 1), 10 ** 9, np.int64),
                 local=np.full(n_bodies, -1, np.int64), listed=np.full(2 * k + 1, junk, np.int64),
@@ -274,9 +276,9 @@ def _island_body(rows, v0, target, mus, ws):
         np.arange(k), rows.a.astype(np.int64), rows.b.astype(np.int64), rows.dirs, rows.ang_a, rows.ang_b,
         rows.iang_a, rows.iang_b, rows.ima, rows.imb, v0, np.zeros(k), mus, mus, bool(mus.max() > 0),
         np.zeros((k, 3)), False,
-        DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, ws["G"], ws["H"], ws["vecs"], ws["dofs"], ws["S"], ws["nz"],
+        DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, ws["G"], ws["vecs"], ws["dofs"], ws["S"], ws["nz"],
         ws["act"], ws["band"], ws["local"], ws["listed"], ws["first"], ws["jv"], ws["bv"], ws["rhs_s"], ws["every"],
-        target)
+        target, *body_mass(rows), ws["mb"])
     return status, residual, lam
 
 
@@ -300,6 +302,54 @@ def test_body_space_solve_reads_only_what_it_wrote(seed, layers):
     assert status == active_set.SOLVED and ok and residual < 1e-14
     assert np.all(ws["local"] == -1)
     after = _after(rows, vel, omega, lam, ref)
+    assert np.allclose(after[0], after[1], rtol=0, atol=1e-12)
+
+
+@pytest.mark.exact
+def test_body_mass_is_the_inverse_of_the_rows_inverse_inertia():
+    """``_body_mass``: each listed body's mass ``1/inv_mass`` and world inertia, the inverse of the
+    inverse inertia the rows were built with (``inertia · inv_inertia = I`` to round-off of its
+    condition); False for a body whose inverse inertia cannot be inverted (it does not rotate), and
+    for rows made without their bodies (empty arrays)."""
+    rng = np.random.default_rng(3)
+    n = 4
+    q = np.empty((n, 3, 3))
+    for i in range(n):
+        r, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        q[i] = r @ np.diag(rng.uniform(0.1, 50.0, 3)) @ r.T   # a rotated inverse inertia, 1:500 at most
+    inv_mass = rng.uniform(0.2, 5.0, n)
+    listed = np.array([2, 0, 3])
+    mb = np.full((3, 10), np.nan)
+    assert active_set._body_mass(listed, 3, inv_mass, q, mb)
+    for i, body in enumerate(listed):
+        assert mb[i, 0] == 1.0 / inv_mass[body]
+        inertia = mb[i, 1:].reshape(3, 3)
+        cond = np.linalg.cond(q[body])
+        assert np.abs(inertia @ q[body] - np.eye(3)).max() < 8 * cond * 2.2e-16
+    q[0] = 0.0   # a body the models do not rotate
+    assert not active_set._body_mass(listed, 3, inv_mass, q, mb)
+    assert not active_set._body_mass(listed, 3, np.zeros(0), np.zeros((0, 3, 3)), mb)
+
+
+@pytest.mark.exact
+def test_rows_without_their_bodies_take_the_rows_method():
+    """A stack's rows made without the bodies' mass (``Rows.inv_mass`` None, as rows assembled by
+    hand): the body-space method declines (``_ROWS``) and ``solve_exact`` gives the same velocities
+    after, to round-off, as with them (the rows' method on the same active set)."""
+    from dataclasses import replace
+
+    rows, vel, omega = _box_stack(3, seed=4)
+    vel = _pressed(vel, 3)
+    k = len(rows)
+    bare = replace(rows, inv_mass=None, inv_inertia=None)
+    mus, target = np.full(k, 0.6), np.zeros(k)
+    v0 = solver.row_velocity(rows, vel, omega)
+    assert _island_body(bare, v0, target, mus, _body_space_workspace(k, len(vel)))[0] == active_set._ROWS
+    assert _island_body(rows, v0, target, mus, _body_space_workspace(k, len(vel)))[0] == active_set.SOLVED
+    lam, solved, _ = direct.solve_exact(rows, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
+    lam_bare, solved_bare, _ = direct.solve_exact(bare, vel, omega, target_n=target, mu_s=mus, mu_d=mus)
+    assert solved.all() and solved_bare.all()
+    after = _after(rows, vel, omega, lam, lam_bare)
     assert np.allclose(after[0], after[1], rtol=0, atol=1e-12)
 
 
@@ -418,7 +468,7 @@ def _both_methods(rows, vel, omega, mu):
     active_set.solve_islands(a, b, order, start, rows.dirs, rows.ang_a, rows.ang_b, rows.iang_a, rows.iang_b, rows.ima,
                              rows.imb, target, np.zeros(k), mus, mus, mu > 0, np.zeros((k, 3)), False,
                              constants.DIRECT_ISLAND_MAX, DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS,
-                             vel.copy(), omega.copy(), False, lam, status)
+                             vel.copy(), omega.copy(), False, lam, status, *body_mass(rows))
     n = 3 * k
     mats, vecs = np.empty((3, n, n)), np.empty((5, n))
     lam_rows = np.zeros((k, 3))

@@ -20,9 +20,9 @@ objective for Gauss–Seidel to finish from.
 
 Where the active rows fix every freedom of the island's bodies (a box's four contacts with
 friction: 12 rows on 6 freedoms; a 10-box stack: 120 rows on 60) the solve is in the bodies'
-freedoms (``_island_body``): the least-norm impulses ``A⁺r = J G⁻¹ H⁻¹ M⁻¹Jᵀ r`` from the factors
-of ``G = JᵀJ`` and ``H = M⁻¹JᵀJM⁻¹`` (``6B × 6B`` for ``B`` bodies, banded along a stack), the
-Delassus matrix never formed, refined while a row misses by more than its round-off. Every
+freedoms (``_island_body``): the least-norm impulses ``A⁺r = J G⁻¹ M G⁻¹ Jᵀ r`` from the factor
+of ``G = JᵀJ`` (``6B × 6B`` for ``B`` bodies, banded along a stack) and the bodies' mass matrix
+``M``, the Delassus matrix never formed, refined while a row misses by more than its round-off. Every
 update is ``J`` times something, so the impulses stay in the range of ``J``: the least-norm
 split to rounding (the rows' regularised solve below, ``(A_SS + εI) x = r`` with two steps of
 refinement, leaves ε's trace in it: 1e-5 of the impulses in the stack). Elsewhere (fewer active
@@ -420,14 +420,13 @@ def _body_rows(ids, rows, nr, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, out
 
 
 @njit(inline="always")
-def _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, band, G, H, jv, bv):
-    """The lower envelopes (``band[3]``) of ``G = JᵀJ`` and ``H = (M⁻¹Jᵀ)ᵀ(M⁻¹Jᵀ)`` (``n × n``,
-    the bodies' freedoms) over the active rows ``S[:ns]``: each row adds its outer products on its
-    bodies' blocks. Returns the largest diagonal of ``A = J M⁻¹ Jᵀ`` on them (a row's ``jv · bv``)."""
+def _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, band, G, jv, bv):
+    """The lower envelope (``band[3]``) of ``G = JᵀJ`` (``n × n``, the bodies' freedoms) over the
+    active rows ``S[:ns]``: each row adds its outer product on its bodies' blocks. Returns the
+    largest diagonal of ``A = J M⁻¹ Jᵀ`` on them (a row's ``jv · bv``)."""
     for i in range(n):
         for j in range(band[3, i], i + 1):
             G[i, j] = 0.0
-            H[i, j] = 0.0
     dmax = 0.0
     for s in range(ns):
         p = S[s] // 3
@@ -448,42 +447,106 @@ def _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, im
             for u in range(6):
                 for w in range(u + 1):
                     G[base + u, base + w] += jv[off + u] * jv[off + w]
-                    H[base + u, base + w] += bv[off + u] * bv[off + w]
         if ba >= 0 and bb >= 0:   # the block between the two bodies, below the diagonal
             hi, lo, oh, ol = (ba, bb, 0, 6) if ba > bb else (bb, ba, 6, 0)
             for u in range(6):
                 for w in range(6):
                     G[hi + u, lo + w] += jv[oh + u] * jv[ol + w]
-                    H[hi + u, lo + w] += bv[oh + u] * bv[ol + w]
     return dmax
 
 
 @njit(inline="always")
-def _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H, band, t, out):
+def _body_transpose(ids, rows, nr, w, a, b, dirs, ang_a, ang_b, ima, imb, local, n, t):
+    """``t (n,)``: ``Jᵀ w``, the impulses ``w`` on the rows ``rows[:nr]`` as the bodies' impulses in
+    their freedoms (force, then moment about the centre)."""
+    for i in range(n):
+        t[i] = 0.0
+    for s in range(nr):
+        ws = w[s]
+        if ws == 0.0:
+            continue
+        p = rows[s] // 3
+        d = rows[s] - 3 * p
+        c = ids[p]
+        if ima[c] != 0.0:
+            base = 6 * local[a[c]]
+            for x in range(3):
+                t[base + x] += dirs[c, d, x] * ws
+                t[base + 3 + x] += ang_a[c, d, x] * ws
+        if imb[c] != 0.0:
+            base = 6 * local[b[c]]
+            for x in range(3):
+                t[base + x] -= dirs[c, d, x] * ws
+                t[base + 3 + x] -= ang_b[c, d, x] * ws
+
+
+@njit
+def _body_mass(listed, nb, inv_mass, inv_inertia, mb):
+    """``mb (nb, 10)``: the mass matrix ``M`` of the bodies ``listed[:nb]`` (their mass, then their
+    world inertia, row by row: the inverse of ``inv_inertia``, the matrix the rows were built with).
+    Returns False when one cannot be inverted (a body that does not rotate: the rows' method), or
+    when the bodies are not given (``inv_mass`` empty: rows made without them)."""
+    if inv_mass.shape[0] == 0:
+        return False
+    for i in range(nb):
+        body = listed[i]
+        q = inv_inertia[body]
+        c00 = q[1, 1] * q[2, 2] - q[1, 2] * q[2, 1]
+        c01 = q[1, 2] * q[2, 0] - q[1, 0] * q[2, 2]
+        c02 = q[1, 0] * q[2, 1] - q[1, 1] * q[2, 0]
+        det = q[0, 0] * c00 + q[0, 1] * c01 + q[0, 2] * c02
+        scale = abs(q[0, 0]) + abs(q[1, 1]) + abs(q[2, 2])
+        if not (inv_mass[body] > 0.0 and det > DIRECT_PIVOT_FRACTION * scale * scale * scale):
+            return False
+        mb[i, 0] = 1.0 / inv_mass[body]
+        mb[i, 1], mb[i, 4], mb[i, 7] = c00 / det, c01 / det, c02 / det
+        mb[i, 2] = (q[0, 2] * q[2, 1] - q[0, 1] * q[2, 2]) / det
+        mb[i, 5] = (q[0, 0] * q[2, 2] - q[0, 2] * q[2, 0]) / det
+        mb[i, 8] = (q[0, 1] * q[2, 0] - q[0, 0] * q[2, 1]) / det
+        mb[i, 3] = (q[0, 1] * q[1, 2] - q[0, 2] * q[1, 1]) / det
+        mb[i, 6] = (q[0, 2] * q[1, 0] - q[0, 0] * q[1, 2]) / det
+        mb[i, 9] = (q[0, 0] * q[1, 1] - q[0, 1] * q[1, 0]) / det
+    return True
+
+
+@njit(inline="always")
+def _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, local, n, nb, G, band, mb, t, out):
     """``out[:ns]``: the least-norm impulses on the active rows ``S`` whose velocity change is
-    ``r[:ns]`` (``A⁺ r`` with ``A = J M⁻¹ Jᵀ``), from the factors of ``G = JᵀJ`` and ``H = M⁻¹JᵀJM⁻¹``
-    (``_body_matrices``): the body impulse ``p = H⁻¹ M⁻¹Jᵀ r`` is the one whose velocity change the
-    rows see as ``r``, and ``J G⁻¹ p`` the least-norm row impulses giving it."""
-    _body_apply(ids, S, ns, r, a, b, dirs, iang_a, iang_b, ima, imb, local, n, t)
-    _cho_solve(H, n, band, t)
+    ``r[:ns]``: ``A⁺ r = J G⁻¹ M G⁻¹ Jᵀ r`` with ``A = J M⁻¹ Jᵀ``, ``G = JᵀJ`` (its factor:
+    ``_body_matrices``) and the bodies' mass matrix ``M`` (``mb``: ``_body_mass``). With ``J`` of
+    full column rank this is the pseudo-inverse (``A·A⁺·A = A``, ``A⁺·A·A⁺ = A⁺``, both products
+    symmetric), and every answer is ``J`` times something: in the range of ``J``, the least-norm split."""
+    _body_transpose(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, local, n, t)
+    _cho_solve(G, n, band, t)
+    for i in range(nb):
+        base = 6 * i
+        for x in range(3):
+            t[base + x] *= mb[i, 0]
+        w0, w1, w2 = t[base + 3], t[base + 4], t[base + 5]
+        t[base + 3] = mb[i, 1] * w0 + mb[i, 2] * w1 + mb[i, 3] * w2
+        t[base + 4] = mb[i, 4] * w0 + mb[i, 5] * w1 + mb[i, 6] * w2
+        t[base + 5] = mb[i, 7] * w0 + mb[i, 8] * w1 + mb[i, 9] * w2
     _cho_solve(G, n, band, t)
     _body_rows(ids, S, ns, a, b, dirs, ang_a, ang_b, ima, imb, local, t, out)
 
 
 @njit
 def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, compliance, mu_s, mu_d, friction, warm,
-                 use_warm, consistency, max_rounds, lam, G, H, vecs, dofs, S, nz, act, band, local, listed, first,
-                 jv, bv, rhs_s, every, target):
+                 use_warm, consistency, max_rounds, lam, G, vecs, dofs, S, nz, act, band, local, listed, first,
+                 jv, bv, rhs_s, every, target, inv_mass, inv_inertia, mb):
     """``_island``'s active set solved in the bodies' freedoms instead of the rows: where the active
     rows fix every freedom of the island's ``nb`` bodies (a box's four contacts with friction, 12
     rows on 6 freedoms; a 10-box stack's 120 rows on 60), the least-norm impulses ``A⁺ r`` come
-    from two ``6nb × 6nb`` factors (``_least_norm``) instead of the ``3m × 3m`` Delassus matrix,
-    which is never formed (every product goes through the bodies: ``_body_apply``, ``_body_rows``).
+    from one ``6nb × 6nb`` factor and the bodies' mass matrix (``_least_norm``; ``inv_mass (N,)``,
+    ``inv_inertia (N,3,3)`` the bodies' inverse mass and world inverse inertia the rows were built
+    with, ``mb`` its workspace) instead of the ``3m × 3m`` Delassus matrix, which is never formed
+    (every product goes through the bodies: ``_body_apply``, ``_body_rows``).
     The same rounds and tests as ``_island`` (its answer to round-off, and the least-norm split
     exactly where ``_island``'s regularisation leaves a trace); returns ``(_ROWS, 0)`` when the
     island is the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
-    row fixes (a factor's pivot below ``DIRECT_PIVOT_FRACTION`` of its diagonal), or active rows that
-    cannot all hold (``_island`` then decides)."""
+    row fixes (a factor's pivot below ``DIRECT_PIVOT_FRACTION`` of its diagonal), a body that does not
+    rotate (its inverse inertia not invertible: ``_body_mass``), or active rows that cannot all hold
+    (``_island`` then decides)."""
     m = ids.shape[0]
     n3 = 3 * m
     for p in range(m):
@@ -515,24 +578,22 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
                 band[5, band[3, i]] = max(band[5, band[3, i]], i)
             for j in range(1, n):
                 band[5, j] = max(band[5, j], band[5, j - 1])
+            if not _body_mass(listed, nb, inv_mass, inv_inertia, mb):
+                status = _ROWS
+                break
             dmax = _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, band, G,
-                                  H, jv, bv)
+                                  jv, bv)
             for i in range(n):
                 diag[i] = G[i, i]
             ok = _cholesky(G, n, nz, band)
             for i in range(n):
                 ok = ok and G[i, i] * G[i, i] >= DIRECT_PIVOT_FRACTION * diag[i]
-                diag[i] = H[i, i]
-            ok = ok and _cholesky(H, n, nz, band)
-            for i in range(n):
-                ok = ok and H[i, i] * H[i, i] >= DIRECT_PIVOT_FRACTION * diag[i]
             if not ok:
                 status = _ROWS
                 break
             for s in range(ns):
                 rhs_s[s] = rhs[S[s]]
-            _least_norm(ids, S, ns, rhs_s, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H,
-                        band, t, y)
+            _least_norm(ids, S, ns, rhs_s, a, b, dirs, ang_a, ang_b, ima, imb, local, n, nb, G, band, mb, t, y)
             # a row's velocity sums terms of up to its diagonal times the largest impulse: its round-off
             scale = rmax
             for s in range(ns):
@@ -548,8 +609,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
                     worst = max(worst, abs(r[s]))
                 if worst <= DIRECT_ROUNDOFF * scale or refine == DIRECT_REFINEMENTS:
                     break
-                _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, G, H,
-                            band, t, r)
+                _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, local, n, nb, G, band, mb, t, r)
                 for s in range(ns):
                     y[s] += r[s]
             for s in range(ns):
@@ -914,13 +974,15 @@ def _single(c, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, c
 @njit
 def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s, mu_d,
                   friction, warm, use_warm, max_island, regularisation, consistency, max_rounds, vel, omega, apply,
-                  lam, status):
+                  lam, status, inv_mass, inv_inertia):
     """The exact active set on every island of at most ``max_island`` contacts.
 
     ``a, b (K,) int64``; ``order, start`` the contacts by island (``islands``); ``dirs, ang_a, ang_b,
     iang_a, iang_b (K,3,3)``;
     ``ima, imb (K,)``; ``target, compliance, mu_s, mu_d (K,)``; ``warm (K,3)`` (read when
-    ``use_warm``); ``vel, omega (N,3)`` the velocities before. Writes ``lam (K,3)`` (the impulses of
+    ``use_warm``); ``vel, omega (N,3)`` the velocities before; ``inv_mass (N,)``, ``inv_inertia
+    (N,3,3)`` the bodies' inverse mass and world inverse inertia the rows were built with (the
+    body-space method's mass matrix; empty: rows made without them, the rows' method). Writes ``lam (K,3)`` (the impulses of
     a solved island, the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``,
     ``UNFINISHED``, ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to
     the caller). With ``apply`` the solved islands' impulses are applied to ``vel, omega`` (islands
@@ -956,6 +1018,7 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     for j in range(nf):
         every[j] = j
     local = np.full(vel.shape[0] if m_max > 1 else 0, -1, np.int64)
+    mb = np.empty((nb_max, 10))
     residual = 0.0
     for i in range(start.shape[0] - 1):
         ids = order[start[i]:start[i + 1]]
@@ -966,8 +1029,9 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
                               mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S)
         else:
             st, res = _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, compliance, mu_s, mu_d,
-                                   friction, warm, use_warm, consistency, max_rounds, lam, A, sub, vecs, dofs, S, nz,
-                                   act, band, local, listed, first, jv, bv, rhs_s, every, target)
+                                   friction, warm, use_warm, consistency, max_rounds, lam, A, vecs, dofs, S, nz,
+                                   act, band, local, listed, first, jv, bv, rhs_s, every, target, inv_mass,
+                                   inv_inertia, mb)
             if st == _ROWS:
                 st, res = _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance,
                                   mu_s, mu_d, friction, warm, use_warm, regularisation, consistency, max_rounds, lam,

@@ -41,8 +41,8 @@ def penetrating(depth, soft, a, b, dynamic):
 
 
 @njit
-def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, split_beta, split_slop, dt, method,
-         direct_max, max_iterations, tolerance, vp, wp):
+def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, inv_mass, inv_inertia, split_beta,
+         split_slop, dt, method, direct_max, max_iterations, tolerance, vp, wp):
     """Pseudo-velocities ``vp, wp (N,3)`` (zeros in) removing ``split_beta`` of each penetration of
     the contacts ``penetrating`` picks over the step ``dt`` (normal rows only, non-negative: the
     step's solve, ``solver.solve_rows``); rows as ``rows.Rows``' arrays. Returns the penetrating
@@ -66,8 +66,8 @@ def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dyn
         tol = max(tolerance, split_slop / (dt * k_max)) if k_max > 0.0 else tolerance
         zeros = np.zeros(p)
         solve_rows(method, a[pen], b[pen], dirs[pen], ang_a[pen], ang_b[pen], iang_a[pen], iang_b[pen], ima[pen],
-                   imb[pen], K[pen], target, zeros, zeros, zeros, False, np.zeros((p, 3)), False, dynamic, direct_max,
-                   max_iterations, tol, vp, wp, np.zeros((p, 3)))
+                   imb[pen], K[pen], target, zeros, zeros, zeros, False, np.zeros((p, 3)), False, dynamic, inv_mass,
+                   inv_inertia, direct_max, max_iterations, tol, vp, wp, np.zeros((p, 3)))
     return pen
 
 

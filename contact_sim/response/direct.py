@@ -4,7 +4,7 @@ island, sparse (SciPy's SuperLU) above."""
 import numpy as np
 
 from . import active_set
-from .rows import _TINY, SolveResult, apply, row_velocity
+from .rows import _TINY, SolveResult, apply, body_mass, row_velocity
 from ..constants import DIRECT_CONSISTENCY, DIRECT_ISLAND_MAX, DIRECT_MAX_ROUNDS, DIRECT_REGULARISATION
 
 
@@ -104,7 +104,8 @@ def solve_exact(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, warm=None, 
         c(rows.imb, dtype=float), c(target_n, dtype=float), comp, mus, mud, friction,
         zeros.reshape(k, 1) if warm is None else c(warm, dtype=float), warm is not None,
         DIRECT_ISLAND_MAX if island_max is None else island_max,
-        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v, w, apply_solved, lam, status)
+        DIRECT_REGULARISATION, DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, v, w, apply_solved, lam, status,
+        *body_mass(rows))
     if apply_solved:
         if v is not vel:
             vel[...] = v

@@ -23,9 +23,9 @@ from .solver import solve_rows
 @njit
 def impact_stage(a, b, point, normal, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, rel_vel, touching, closing,
                  bounced, spec_target, e, e_material, soft, vn0, n_impact, n_closing, particles, resting, rebound_speed,
-                 impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, inv_mass, mass, particle, pos, quat,
-                 inertia_body, method, direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam,
-                 vn1):
+                 impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, inv_mass, inv_inertia, mass, particle,
+                 pos, quat, inertia_body, method, direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref,
+                 lam, vn1):
     """The impacts of a sub-step on its ``K`` contacts (rows as ``rows.Rows``' arrays): writes the
     impulses ``lam (K,3)`` (zeros in) and the normal velocities after ``vn1 (K,)``, updates the
     bodies' ``vel, omega (N,3)`` and marks in ``bounced (K,)`` every contact that bounced. Returns
@@ -68,8 +68,9 @@ def impact_stage(a, b, point, normal, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     for _ in range(IMPACT_ROUNDS):
         it_r, residual_r, stopped = _round(np.flatnonzero(take), a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima,
                                            imb, K, touching, hit, spec_target, er, vn, mu_s, mu_d, kinetic, kind,
-                                           dynamic, kinematic, mass, particle, pos, quat, inertia_body, method,
-                                           direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam)
+                                           dynamic, kinematic, inv_mass, inv_inertia, mass, particle, pos, quat,
+                                           inertia_body, method, direct_max, max_iterations, tolerance, vel, omega,
+                                           vel_ref, omega_ref, lam)
         it, residual, unconverged = max(it, it_r), max(residual, residual_r), unconverged or stopped
         normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, vn1)
         if not next_round(touching, spec_target, vn1, e_material, resting, rebound_speed, impact_speed, tolerance, soft,
@@ -83,8 +84,8 @@ def impact_stage(a, b, point, normal, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
 
 @njit
 def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, touching, bounced, spec_target, e, vn, mu_s,
-           mu_d, kinetic, kind, dynamic, kinematic, mass, particle, pos, quat, inertia_body, method, direct_max,
-           max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam):
+           mu_d, kinetic, kind, dynamic, kinematic, inv_mass, inv_inertia, mass, particle, pos, quat, inertia_body,
+           method, direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam):
     """One impact round on the contacts ``ti (T,)`` approaching at ``vn (K,)``: compression with
     friction (touching ones stopped, speculative ones slowed to ``spec_target``), then restitution
     (normal only, up to ``−e·vn`` where ``bounced (K,)``, the other pressed touching contacts held at
@@ -117,8 +118,8 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     zeros = np.zeros(nt)
     it, residual, unconverged = solve_rows(method, ta, tb, dirs[ti], ang_a[ti], ang_b[ti], iang_a[ti], iang_b[ti],
                                            ima[ti], imb[ti], K[ti], target, zeros, mu_s[ti], mu_d[ti], kinetic,
-                                           np.zeros((nt, 3)), False, dynamic, direct_max, max_iterations, tolerance,
-                                           vel, omega, lam_t)
+                                           np.zeros((nt, 3)), False, dynamic, inv_mass, inv_inertia, direct_max,
+                                           max_iterations, tolerance, vel, omega, lam_t)
     scale = 1.0
     if u >= 0.0:
         scale = push_cap_kernel(pb, u, mass, particle, quat, inertia_body, v0, w0, vel_ref[pb], omega_ref[pb], vel,
@@ -143,8 +144,8 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
         lam_h = np.zeros((nh, 3))
         it_h, residual_h, stopped_h = solve_rows(method, a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi],
                                                  iang_b[hi], ima[hi], imb[hi], K[hi], target_h, zeros_h, zeros_h,
-                                                 zeros_h, False, np.zeros((nh, 3)), False, dynamic, direct_max,
-                                                 max_iterations, tolerance, vel, omega, lam_h)
+                                                 zeros_h, False, np.zeros((nh, 3)), False, dynamic, inv_mass,
+                                                 inv_inertia, direct_max, max_iterations, tolerance, vel, omega, lam_h)
         unconverged = unconverged or stopped_h
         f = 1.0 if code == NO_FRAME else restitution_cap_in(bodies0, mass, particle, quat, inertia_body, kinetic0,
                                                             vel_c, omega_c, vel, omega, pos, frame, code == FRAME)

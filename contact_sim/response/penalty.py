@@ -35,7 +35,8 @@ from .solver import SOFT, solve_rows
 
 @njit
 def penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, mu, friction, stiffness, damping, v_reg,
-                  dt, movable, direct_max, iterations, tolerance, friction_tolerance, v_end, w_end, lam):
+                  dt, movable, inv_mass, inv_inertia, direct_max, iterations, tolerance, friction_tolerance, v_end,
+                  w_end, lam):
     """The penalty impulses of a step of ``dt`` on ``K`` contacts (rows as ``rows.Rows``' arrays,
     ``depth (K,)``), from the end-of-step velocities without contact ``v_end, w_end (N,3)``, which
     it updates: the springs' normal rows (``solver.solve_rows``' ``SOFT`` method), then with
@@ -54,8 +55,8 @@ def penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, 
         target[c] = stiffness * depth[c] / (dt * stiffness + damp)
     zeros = np.zeros(k)
     it, residual, stopped = solve_rows(SOFT, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma,
-                                       zeros, zeros, False, np.zeros((k, 3)), False, movable, direct_max, iterations,
-                                       tolerance, v_end, w_end, lam)
+                                       zeros, zeros, False, np.zeros((k, 3)), False, movable, inv_mass, inv_inertia,
+                                       direct_max, iterations, tolerance, v_end, w_end, lam)
     sweeps = 0
     if friction and k and np.any(mu > 0.0):
         sweeps = soft_friction_sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, gamma, mu, v_reg,

@@ -30,8 +30,9 @@ def _min(x, y):
 @njit
 def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, local, vn0, vn1, touching, bounced,
                soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, gravity_rows, dynamic,
-               kinematic, mass, particle, pos, quat, inertia_body, vel, omega, vel_ref, omega_ref, a0, b0, p0, values,
-               has_old, ext, method, direct_max, max_iterations, tolerance, resting, lam_r, dv, dw, wv):
+               kinematic, mass, particle, pos, quat, inertia_body, inv_mass, inv_inertia, vel, omega, vel_ref, omega_ref,
+               a0, b0, p0, values, has_old, ext, method, direct_max, max_iterations, tolerance, resting, lam_r, dv, dw,
+               wv):
     """The resting solve of a sub-step over the time ``t`` left in the step, on its ``K`` contacts
     (rows as ``rows.Rows``' arrays; ``local (K,3)`` the points in A's frame, the warm start's key;
     the contact cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)``, read when ``has_old``).
@@ -85,7 +86,8 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
         soft_rows(ri, K, depth, vn1, stiff, zeta, t, target, compliance)
     it, residual, unconverged = solve_rows(method, sa, sb, sdirs, sang_a, sang_b, siang_a, siang_b, sima, simb, sK,
                                            target, compliance, smu_s, smu_d, kinetic, warm, use_warm, dynamic,
-                                           direct_max, max_iterations, tolerance, v_end, w_end, lam)
+                                           inv_mass, inv_inertia, direct_max, max_iterations, tolerance, v_end, w_end,
+                                           lam)
     # where kinematic bodies push, no body ends faster than a push can make it (energy.push_cap_kernel),
     # measured from the impact stage's start; the push cap is the rigid contacts' answer to a
     # squeeze, a compliant one obeys its spring law (what it stores is counted: World.contact_energy)

@@ -32,6 +32,10 @@ class Rows:
     K: np.ndarray       # (K, 3, 3) effective inverse mass in the (n, t1, t2) basis
     dirs: np.ndarray    # (K, 3, 3) the directions n, t1, t2 as rows
     movable: np.ndarray  # (N,) bool: bodies whose velocity the solver changes
+    # the bodies' inverse mass (N,) and world inverse inertia (N,3,3) the rows were built with: the
+    # exact solve's body-space method needs the mass matrix itself (None: rows made without them)
+    inv_mass: np.ndarray = None
+    inv_inertia: np.ndarray = None
 
     def __len__(self):
         return len(self.a)
@@ -55,7 +59,7 @@ class Rows:
         if (idx.all() if idx.dtype == bool else np.array_equal(idx, np.arange(k))) and len(idx) == k:
             return self
         f = ("a", "b", "n", "t1", "t2", "ra", "rb", "ang_a", "ang_b", "iang_a", "iang_b", "ima", "imb", "K", "dirs")
-        return Rows(*[getattr(self, x)[idx] for x in f], self.movable)
+        return Rows(*[getattr(self, x)[idx] for x in f], self.movable, self.inv_mass, self.inv_inertia)
 
 
 def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=None, movable=None, rel_vel=None,
@@ -86,7 +90,8 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, vel=None, omega=
                    c(pos, dtype=float), c(inv_mass, dtype=float), c(inv_inertia, dtype=float), c(hint, dtype=float),
                    c(movable, dtype=np.bool_), bool(dynamic_levers), t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b,
                    ima, imb, K, d)
-    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable)
+    return Rows(a, b, normal, t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, d, movable,
+                c(inv_mass, dtype=float), c(inv_inertia, dtype=float))
 
 
 def row_velocity(rows, vel, omega, idx=slice(None)):
@@ -122,3 +127,15 @@ class SolveResult:
     residual: float         # m/s: largest velocity change a row made in the last sweep (pgs.sweeps)
     unconverged: bool = False   # an iterative solve stopped above its tolerance (sweep limit, or stalled)
 
+
+
+_NO_MASS, _NO_INERTIA = np.zeros(0), np.zeros((0, 3, 3))
+
+
+def body_mass(rows):
+    """``(inv_mass (N,), inv_inertia (N,3,3))`` of ``rows`` as the kernels take them (empty when the
+    rows were made without them: the exact solve then keeps to its rows' method)."""
+    if rows.inv_mass is None or rows.inv_inertia is None:
+        return _NO_MASS, _NO_INERTIA
+    c = np.ascontiguousarray
+    return c(rows.inv_mass, dtype=float), c(rows.inv_inertia, dtype=float)

@@ -33,7 +33,7 @@ from ..constants import (DIRECT_CONSISTENCY, DIRECT_FIRST, DIRECT_ISLAND_MAX, DI
                          DIRECT_REGULARISATION, PGS_STALL_SWEEPS)
 from .direct import _active_set, delassus, solve_direct, solve_exact
 from .pgs import apply_ids, sweeps
-from .rows import _TINY, Rows, SolveResult, apply, build_rows, row_velocity
+from .rows import _TINY, Rows, SolveResult, apply, body_mass, build_rows, row_velocity
 
 __all__ = ["Rows", "SolveResult", "apply", "build_rows", "delassus", "row_velocity", "solve", "solve_auto",
            "solve_direct", "solve_jacobi", "solve_rows"]
@@ -215,8 +215,8 @@ def solve_auto(rows, vel, omega, *, target_n, mu_s=None, mu_d=None, iterations=2
         zeros if compliance is None else c(compliance, dtype=float), c(mu_s, dtype=float) if kinetic else zeros,
         c(mu_d, dtype=float) if kinetic else zeros, kinetic,
         np.zeros((k, 3)) if warm is None else c(warm, dtype=float), warm is not None,
-        c(rows.movable, dtype=np.bool_), DIRECT_MAX_CONTACTS if direct_max is None else int(direct_max),
-        int(iterations), float(tolerance), v, w, lam)
+        c(rows.movable, dtype=np.bool_), *body_mass(rows),
+        DIRECT_MAX_CONTACTS if direct_max is None else int(direct_max), int(iterations), float(tolerance), v, w, lam)
     if v is not vel:
         vel[...] = v
     if w is not omega:
@@ -232,11 +232,13 @@ SOFT = len(SOLVER_METHODS)
 
 @njit
 def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d, kinetic,
-               warm, use_warm, movable, direct_max, iterations, tolerance, vel, omega, lam):
+               warm, use_warm, movable, inv_mass, inv_inertia, direct_max, iterations, tolerance, vel, omega, lam):
     """The step's contact solve, every method (``method`` an index of ``settings.SOLVER_METHODS``),
     on the rows of ``K`` contacts (``rows.Rows``' arrays): ``n·v + compliance·λn ≥ target`` with
     ``λn ≥ 0`` and Coulomb friction when ``kinetic`` and some ``mu_s > 0``; ``warm (K,3)`` the
-    starting impulses (read when ``use_warm``); ``movable (N,)`` the bodies the solve moves.
+    starting impulses (read when ``use_warm``); ``movable (N,)`` the bodies the solve moves,
+    ``inv_mass (N,)`` and ``inv_inertia (N,3,3)`` the inverse mass and world inverse inertia the
+    rows were built with (the exact solve's body-space method reads them; empty: it declines).
     Writes the impulses into ``lam (K,3)`` (zeros in) and updates ``vel, omega (N,3)``. Returns
     ``(sweeps, residual, unconverged)``: ``unconverged`` when an iterative solve stopped with a
     velocity still changing by more than ``tolerance`` (m/s), at ``iterations`` sweeps or stalled
@@ -270,8 +272,8 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
         lam_l = np.zeros((n_live, 3))
         it, residual, stopped = solve_rows(method, a[li], b[li], dirs[li], ang_a[li], ang_b[li], iang_a[li],
                                            iang_b[li], ima[li], imb[li], K[li], target[li], compliance[li], mu_s[li],
-                                           mu_d[li], kinetic, warm[li], use_warm, movable, direct_max, iterations,
-                                           tolerance, vel, omega, lam_l)
+                                           mu_d[li], kinetic, warm[li], use_warm, movable, inv_mass, inv_inertia,
+                                           direct_max, iterations, tolerance, vel, omega, lam_l)
         for j in range(n_live):
             for x in range(3):
                 lam[li[j], x] = lam_l[j, x]
@@ -279,7 +281,7 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
     order, start = islands(a, b, movable, vel.shape[0])
     if method == SOFT:
         return _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, movable,
-                     direct_max, iterations, tolerance, vel, omega, lam)
+                     inv_mass, inv_inertia, direct_max, iterations, tolerance, vel, omega, lam)
     if method == AUTO:
         if DIRECT_FIRST < k <= direct_max and _largest(start) > DIRECT_ISLAND_MAX:
             v0, w0 = vel.copy(), omega.copy()
@@ -295,7 +297,8 @@ def solve_rows(method, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, ta
         method = DIRECT if k <= direct_max else GS
     if method == DIRECT:
         return _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s,
-                       mu_d, kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam)
+                       mu_d, kinetic, warm, use_warm, movable, inv_mass, inv_inertia, iterations, tolerance, vel, omega,
+                       lam)
     if method == GS:
         return _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance,
                              mu_s, mu_d, kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam)
@@ -323,9 +326,10 @@ def _largest(start):
 
 @njit
 def _islands(max_island, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
-             mu_d, kinetic, warm, use_warm, vel, omega, lam):
+             mu_d, kinetic, warm, use_warm, inv_mass, inv_inertia, vel, omega, lam):
     """The dense active set on every island of at most ``max_island`` contacts
-    (``active_set.solve_islands``), the solved ones applied to ``vel, omega``; friction only when
+    (``active_set.solve_islands``, with the bodies' ``inv_mass, inv_inertia``), the solved ones
+    applied to ``vel, omega``; friction only when
     ``kinetic`` and some ``mu_s > 0``. Returns ``(friction, mu_s, mu_d as solved, residual, status
     (K,))``."""
     k = a.shape[0]
@@ -341,20 +345,20 @@ def _islands(max_island, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b,
     status = np.empty(k, np.int64)
     residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mus,
                              mud, friction, warm, use_warm, max_island, DIRECT_REGULARISATION, DIRECT_CONSISTENCY,
-                             DIRECT_MAX_ROUNDS, vel, omega, True, lam, status)
+                             DIRECT_MAX_ROUNDS, vel, omega, True, lam, status, inv_mass, inv_inertia)
     return friction, mus, mud, residual, status
 
 
 @njit
 def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, mu_s, mu_d,
-            kinetic, warm, use_warm, movable, iterations, tolerance, vel, omega, lam):
+            kinetic, warm, use_warm, movable, inv_mass, inv_inertia, iterations, tolerance, vel, omega, lam):
     """The active set island by island (``active_set.solve_islands``; an island larger than
     ``DIRECT_ISLAND_MAX`` or whose factorisation failed by the sparse ``direct._active_set``), the
     solved islands' impulses applied, Gauss–Seidel finishing the others (sliding friction, an
     inconsistent set) from the start the active set left. Returns ``(sweeps, residual, unconverged)``."""
     friction, mus, mud, residual, status = _islands(DIRECT_ISLAND_MAX, a, b, order, start, dirs, ang_a, ang_b, iang_a,
                                                     iang_b, ima, imb, target, compliance, mu_s, mu_d, kinetic, warm,
-                                                    use_warm, vel, omega, lam)
+                                                    use_warm, inv_mass, inv_inertia, vel, omega, lam)
     ok, res_b, big = _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
                                      compliance, mus, mud, friction, warm, use_warm, movable, vel, omega, lam)
     if ok and big.shape[0]:
@@ -370,8 +374,8 @@ def _direct(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K,
 
 
 @njit
-def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, movable, direct_max,
-          iterations, tolerance, vel, omega, lam):
+def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target, compliance, movable, inv_mass,
+          inv_inertia, direct_max, iterations, tolerance, vel, omega, lam):
     """``solve_rows``' ``SOFT`` method: the active set on every island (the sparse one for an island
     too large for the dense kernel), applied only when every island solved; otherwise Gauss–Seidel
     on all the rows from zero. Returns ``(sweeps, residual, unconverged)``."""
@@ -383,7 +387,8 @@ def _soft(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, t
         lam_d = np.zeros((k, 3))
         residual = solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance,
                                  zeros, zeros, False, warm, False, DIRECT_ISLAND_MAX, DIRECT_REGULARISATION,
-                                 DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel, omega, False, lam_d, status)
+                                 DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, vel, omega, False, lam_d, status, inv_mass,
+                                 inv_inertia)
         ok, res_b, big = _sparse_islands(status, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target,
                                          compliance, zeros, zeros, False, warm, False, movable, vel, omega, lam_d)
         if ok and big.shape[0]:
@@ -425,7 +430,7 @@ def _gauss_seidel(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     kernel; Gauss–Seidel (``pgs.sweeps``) for the coupled rest and for a single contact that
     slides, from ``warm``. Returns ``(sweeps, residual, unconverged)``."""
     status = _islands(1, a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, target, compliance, mu_s,
-                      mu_d, kinetic, warm, use_warm, vel, omega, lam)[4]
+                      mu_d, kinetic, warm, use_warm, np.zeros(0), np.zeros((0, 3, 3)), vel, omega, lam)[4]
     rest = _where(status, SOLVED, False)
     if rest.shape[0] == 0:
         return 1, 0.0, False

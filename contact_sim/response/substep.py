@@ -323,14 +323,16 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
                                                  rel_vel, touching, closing, bounced, spec_target, e, e_material, soft,
                                                  vn0, counts.impact, counts.closing, particles, resting, rebound_speed,
                                                  impact_speed, mu_s, mu_d, kinetic, kind, dynamic, kinematic, inv_mass,
-                                                 mass, particle, pos, quat, inertia_body, method, direct_max,
-                                                 max_iterations, tolerance, vel, omega, vel_ref, omega_ref, lam_i, vn1)
+                                                 inv_inertia, mass, particle, pos, quat, inertia_body, method,
+                                                 direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref,
+                                                 lam_i, vn1)
     # ---- the position correction's plan (first sub-step): split-impulse pseudo-velocities for
     # the penetrating contacts; the cap on how far they move stays in Python (correction.cap)
     pen = np.zeros(0, np.int64)
     if first and k and counts.deepest > split_slop:
-        pen = correction.plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, split_beta,
-                              split_slop, dt, method, direct_max, max_iterations, tolerance, vp, wp)
+        pen = correction.plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, inv_mass,
+                              inv_inertia, split_beta, split_slop, dt, method, direct_max, max_iterations, tolerance, vp,
+                              wp)
     # ---- resting contact: the constant force over the rest of the step, warm started, on every
     # contact but those that just rebounded (none when every contact rebounded)
     rested = resting and k > 0 and (counts.touching > 0 or not exact_toi) \
@@ -341,8 +343,8 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
         kr, it_r, residual_r, stopped, rest_bound = rest_stage(
             a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, local, vn0, vn1, touching, bounced,
             soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, gravity_rows, dynamic, kinematic,
-            mass, particle, pos, quat, inertia_body, vel, omega, vel_ref, omega_ref, a0, b0, p0, values, has_old, ext,
-            method, direct_max, max_iterations, tolerance, rest_mask, lam_r, dv, dw, wv)
+            mass, particle, pos, quat, inertia_body, inv_mass, inv_inertia, vel, omega, vel_ref, omega_ref, a0, b0, p0,
+            values, has_old, ext, method, direct_max, max_iterations, tolerance, rest_mask, lam_r, dv, dw, wv)
         unconverged = unconverged or stopped
     else:
         rest_mask[:] = False
@@ -524,8 +526,9 @@ def _penalty_substep(a, b, point, normal, depth, kind, pos, vel, quat, omega, pr
     w_end = omega.copy()
     lam = np.zeros((k, 3))
     it, residual, sweeps, stopped = penalty_stage(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, mu_d,
-                                                  kinetic, stiffness, damping, v_reg, dt, dynamic, direct_max,
-                                                  iterations, tolerance, friction_tolerance, v_end, w_end, lam)
+                                                  kinetic, stiffness, damping, v_reg, dt, dynamic, inv_mass,
+                                                  inv_inertia, direct_max, iterations, tolerance, friction_tolerance,
+                                                  v_end, w_end, lam)
     # ---- store: a speculative contact that did nothing is none
     kept = _store(1.0, lam, lam, False, t1, t2, normal, True, inside, normal_impulse, friction_impulse, impulse, used)
     # ---- move: bodies in contact x += dt·v⁺ (the kick, then half of gravity's kick shifted so that
