@@ -982,8 +982,9 @@ def solve_islands(a, b, order, start, dirs, ang_a, ang_b, iang_a, iang_b, ima, i
     ``ima, imb (K,)``; ``target, compliance, mu_s, mu_d (K,)``; ``warm (K,3)`` (read when
     ``use_warm``); ``vel, omega (N,3)`` the velocities before; ``inv_mass (N,)``, ``inv_inertia
     (N,3,3)`` the bodies' inverse mass and world inverse inertia the rows were built with (the
-    body-space method's mass matrix; empty: rows made without them, the rows' method). Writes ``lam (K,3)`` (the impulses of
-    a solved island, the Gauss–Seidel start of an unfinished one) and ``status (K,)`` (``SOLVED``,
+    body-space method's mass matrix; empty: rows made without them, the rows' method). Writes
+    ``lam (K,3)`` (the impulses of a solved island, the Gauss–Seidel start of an unfinished one)
+    and ``status (K,)`` (``SOLVED``,
     ``UNFINISHED``, ``TOO_LARGE``: larger than ``max_island`` or a failed factorisation, left to
     the caller). With ``apply`` the solved islands' impulses are applied to ``vel, omega`` (islands
     share no movable body, so each sees the velocities before). Returns the largest
