@@ -241,3 +241,47 @@ def test_a_step_detection_skips_the_edge_face_census_and_finds_the_same_contacts
         assert np.array_equal(getattr(full, col), getattr(step, col)), col
     w.step(1e-3)
     assert w.last_detection.edge_face_hits is None and w.last_detection.needed_edge_face == 1
+
+
+def test_box_pairs_skip_the_edge_axes_only_where_the_face_contact_wins():
+    """Two boxes whose 9 edge axes separate them no more than their face axes do skip the edge
+    query in a step's detection (``polyhedra._box_edges_below``); the census's detection runs it.
+    Over random box pairs — resting face to face (a stack), tilted onto an edge or a corner,
+    nearly aligned (turned by 1e-9 to 1e-2 rad), far from the origin, of very different sizes —
+    both give the same contacts bit for bit, and the skip is taken in the stacked cases."""
+    from contact_sim.collision import _bodies_of, detect_world, polyhedra
+    from contact_sim.collision.geometry import SF_SCALE
+
+    rng = np.random.default_rng(11)
+    skipped = 0
+    for trial in range(300):
+        kind = trial % 5
+        size_a = rng.uniform(0.05, 1.0, 3)
+        size_b = size_a * (rng.uniform(0.5, 2.0) if kind != 4 else 50.0)
+        if kind in (0, 1):     # stacked, aligned (0) or nearly aligned by a tiny turn (1)
+            angle = 0.0 if kind == 0 else 10.0 ** rng.uniform(-9, -2)
+            qa = np.array([0.0, 0.0, 0.0, 1.0])
+            qb = Q.axis_rotation(2, [angle])[0]
+            offset = np.array([rng.uniform(-0.2, 0.2) * size_a[0], rng.uniform(-0.2, 0.2) * size_a[1],
+                               0.5 * (size_a[2] + size_b[2]) + rng.uniform(-1e-3, 1e-3)])
+        else:                  # random orientations, near touching
+            qa, qb = (q / np.linalg.norm(q) for q in rng.normal(size=(2, 4)))
+            offset = rng.normal(size=3)
+            offset *= 0.45 * (np.linalg.norm(size_a) + np.linalg.norm(size_b)) / np.linalg.norm(offset)
+        base = rng.uniform(-1e3, 1e3, 3) if trial % 7 == 0 else np.zeros(3)
+        w = cs.World(gravity=(0.0, 0.0, 0.0))
+        w.add_body("a", cs.Box(tuple(size_a)), position=tuple(base), orientation=tuple(qa), mass=1.0)
+        w.add_body("b", cs.Box(tuple(size_b)), position=tuple(base + offset), orientation=tuple(qb), mass=1.0)
+        full, _ = detect_world(w, margin=0.01)
+        step, _ = detect_world(w, margin=0.01, timed=False, census=False)
+        for col in ("body_a", "body_b", "point", "normal", "depth", "feature", "feature_id"):
+            assert np.array_equal(getattr(full, col), getattr(step, col)), (trial, col)
+        if kind == 0 and len(step):   # aligned and flat: every point as deep, the face axis's separation
+            bodies = _bodies_of(w)
+            R = np.stack([Q.to_matrix(np.array(w.s.quat[i])) for i in range(2)])
+            sa, sb = bodies.shape_of
+            face_sep = -float(np.max(step.depth))
+            scale = min(bodies.geom.sf[sa, SF_SCALE], bodies.geom.sf[sb, SF_SCALE])
+            skipped += polyhedra._box_edges_below(bodies.geom.sf, sa, sb, w.s.pos[0], w.s.pos[1], R[0], R[1],
+                                                  min(face_sep + 1e-9 * scale, 0.01))
+    assert skipped >= 50   # every aligned stack (60 of them): its edge axes never beat its face axes
