@@ -373,12 +373,15 @@ def _row_vector(c, d, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, jv, bv):
 
 
 @njit(inline="always")
-def _body_apply(ids, rows, nr, w, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv):
-    """``dv (n,)``: the bodies' velocity change in their freedoms (6 per movable body, numbered by
-    ``local``) from the impulses ``w`` on the rows ``rows[:nr]`` (row ``3p + d``: contact
-    ``ids[p]``, direction ``d``; ``pgs._apply``'s arithmetic)."""
+def _body_sum(ids, rows, nr, w, a, b, dirs, rot_a, rot_b, ima, imb, by_mass, local, n, out):
+    """``out (n,)``: the impulses ``w`` on the rows ``rows[:nr]`` (row ``3p + d``: contact
+    ``ids[p]``, direction ``d``) summed into the bodies' freedoms (6 per movable body, numbered by
+    ``local``; immovable bodies, ``ima``/``imb`` 0, take none). With ``by_mass`` and ``rot_*`` the
+    rows' images under the inverse inertia (``iang_*``) the bodies' velocity change ``M⁻¹Jᵀw``
+    (``pgs._apply``'s arithmetic); without, and ``rot_*`` the rows themselves (``ang_*``), their
+    impulse ``Jᵀw`` (force, then moment about the centre)."""
     for i in range(n):
-        dv[i] = 0.0
+        out[i] = 0.0
     for s in range(nr):
         ws = w[s]
         if ws == 0.0:
@@ -388,19 +391,21 @@ def _body_apply(ids, rows, nr, w, a, b, dirs, iang_a, iang_b, ima, imb, local, n
         c = ids[p]
         if ima[c] != 0.0:
             base = 6 * local[a[c]]
+            m = ima[c] if by_mass else 1.0
             for x in range(3):
-                dv[base + x] += ima[c] * (dirs[c, d, x] * ws)
-                dv[base + 3 + x] += iang_a[c, d, x] * ws
+                out[base + x] += m * (dirs[c, d, x] * ws)
+                out[base + 3 + x] += rot_a[c, d, x] * ws
         if imb[c] != 0.0:
             base = 6 * local[b[c]]
+            m = imb[c] if by_mass else 1.0
             for x in range(3):
-                dv[base + x] -= imb[c] * (dirs[c, d, x] * ws)
-                dv[base + 3 + x] -= iang_b[c, d, x] * ws
+                out[base + x] -= m * (dirs[c, d, x] * ws)
+                out[base + 3 + x] -= rot_b[c, d, x] * ws
 
 
 @njit(inline="always")
 def _body_rows(ids, rows, nr, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, out):
-    """``out[s]``: the velocity of row ``rows[s]`` (as ``_body_apply``'s) for the freedoms'
+    """``out[s]``: the velocity of row ``rows[s]`` (as ``_body_sum``'s) for the freedoms'
     velocities ``dv`` (``pgs._row_velocity``'s arithmetic; a body not numbered, immovable or
     touched by no impulse, does not move)."""
     for s in range(nr):
@@ -455,31 +460,6 @@ def _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, im
     return dmax
 
 
-@njit(inline="always")
-def _body_transpose(ids, rows, nr, w, a, b, dirs, ang_a, ang_b, ima, imb, local, n, t):
-    """``t (n,)``: ``Jᵀ w``, the impulses ``w`` on the rows ``rows[:nr]`` as the bodies' impulses in
-    their freedoms (force, then moment about the centre)."""
-    for i in range(n):
-        t[i] = 0.0
-    for s in range(nr):
-        ws = w[s]
-        if ws == 0.0:
-            continue
-        p = rows[s] // 3
-        d = rows[s] - 3 * p
-        c = ids[p]
-        if ima[c] != 0.0:
-            base = 6 * local[a[c]]
-            for x in range(3):
-                t[base + x] += dirs[c, d, x] * ws
-                t[base + 3 + x] += ang_a[c, d, x] * ws
-        if imb[c] != 0.0:
-            base = 6 * local[b[c]]
-            for x in range(3):
-                t[base + x] -= dirs[c, d, x] * ws
-                t[base + 3 + x] -= ang_b[c, d, x] * ws
-
-
 @njit
 def _body_mass(listed, nb, inv_mass, inv_inertia, mb):
     """``mb (nb, 10)``: the mass matrix ``M`` of the bodies ``listed[:nb]`` (their mass, then their
@@ -516,7 +496,7 @@ def _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, local, n, nb,
     ``_body_matrices``) and the bodies' mass matrix ``M`` (``mb``: ``_body_mass``). With ``J`` of
     full column rank this is the pseudo-inverse (``A·A⁺·A = A``, ``A⁺·A·A⁺ = A⁺``, both products
     symmetric), and every answer is ``J`` times something: in the range of ``J``, the least-norm split."""
-    _body_transpose(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, local, n, t)
+    _body_sum(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, False, local, n, t)
     _cho_solve(G, n, band, t)
     for i in range(nb):
         base = 6 * i
@@ -540,7 +520,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     from one ``6nb × 6nb`` factor and the bodies' mass matrix (``_least_norm``; ``inv_mass (N,)``,
     ``inv_inertia (N,3,3)`` the bodies' inverse mass and world inverse inertia the rows were built
     with, ``mb`` its workspace) instead of the ``3m × 3m`` Delassus matrix, which is never formed
-    (every product goes through the bodies: ``_body_apply``, ``_body_rows``).
+    (every product goes through the bodies: ``_body_sum``, ``_body_rows``).
     The same rounds and tests as ``_island`` (its answer to round-off, and the least-norm split
     exactly where ``_island``'s regularisation leaves a trace); returns ``(_ROWS, 0)`` when the
     island is the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
@@ -601,7 +581,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
             for refine in range(DIRECT_REFINEMENTS + 1):
                 # the rows' velocities (all rows: the set's tests read them too); while an active row
                 # misses by more than round-off, the miss is solved again (iterative refinement)
-                _body_apply(ids, S, ns, y, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv)
+                _body_sum(ids, S, ns, y, a, b, dirs, iang_a, iang_b, ima, imb, True, local, n, dv)
                 _body_rows(ids, every, n3, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, ax)
                 worst = 0.0
                 for s in range(ns):
@@ -643,7 +623,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
                 _warm_candidate(ids, warm, y)
                 nb = _number_bodies(ids, a, b, ima, imb, act, True, local, listed, nb, first)
                 n = 6 * nb
-            _body_apply(ids, every, n3, z, a, b, dirs, iang_a, iang_b, ima, imb, local, n, dv)
+            _body_sum(ids, every, n3, z, a, b, dirs, iang_a, iang_b, ima, imb, True, local, n, dv)
             _body_rows(ids, every, n3, a, b, dirs, ang_a, ang_b, ima, imb, local, dv, ax)
             f = 0.0
             for i in range(n3):
