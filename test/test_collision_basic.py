@@ -247,8 +247,9 @@ def test_box_pairs_skip_the_edge_axes_only_where_the_face_contact_wins():
     """Two boxes whose 9 edge axes separate them no more than their face axes do skip the edge
     query in a step's detection (``polyhedra._box_edges_below``); the census's detection runs it.
     Over random box pairs — resting face to face (a stack), tilted onto an edge or a corner,
-    nearly aligned (turned by 1e-9 to 1e-2 rad), far from the origin, of very different sizes —
-    both give the same contacts bit for bit, and the skip is taken in the stacked cases."""
+    nearly aligned (turned by 1e-9 to 1e-2 rad), far from the origin, thin plates, of very
+    different sizes — both give the same contacts bit for bit, and the skip is taken in the
+    stacked cases."""
     from contact_sim.collision import _bodies_of, detect_world, polyhedra
     from contact_sim.collision.geometry import SF_SCALE
 
@@ -258,6 +259,8 @@ def test_box_pairs_skip_the_edge_axes_only_where_the_face_contact_wins():
         kind = trial % 5
         size_a = rng.uniform(0.05, 1.0, 3)
         size_b = size_a * (rng.uniform(0.5, 2.0) if kind != 4 else 50.0)
+        if trial % 11 == 0:   # a thin plate
+            size_a[rng.integers(3)] *= 1e-3
         if kind in (0, 1):     # stacked, aligned (0) or nearly aligned by a tiny turn (1)
             angle = 0.0 if kind == 0 else 10.0 ** rng.uniform(-9, -2)
             qa = np.array([0.0, 0.0, 0.0, 1.0])

@@ -251,15 +251,17 @@ def _box_edges_below(sf, sa, sb, pa, pb, Ra, Rb, limit):
     over their 9 edge axes, as MuJoCo's and ODE's box–box, instead of 12 × 12 edge pairs).
 
     Exact, not approximate: the bound is lowered by the round-off both computations can carry
-    (16 ulps of the largest coordinate or size involved), parallel directions (``|a × b| <
-    1e-12``) are no axis here as in ``edge_query``, and nearly parallel ones (below 1e-3), whose
-    axis ``edge_query`` takes from vertex differences with round-off this one does not share,
-    answer False (undecided: the query runs)."""
+    (16 ulps of the largest coordinate or size involved, times the boxes' elongation: ``edge_query``
+    takes its axis from the world vertices' differences, whose direction carries their coordinates'
+    round-off over the shortest edge), parallel directions (``|a × b| < 1e-12``) are no axis here as
+    in ``edge_query``, and nearly parallel ones (below 1e-3), whose axis ``edge_query`` takes with
+    round-off this one does not share, answer False (undecided: the query runs)."""
     ha, hb = sf[sa, SF_HALF:SF_HALF + 3], sf[sb, SF_HALF:SF_HALF + 3]
     dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
-    size = max(abs(pa[0]), abs(pa[1]), abs(pa[2])) + max(abs(pb[0]), abs(pb[1]), abs(pb[2])) + sf[sa, SF_SCALE] \
-        + sf[sb, SF_SCALE]
-    limit = limit - 16.0 * 2.220446049250313e-16 * size
+    extent = sf[sa, SF_SCALE] + sf[sb, SF_SCALE]
+    size = max(abs(pa[0]), abs(pa[1]), abs(pa[2])) + max(abs(pb[0]), abs(pb[1]), abs(pb[2])) + extent
+    shortest = 2.0 * min(ha[0], ha[1], ha[2], hb[0], hb[1], hb[2])
+    limit = limit - 16.0 * 2.220446049250313e-16 * size * (1.0 + extent / shortest)
     for i in range(3):
         ax, ay, az = Ra[0, i], Ra[1, i], Ra[2, i]
         for j in range(3):
