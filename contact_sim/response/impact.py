@@ -132,14 +132,16 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     pressed = lam_r[:, 0] > 0.0
     hit = bounced & pressed & (e > 0.0)   # e = 0: the compression was the whole impact
     if np.any(hit):
-        # the touching contacts the compression pressed and that do not bounce hold through the
-        # restitution (v_n ≥ 0): a ball's rebound from a box on the ground does not push the box
-        # into the ground, where nothing would give it back
-        hi = np.flatnonzero(hit | (pressed & touching & ~bounced))
+        # the contacts the compression pressed and that do not bounce hold through the restitution
+        # at the compression's targets (touching v_n ≥ 0, apart the speculative target): a ball's
+        # rebound from a box on the ground does not push the box into the ground, where nothing
+        # would give it back
+        hi = np.flatnonzero(hit | (pressed & ~bounced))
         nh = hi.shape[0]
         target_h = np.empty(nh)
         for j in range(nh):
-            target_h[j] = -e[hi[j]] * vn[hi[j]] if hit[hi[j]] else 0.0
+            c = hi[j]
+            target_h[j] = -e[c] * vn[c] if hit[c] else (0.0 if touching[c] else spec_target[c])
         zeros_h = np.zeros(nh)
         lam_h = np.zeros((nh, 3))
         it_h, residual_h, stopped_h = solve_rows(method, a[hi], b[hi], dirs[hi], ang_a[hi], ang_b[hi], iang_a[hi],

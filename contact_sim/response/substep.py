@@ -308,8 +308,8 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     for c in range(k):   # classify zeroes e where a rebound rests; a later impact round rules again
         e_material[c] = e[c]
     counts = prepare.classify(a, b, normal, depth, rel_vel, gravity_rows, ext, exact_toi, toi_tolerance, simultaneous,
-                              margin, resting, rebound_speed, impact_speed, speculative, t, soft, e, vn0, touching,
-                              imp, closing, spec_target, bounced)
+                              margin, resting, rebound_speed, impact_speed, speculative, t, tolerance, soft, e, vn0,
+                              touching, imp, closing, spec_target, bounced)
     # ---- impacts: compression with friction, then restitution, capped; the push cap's budget is
     # measured from the velocities at the sub-step's start in every solve of it
     refs = np.empty((2, n, 3))
