@@ -196,14 +196,15 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
     return ok
 
 
-_NO_REACH = np.zeros(0)
+_NO_REACH = np.zeros((2, 0))
 _NO_STAGES = {"bounding": 0.0, "narrow": 0.0}
 
 
 def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0, timed=True,
             census=True):
-    """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``; with ``reach (N,)``
-    each pair's narrow phase takes ``min(margin, floor + reach[a] + reach[b])`` (``detect_world``).
+    """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``; with ``reach (2,N)``
+    each pair's narrow phase takes ``min(margin, floor + reach[r, a] + reach[r, b])``, ``r`` 1 for a
+    pair with a plane, else 0 (``detect_world``).
     ``timed``: the two stages' seconds in ``stats.seconds`` (else the total only); ``census``: the
     edge–face crossings counted (``stats.edge_face_hits``, else None)."""
     if R is None:
@@ -272,8 +273,9 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, 
     with ``depth = -separation`` (negative). ``body_a < body_b`` in every row; ``normal (K, 3)``
     points from ``body_b`` to ``body_a``. ``R (N, 3, 3)``: the bodies' rotation matrices, when the
     caller has them already (``vec3.rotations`` of ``world.s.quat``; the step shares them).
-    ``reach (N,)`` (m, the step's speculative contacts: ``prepare.speculative_reach``) narrows each pair's
-    margin to ``min(margin, floor + reach[a] + reach[b])``; ``margin`` still finds the pairs.
+    ``reach (2,N)`` (m, the step's speculative contacts: ``prepare.speculative_reach``) narrows each
+    pair's margin to ``min(margin, floor + reach[r, a] + reach[r, b])``, ``r`` 1 for a pair with a
+    plane (the bodies' whole reach), else 0 (capped); ``margin`` still finds the pairs.
     ``timed``: the seconds of each stage in the stats (the step's detection keeps the broad phase's
     and the total: its bounding volumes and narrow phase run as one compiled call, untimed inside).
     ``horizon`` (s): when the broad phase's pair cache is rebuilt, its fat boxes also cover each

@@ -146,10 +146,10 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
 
     ``which = which_table()``; the geometry arrays as ``GeomTable.arrays()``, ``bvh = trees(geom)``;
     ``ia, ib, swap (K,)`` the batch and ``kk (M,)`` its kept pairs, ``a, b (M,)`` their bodies in the
-    kernels' order (``bounding.kept_pairs``). Each pair's margin is ``margin``, or with ``reach (N,)``
-    (empty: none) ``min(margin, floor + reach[a] + reach[b])``: how far its two bodies can close
-    (``prepare.speculative_reach``), so that a pair at rest beside a fast body does not take candidates it
-    cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
+    kernels' order (``bounding.kept_pairs``). Each pair's margin is ``margin``, or with ``reach (2,N)``
+    (empty: none) ``min(margin, floor + reach[r, a] + reach[r, b])``, ``r`` 1 against a plane, else
+    0: how far its two bodies can close (``prepare.speculative_reach``), so that a pair at rest
+    beside a fast body does not take candidates it cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
     body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
     (``rows_i[:, 0]`` indexing ``kk``), the columns of ``contact_columns``, and the number of pairs
     no kernel takes (plane–plane pairs are no contacts)."""
@@ -160,7 +160,11 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
         order, A, B, starts, keys = group_by_type(a, b, rank, NRANK)
         margins = np.empty(M)
         for i in range(M):
-            margins[i] = margin if reach.shape[0] == 0 else min(margin, floor + reach[A[i]] + reach[B[i]])
+            if reach.shape[1] == 0:
+                margins[i] = margin
+            else:   # against a plane (the lower rank, B) the bodies' whole reach
+                r = 1 if rank[B[i]] == PLANE else 0
+                margins[i] = min(margin, floor + reach[r, A[i]] + reach[r, B[i]])
         for g in range(keys.shape[0]):
             s, e = starts[g], starts[g + 1]
             w = which[keys[g]]

@@ -191,49 +191,62 @@ def _relative_velocity(a, b, point, pos, vel, omega, kind, particles, out, norma
 
 def speculative_reach(world, dt):
     """Detection margin (m) of a ``next_step`` step with speculative contacts, and each body's share
-    of it: ``(margin, reach (N,), floor)``.
+    of it: ``(margin, reach (2,N), floor)``.
 
-    ``margin`` is the largest closing distance of any pair in ``dt`` (twice the fastest body's
-    speed, including spin × size, times ``dt``, plus ``|g| dt²``), at least
-    ``settings.contact_margin`` and at most ``SPECULATIVE_MAX_FRACTION`` × the thickest finite body;
-    it finds the pairs. ``reach`` is the farthest a body's points move in ``dt`` (``_speed · dt``, 0
-    for a body that does not move), at most ``SPECULATIVE_MAX_FRACTION`` × the body's own thinnest
-    size (a body moving farther than that in a step is the tunnelling case that ``swept`` handles
-    and the preflight warns about), and ``floor = contact_margin + |g| dt²``.
-    A pair can close by at most ``floor + reach[a] + reach[b]`` (the look-ahead keeps nothing
-    farther), so the narrow phase takes that as the pair's margin (``detect_world``'s ``reach``): a
-    hull at rest beside a fast ball then builds its manifold from the points that touch, not from
-    vertices a centimetre up that the look-ahead would drop, leaving its support short of a corner."""
+    ``reach[1]`` is the farthest a body's points move in ``dt`` (``_speed · dt``, 0 for a body that
+    does not move), ``reach[0]`` the same at most ``SPECULATIVE_MAX_FRACTION`` × the body's own
+    thinnest size, and ``floor = contact_margin + |g| dt²``. A pair can close by at most ``floor +
+    reach[a] + reach[b]`` (the look-ahead keeps nothing farther), so the narrow phase takes that as
+    the pair's margin (``detect_world``'s ``reach``): a hull at rest beside a fast ball then builds
+    its manifold from the points that touch, not from vertices a centimetre up that the look-ahead
+    would drop, leaving its support short of a corner. Between two finite bodies the capped
+    ``reach[0]``: a look-ahead longer than half a body's thickness stops it on the features of
+    things it only passes by (a body moving farther in a step is ``swept``'s case); against a plane
+    the whole ``reach[1]``: a half-space has nothing to pass by, and a box falling or turning
+    farther than half its thickness in a step reached the floor unseen (a 1 cm box at 1.8 m/s went
+    1.5 mm in; a spinning penalty box's corners 3.9 mm, their springs' energy from nothing).
+
+    ``margin`` finds the pairs: the largest closing distance of two finite bodies in ``dt`` (twice
+    the fastest body's speed, including spin × size, times ``dt``, plus ``|g| dt²``), at most
+    ``SPECULATIVE_MAX_FRACTION`` × the thickest finite body, and with a plane in the world at least
+    ``floor`` plus the farthest a finite body's points move; at least ``settings.contact_margin``."""
     s = world.s
     base = world.settings.contact_margin
-    ext, moving, caps, cap = _margin_facts(world)
-    reach = np.empty(len(s.vel))
-    vmax = _reach(s.vel, s.omega, ext, moving, caps, dt, reach)
+    ext, moving, caps, cap, plane = _margin_facts(world)
+    reach = np.empty((2, len(s.vel)))
+    vmax, free = _reach(s.vel, s.omega, ext, moving, caps, dt, reach)
     g = world.gravity_norm() * dt * dt
+    floor = base + g
     if vmax < 0:   # nothing moves
-        return base, reach, base + g
-    return max(base, min(2.0 * vmax * dt + g, cap)), reach, base + g
+        return base, reach, floor
+    margin = max(base, min(2.0 * vmax * dt + g, cap))
+    return (max(margin, floor + free) if plane else margin), reach, floor
 
 
 @njit
 def _reach(vel, omega, ext, moving, caps, dt, out):
-    """``out (N,)``: ``_speed · dt`` of the ``moving`` bodies, at most their ``caps (N,)``, 0 for the
-    others; returns the largest ``_speed`` (m/s), −1 when none moves."""
-    best = -1.0
+    """``out (2,N)``: ``_speed · dt`` of the ``moving`` bodies (row 1), at most their ``caps (N,)``
+    (row 0), 0 for the others; returns the largest ``_speed`` (m/s), −1 when none moves, and the
+    largest ``_speed · dt`` of a body of finite extent (m)."""
+    best, free = -1.0, 0.0
     for i in range(vel.shape[0]):
-        out[i] = 0.0
+        out[0, i] = out[1, i] = 0.0
         if moving[i]:
             speed = _speed(vel, omega, ext, i)
             best = max(best, speed)
-            out[i] = min(speed * dt, caps[i])
-    return best
+            out[1, i] = speed * dt
+            out[0, i] = min(out[1, i], caps[i])
+            if math.isfinite(ext[i]):
+                free = max(free, out[1, i])
+    return best, free
 
 
 def _margin_facts(world):
     """What ``speculative_reach`` reads of the bodies, kept while they are the same (the kind
     array and the shape list are replaced when a body is added or removed): ``(extents (N,),
     moving (N,) bool, each body's largest reach (N,): SPECULATIVE_MAX_FRACTION × its thinnest size,
-    the largest look-ahead (m): that fraction of the thickest finite body)``. Each body's own: with
+    the largest look-ahead between finite bodies (m): that fraction of the thickest finite body,
+    whether a body is a plane)``. Each body's own: with
     the world's thinnest body setting every reach, a 2 cm ball kept a 12 cm box spinning at 19 rad/s
     to a 1 cm look-ahead, and its corners 1.7 cm up entered the ground unseen."""
     bm = world.body_masks()
@@ -244,7 +257,8 @@ def _margin_facts(world):
     thin = _models.body_thinness(world)
     finite = np.isfinite(thin)
     facts = (toi_mod._extents(world), bm.moving, SPECULATIVE_MAX_FRACTION * thin,
-             SPECULATIVE_MAX_FRACTION * float(thin[finite].max()) if finite.any() else np.inf)
+             SPECULATIVE_MAX_FRACTION * float(thin[finite].max()) if finite.any() else np.inf,
+             any(sh.type == "plane" for sh in world.shapes))
     world._derived["margin_facts"] = (kind, last, bm, facts)
     return facts
 
