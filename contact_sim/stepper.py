@@ -71,13 +71,14 @@ def step(world, dt):
 
 
 # ---------------------------------------------------------------------------- helpers
-def _detect(world, margin, dt, R=None, reach=None, floor=0.0):
+def _detect(world, margin, dt, R=None, reach=None, floor=0.0, plane_margin=None):
     """Contacts of the current state within ``margin`` (``R (N,3,3)`` the rotation matrices, when
     known; ``reach, floor``: each pair's own margin, ``detect_world``) in a step of ``dt`` (s): the
     broad phase's cache covers ``FAT_STEPS`` such steps of motion; the detection statistics go
     to ``world.last_detection`` (untimed stages: the broad phase's seconds and the total; no
     edge–face census: ``detect_world``'s ``census``)."""
-    contacts, world.last_detection = detect_world(world, margin=margin, R=R, reach=reach, floor=floor, timed=False,
+    contacts, world.last_detection = detect_world(world, margin=margin, R=R, reach=reach, floor=floor,
+                                                  plane_margin=plane_margin, timed=False,
                                                   horizon=FAT_STEPS * dt, census=False)
     return contacts
 
@@ -116,13 +117,14 @@ def _detect_stage(ctx):
     the separated ones whose gap can close within the rest of the step)."""
     world = ctx.world
     margin = ctx.settings.contact_margin
-    det_margin, reach, floor = prepare.speculative_reach(world, ctx.t_left) if ctx.speculative else (margin, None, 0.0)
+    det_margin, reach, floor, plane_margin = prepare.speculative_reach(world, ctx.t_left) if ctx.speculative \
+        else (margin, None, 0.0, None)
     if det_margin <= margin:   # no speculative contact: every pair takes the contact margin
-        reach = None
+        reach = plane_margin = None
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)   # quat.to_matrix's values in one compiled pass; prepare reads them too
     # the speculative margin finds the pairs; each pair's narrow phase takes only what its bodies can close
-    c = _detect(world, det_margin, ctx.dt, ctx.R, reach, floor)
+    c = _detect(world, det_margin, ctx.dt, ctx.R, reach, floor, plane_margin)
     if ctx.swept_pair is not None:   # the sweep's hit: feature swept
         c = swept.mark_swept(c, ctx.swept_pair)
         ctx.swept_pair = None
@@ -180,10 +182,11 @@ def _penalty_step(world, dt, m):
     # spinning box's corner swinging into the ground) is in the solve, so its spring acts on the
     # depth it reaches by the end of the step; seen only once inside, its first step in compressed
     # the spring with nothing resisting, energy from no work
-    margin, reach, floor = prepare.speculative_reach(world, dt) if world.settings.speculative else (0.0, None, 0.0)
+    margin, reach, floor, plane_margin = prepare.speculative_reach(world, dt) if world.settings.speculative \
+        else (0.0, None, 0.0, None)
     ctx.R = np.empty((len(world), 3, 3))
     rotations(world.s.quat, ctx.R)
-    ctx.contacts = _detect(world, margin, dt, ctx.R, reach, floor)
+    ctx.contacts = _detect(world, margin, dt, ctx.R, reach, floor, plane_margin)
     ctx.warm_out = world.contact_cache.warm   # the springs take no warm start: the cache is kept as it is
     substep.run_penalty(ctx)
     _finish(ctx, 0.0)

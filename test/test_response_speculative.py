@@ -164,7 +164,7 @@ def test_each_pair_takes_only_the_margin_its_bodies_can_close():
 
     w, corners = _hull_beside_a_fast_ball()
     dt = 0.01
-    margin, reach, floor = prepare.speculative_reach(w, dt)
+    margin, reach, floor, plane_margin = prepare.speculative_reach(w, dt)
     cap = prepare._margin_facts(w)[3]                   # a fraction of the thickest finite body
     assert margin == max(w.settings.contact_margin, min(2.0 * 5.0 * dt + G * dt * dt, cap))   # the ball's
     assert margin > 0.01                                # the 1 cm vertex is in it
@@ -194,9 +194,10 @@ def test_a_turning_kinematic_plane_takes_the_whole_margin():
     w.add_body("deck", cs.Plane(), kind="kinematic", angular_velocity=(0.0, 1.0, 0.0))
     w.add_body("ball", cs.Sphere(R), mass=1.0, position=(-2.0, 0.0, R + 0.01))
     w.add_body("runner", cs.Sphere(R), mass=1.0, position=(3.0, 0.0, 0.5), velocity=(3.0, 0.0, 0.0))
-    margin, reach, floor = prepare.speculative_reach(w, 0.01)
+    margin, reach, floor, plane_margin = prepare.speculative_reach(w, 0.01)
     assert reach[0, 0] == np.inf and margin == prepare._margin_facts(w)[3] > 0.01   # the whole, capped margin
-    c, _ = detect_world(w, margin=margin, reach=reach, floor=floor)
+    assert plane_margin == max(margin, floor + 3.0 * 0.01)   # the runner's whole reach
+    c, _ = detect_world(w, margin=margin, reach=reach, floor=floor, plane_margin=plane_margin)
     (row,) = np.flatnonzero((c.body_a == 0) | (c.body_b == 0))
     assert c.depth[row] == pytest.approx(-0.01, abs=1e-12)
 
@@ -213,12 +214,12 @@ def test_each_body_looks_ahead_as_far_as_its_own_size_allows():
     w.add_body("box", cs.Box([0.2, 0.2, 0.12]), mass=1.0, position=(0.0, 0.0, 0.06 + 0.017),
                angular_velocity=(10.0, 0.0, 0.0))
     w.add_body("pebble", cs.Sphere(0.01), mass=0.01, position=(2.0, 0.0, 0.01))
-    margin, reach, floor = prepare.speculative_reach(w, 1 / 60)
+    margin, reach, floor, plane_margin = prepare.speculative_reach(w, 1 / 60)
     ext = np.linalg.norm([0.1, 0.1, 0.06])
     assert reach[0, 1] == pytest.approx(min(10.0 * ext / 60, 0.5 * 0.12), rel=1e-12)
     assert reach[1, 1] == pytest.approx(10.0 * ext / 60, rel=1e-12)
     assert margin > 0.017 + 0.01
-    c, _ = detect_world(w, margin=margin, reach=reach, floor=floor)
+    c, _ = detect_world(w, margin=margin, reach=reach, floor=floor, plane_margin=plane_margin)
     box = c.body_b == 1
     assert box.sum() == 4 and np.allclose(c.depth[box], -0.017, atol=1e-12)
 

@@ -201,10 +201,10 @@ _NO_STAGES = {"bounding": 0.0, "narrow": 0.0}
 
 
 def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, reach=None, floor=0.0, timed=True,
-            census=True):
+            census=True, plane_margin=None):
     """Stages 2 and 3 for the pairs ``ia, ib (K,)``: ``(Contacts, stats)``; with ``reach (2,N)``
-    each pair's narrow phase takes ``min(margin, floor + reach[r, a] + reach[r, b])``, ``r`` 1 for a
-    pair with a plane, else 0 (``detect_world``).
+    each pair's narrow phase takes ``min(margin, floor + reach[0, a] + reach[0, b])``, a pair with a
+    plane ``min(plane_margin, floor + reach[1, a] + reach[1, b])`` (``detect_world``).
     ``timed``: the two stages' seconds in ``stats.seconds`` (else the total only); ``census``: the
     edge–face crossings counted (``stats.edge_face_hits``, else None)."""
     if R is None:
@@ -219,11 +219,12 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
     ia, ib = np.ascontiguousarray(ia, np.int64), np.ascontiguousarray(ib, np.int64)
     counters = np.zeros(3 if census else 2, np.int64)
     reach = _NO_REACH if reach is None else reach
+    plane_margin = margin if plane_margin is None else plane_margin
     if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank), filter, narrow phase
         seconds = np.zeros(2)
         rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kept = pair_kernels.kept_contacts(
-            *bodies.narrow_args(), ia, ib, bv != "obb", bv != "sphere", pos, R, margin, reach, float(floor), counters,
-            timed, seconds)
+            *bodies.narrow_args(), ia, ib, bv != "obb", bv != "sphere", pos, R, margin, reach, float(floor),
+            float(plane_margin), counters, timed, seconds)
         if timed:
             timings["bounding"], timings["narrow"] = seconds.tolist()
     else:
@@ -233,7 +234,8 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
         a, b, kept = a[kk], b[kk], len(kk)
         t2 = time.perf_counter()
         rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_kernels.pair_contacts(
-            *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, reach, float(floor), counters)
+            *bodies.narrow_args(), ia, ib, swap, kk, a, b, pos, R, margin, reach, float(floor), float(plane_margin),
+            counters)
         timings["bounding"], timings["narrow"] = t2 - t1, time.perf_counter() - t2
     stats.rejected_by_bounding_volume = len(ia) - kept
     k = len(body_a)
@@ -266,7 +268,8 @@ def disabled_keys(world):
                    key=(len(world), len(world.disabled_pairs)))
 
 
-def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, horizon=0.0, census=True):
+def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, horizon=0.0, census=True,
+                 plane_margin=None):
     """All contacts of ``world``'s current state: ``(Contacts, DetectionStats)``.
 
     ``margin`` (m) overrides ``world.settings.contact_margin``: pairs closer than it are reported
@@ -274,8 +277,9 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, 
     points from ``body_b`` to ``body_a``. ``R (N, 3, 3)``: the bodies' rotation matrices, when the
     caller has them already (``vec3.rotations`` of ``world.s.quat``; the step shares them).
     ``reach (2,N)`` (m, the step's speculative contacts: ``prepare.speculative_reach``) narrows each
-    pair's margin to ``min(margin, floor + reach[r, a] + reach[r, b])``, ``r`` 1 for a pair with a
-    plane (the bodies' whole reach), else 0 (capped); ``margin`` still finds the pairs.
+    pair's margin to ``min(margin, floor + reach[0, a] + reach[0, b])`` (capped reaches), a pair
+    with a plane to ``min(plane_margin, floor + reach[1, a] + reach[1, b])`` (the bodies' whole
+    reach); ``margin`` still finds the pairs, ``plane_margin`` (m, default ``margin``) the planes'.
     ``timed``: the seconds of each stage in the stats (the step's detection keeps the broad phase's
     and the total: its bounding volumes and narrow phase run as one compiled call, untimed inside).
     ``horizon`` (s): when the broad phase's pair cache is rebuilt, its fat boxes also cover each
@@ -300,22 +304,25 @@ def detect_world(world, margin=None, R=None, reach=None, floor=0.0, timed=True, 
         if R is None:
             R = np.empty((bodies.n, 3, 3))
             rotations(quat, R)
-        ia, ib = _world_pairs(world, bodies, pos, R, margin, horizon)
+        ia, ib = _world_pairs(world, bodies, pos, R, margin, horizon, plane_margin)
     timings["broad"] = time.perf_counter() - t0 - timings["prepare"]
     stats.candidate_pairs = len(ia)
-    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor, timed, census)
+    return _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R, reach, floor, timed, census,
+                   plane_margin)
 
 
-def _world_pairs(world, bodies, pos, R, margin, horizon=0.0):
+def _world_pairs(world, bodies, pos, R, margin, horizon=0.0, plane_margin=None):
     """The broad phase of ``detect_world``: pairs ``(ia (K,), ib (K,))``, ``ia < ib``, sorted, whose
-    world boxes overlap within ``margin`` (planes: whose half-space reaches the box), without the
+    world boxes overlap within ``margin`` (planes: whose half-space reaches the box within
+    ``plane_margin``, default ``margin``), without the
     pairs that never collide (both static, group/mask, ``world.disabled_pairs``). One compiled pass
     (``broadphase.world_pairs``) while the pair cache holds; a rebuild of the cache first otherwise,
     its fat boxes stretched by each body's velocity × ``horizon`` (s)."""
     fin, cache = bodies.finite, bodies.pair_cache
     disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
+    plane_margin = margin if plane_margin is None else plane_margin
     if cache.fat_c is not None:
-        ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, disabled)
+        ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, plane_margin, disabled)
         if ok:
             cache.reuses += 1
             return ia, ib
@@ -323,18 +330,18 @@ def _world_pairs(world, bodies, pos, R, margin, horizon=0.0):
     broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
     cache.rebuild(c, h, margin, world.s.vel[fin] if horizon else None, horizon)
     # the fat boxes hold the boxes they were built from
-    ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, disabled)
+    ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, plane_margin, disabled)
     assert ok
     return ia, ib
 
 
-def _cached_pairs(world, bodies, pos, R, margin, disabled):
+def _cached_pairs(world, bodies, pos, R, margin, plane_margin, disabled):
     """``broadphase.world_pairs`` on the pair cache's fat boxes: ``(ok, ia, ib)``, ``ok`` False when
     a body left its fat box (the cache is then rebuilt)."""
     cache = bodies.pair_cache
     return broadphase.world_pairs(pos, R, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n,
                                   bodies.plane_d, cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, margin,
-                                  world.kind, world.group, world.mask, disabled)
+                                  float(plane_margin), world.kind, world.group, world.mask, disabled)
 
 
 _NO_KEYS = np.zeros(0, np.int64)

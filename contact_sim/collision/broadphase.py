@@ -249,7 +249,7 @@ def overlap_filter(c, h, i, j, margin, oi, oj):
 
 @njit
 def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj, fat_margin, margin,
-                kind, group, mask, disabled):
+                plane_margin, kind, group, mask, disabled):
     """The world's candidate pairs in one pass, while the pair cache holds: ``(ok, i (K,), j (K,))``.
 
     World boxes of the finite bodies ``fin (M,)`` (``world_boxes``); ``ok`` False (nothing else
@@ -257,7 +257,7 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
     rebuilds the cache and calls again). Otherwise the cached pairs ``ci, cj`` (indices into
     ``fin``) that overlap within ``margin`` (``PairCache.pairs``' answer), and each plane of
     ``planes (P,)`` (object normal and offset ``plane_n (N, 3)``, ``plane_d (N,)``) with every
-    finite box whose lowest point along the world normal reaches within ``margin`` of the plane;
+    finite box whose lowest point along the world normal reaches within ``plane_margin`` of the plane;
     sorted by ``(i, j)``, ``i < j`` body indices; without the pairs that may not touch (both
     static, or a group outside the other's mask) nor the sorted keys ``i·N + j`` in ``disabled
     (D,)``. One compiled pass: a dozen numpy calls a step were most of a small world's detection."""
@@ -285,7 +285,7 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
         for f in range(m):
             low = (nx * c[f, 0] + ny * c[f, 1] + nz * c[f, 2]) \
                 - (abs(nx) * h[f, 0] + abs(ny) * h[f, 1] + abs(nz) * h[f, 2])
-            if low <= dw + margin:
+            if low <= dw + plane_margin:
                 keys[n] = min(p, fin[f]) * nb + max(p, fin[f])
                 n += 1
     keys = keys[:n]

@@ -109,7 +109,7 @@ def which_table():
 
 @njit
 def kept_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, use_sphere,
-                  use_obb, pos, R, margin, reach, floor, counters, timed, seconds):
+                  use_obb, pos, R, margin, reach, floor, plane_margin, counters, timed, seconds):
     """The bounding volumes (``bounding.kept_pairs``: ``use_sphere``, ``use_obb``) then the narrow
     phase (``pair_contacts``, the same arguments) of the pairs ``ia, ib (K,)``, in one call: the
     kept pairs' arrays stay in compiled code (from Python, each array handed back and in again cost
@@ -121,7 +121,7 @@ def kept_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
     t1 = _clock(timed)
     rows_i, rows_f, body_a, body_b, normal, pairs, unsupported = pair_contacts(
         which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, swap, kk, a, b, pos, R,
-        margin, reach, floor, counters)
+        margin, reach, floor, plane_margin, counters)
     if timed:
         seconds[0], seconds[1] = t1 - t0, _clock(timed) - t1
     return rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kk.shape[0]
@@ -139,17 +139,18 @@ def _clock(timed):
 
 @njit
 def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, swap, kk,
-                  a, b, pos, R, margin, reach, floor, counters):
+                  a, b, pos, R, margin, reach, floor, plane_margin, counters):
     """The narrow phase of a batch in one compiled call: the pairs grouped by type pair
     (``dispatch.group_by_type``), each group through its kernel (``call``), then the contact
     columns (``dispatch.contact_columns``).
 
     ``which = which_table()``; the geometry arrays as ``GeomTable.arrays()``, ``bvh = trees(geom)``;
     ``ia, ib, swap (K,)`` the batch and ``kk (M,)`` its kept pairs, ``a, b (M,)`` their bodies in the
-    kernels' order (``bounding.kept_pairs``). Each pair's margin is ``margin``, or with ``reach (2,N)``
-    (empty: none) ``min(margin, floor + reach[r, a] + reach[r, b])``, ``r`` 1 against a plane, else
-    0: how far its two bodies can close (``prepare.speculative_reach``), so that a pair at rest
-    beside a fast body does not take candidates it cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
+    kernels' order (``bounding.kept_pairs``). Each pair's margin is ``margin`` (``plane_margin`` with
+    a plane), or with ``reach (2,N)`` (empty: none) ``min(margin, floor + reach[0, a] + reach[0,
+    b])``, with a plane ``min(plane_margin, floor + reach[1, a] + reach[1, b])``: how far its two
+    bodies can close (``prepare.speculative_reach``), so that a pair at rest beside a fast body does
+    not take candidates it cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
     body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
     (``rows_i[:, 0]`` indexing ``kk``), the columns of ``contact_columns``, and the number of pairs
     no kernel takes (plane–plane pairs are no contacts)."""
@@ -160,11 +161,11 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
         order, A, B, starts, keys = group_by_type(a, b, rank, NRANK)
         margins = np.empty(M)
         for i in range(M):
-            if reach.shape[1] == 0:
-                margins[i] = margin
-            else:   # against a plane (the lower rank, B) the bodies' whole reach
-                r = 1 if rank[B[i]] == PLANE else 0
-                margins[i] = min(margin, floor + reach[r, A[i]] + reach[r, B[i]])
+            if rank[B[i]] == PLANE:   # (a plane is always B: the lower rank) the bodies' whole reach
+                margins[i] = plane_margin if reach.shape[1] == 0 else \
+                    min(plane_margin, floor + reach[1, A[i]] + reach[1, B[i]])
+            else:
+                margins[i] = margin if reach.shape[1] == 0 else min(margin, floor + reach[0, A[i]] + reach[0, B[i]])
         for g in range(keys.shape[0]):
             s, e = starts[g], starts[g + 1]
             w = which[keys[g]]
