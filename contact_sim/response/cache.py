@@ -19,7 +19,7 @@ class ContactCache:
     up the next step (warm starts) and decides when the preflight check reruns."""
 
     #: the last resting solve's contacts: ``(body_a (K,), body_b (K,), points in A's frame (K,3),
-    #: impulses per unit time (K,4): normal, then the world tangential vector)``, int64 and float64
+    #: impulses per unit of the step's time (K,4): normal, then the world tangential vector)``, int64 and float64
     #: C-order arrays (the sub-step's kernel takes them as they are); ``None`` before one
     warm: tuple = None
     #: the step length the preflight warnings were last checked for
@@ -110,7 +110,7 @@ def _match(a0, b0, p0, a1, b1, p1, ext, fraction, out):
 @njit
 def warm_start(a0, b0, p0, a1, b1, p1, ext, fraction, values, t_left, dirs, mu, out):
     """The resting solve's warm start ``out (K,3)`` in the rows' (n, t1, t2) basis (``dirs
-    (K,3,3)``): the previous step's resting impulses per unit time (the cache ``a0, b0 (K0,)``,
+    (K,3,3)``): the previous step's resting impulses per unit of its time (the cache ``a0, b0 (K0,)``,
     ``p0 (K0,3)``, ``values (K0,4)``) of the contacts ``(a1, b1 (K,), p1 (K,3))`` that match one of
     them (same pair, nearest point: ``_match``, within ``fraction`` of the smaller body's extent
     ``ext (N,)``), times ``t_left``, projected on each contact's tangent plane and friction cone

@@ -29,7 +29,7 @@ def _min(x, y):
 
 @njit
 def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, local, vn0, vn1, touching, bounced,
-               soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, gravity_rows, dynamic,
+               soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, step, gravity_rows, dynamic,
                kinematic, mass, particle, pos, quat, inertia_body, inv_mass, inv_inertia, vel, omega, vel_ref, omega_ref,
                a0, b0, p0, values, has_old, ext, method, direct_max, max_iterations, tolerance, resting, lam_r, dv, dw,
                wv):
@@ -46,7 +46,12 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
     ``resting (K,) bool``; writes their impulses into ``lam_r (K,3)`` (zeros in), the force's
     velocity change over ``t`` into ``dv, dw (N,3)`` (the bodies' velocities are not changed: the
     advance applies it as two half-kicks) and the cache's values of the resting contacts into the
-    first rows of ``wv (K,4)``. Returns ``(n_rest, sweeps, residual, unconverged, work_bound)``."""
+    first rows of ``wv (K,4)``: their impulses per unit of the step's time ``step`` (s), which the
+    next step's warm start multiplies by its own. Not per unit of ``t``: after a time of impact late
+    in the step ``t`` is short, and what the solve stops then (a box reaching a wall at 3 cm/s in
+    the last 1e-3 of a step) read as a force 1000× the step's; in a pile that Gauss–Seidel solves
+    alone, such warm starts kept the sweeps from converging. Returns ``(n_rest, sweeps, residual,
+    unconverged, work_bound)``."""
     k = a.shape[0]
     n = vel.shape[0]
     kr = 0
@@ -115,7 +120,7 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
     warm_record(lam, sdirs, wv[:kr])
     for j in range(kr):
         for x in range(4):
-            wv[j, x] = wv[j, x] / t
+            wv[j, x] = wv[j, x] / step
         for x in range(3):
             lam_r[ri[j], x] = lam[j, x]
     for i in range(n):

@@ -342,9 +342,9 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     if rested:
         kr, it_r, residual_r, stopped, rest_bound = rest_stage(
             a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, local, vn0, vn1, touching, bounced,
-            soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, gravity_rows, dynamic, kinematic,
-            mass, particle, pos, quat, inertia_body, inv_mass, inv_inertia, vel, omega, vel_ref, omega_ref, a0, b0, p0,
-            values, has_old, ext, method, direct_max, max_iterations, tolerance, rest_mask, lam_r, dv, dw, wv)
+            soft, stiff, zeta, mu_s, mu_d, kinetic, exact_toi, gdt, impact_speed, t, dt, gravity_rows, dynamic,
+            kinematic, mass, particle, pos, quat, inertia_body, inv_mass, inv_inertia, vel, omega, vel_ref, omega_ref, a0,
+            b0, p0, values, has_old, ext, method, direct_max, max_iterations, tolerance, rest_mask, lam_r, dv, dw, wv)
         unconverged = unconverged or stopped
     else:
         rest_mask[:] = False
