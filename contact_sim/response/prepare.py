@@ -206,9 +206,9 @@ def speculative_reach(world, dt):
     farther than half its thickness in a step reached the floor unseen (a 1 cm box at 1.8 m/s went
     1.5 mm in; a spinning penalty box's corners 3.9 mm, their springs' energy from nothing). Only
     while the body turns by at most ``SPECULATIVE_MAX_TURN`` in the step: a speculative contact
-    takes its points along straight lines, and a body tumbling at 0.3–0.9 rad a step in a pile
-    took a dozen contacts on the walls from 4–11 cm off that tangents can close and the turning
-    points would not (the pile's resting solve then diverged, a body thrown at 52 m/s).
+    moves its points along straight lines (their velocities at the step's start), which the
+    points of a body turning farther leave (bodies tumbling at 0.3–0.9 rad a step in a pile took
+    a dozen wall contacts each from 4–11 cm off, stops that the turning points need not make).
 
     ``margin`` finds the pairs of finite bodies and bounds their margins: the largest closing
     distance of two finite bodies in ``dt`` (twice the fastest body's speed, including spin × size,
