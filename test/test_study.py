@@ -349,10 +349,11 @@ def test_shipped_accuracy_study_matches_the_exact_bounce(tmp_path, capsys):
     assert all(r["settings"] == "impulse + fractional" and float(r["error"]) < 1e-12 for r in rows.values())
     out = capsys.readouterr().out
     assert "impulse + fractional" in out and (tmp_path / "plot.png").read_bytes()[:4] == b"\x89PNG"
-    # next-step detection at 1/30 s is far off, as bench_accuracy measures (0.104)
+    # next-step detection at 1/30 s is far off, as bench_accuracy measures (0.198: the ball rebounds
+    # speculatively from up to a step's travel above the floor)
     s = load_study("accuracy_bouncing_ball")
     cell = [k for k in range(s.cells) if [p[1] for p in s.cell_params(k)] == ["impulse + next_step", 1 / 30]][0]
-    assert float(run_one(s, cell, 0)["error"]) == pytest.approx(0.10407043483658382, rel=1e-6)
+    assert float(run_one(s, cell, 0)["error"]) == pytest.approx(0.19776899759600658, rel=1e-6)
 
 
 def test_shipped_grasp_study_lifts_or_drops_the_cube(tmp_path):
