@@ -51,7 +51,7 @@ IMPACT_ROUNDS = 128  # impact rounds per sub-step: contacts an impact's impulses
                      # 43 at a mass ratio of 184, 99 at 1000
 SIMULTANEOUS_FRACTION = 1e-6  # contacts closing within this × dt of an impact are hit together with it
 SPECULATIVE_MAX_FRACTION = 0.5  # a body's look-ahead is at most this × its thinnest size (beyond: swept's job)
-SPECULATIVE_MAX_TURN = 0.25     # rad: against a plane a body looks past that only while it turns less in a step
+SPECULATIVE_MAX_TURN = 0.25     # rad: a body looks past that cap against a plane only while it turns less a step
 MATCH_FRACTION = 0.1      # contacts of one pair within this × the smaller body's size are the same point
 DIRECT_MAX_CONTACTS = 500       # default of settings.direct_max_contacts: the active set up to this many contacts
 DIRECT_FIRST = 200              # above this many contacts in an island larger than DIRECT_ISLAND_MAX: Gauss–Seidel first

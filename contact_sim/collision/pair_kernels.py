@@ -150,8 +150,8 @@ def pair_contacts(which, sf, si, verts, planes, faces, loops, edges, tris, bvh, 
     a plane), or with ``reach (2,N)`` (empty: none) ``min(margin, floor + reach[0, a] + reach[0,
     b])``, with a plane ``min(plane_margin, floor + reach[1, a] + reach[1, b])``: how far its two
     bodies can close (``prepare.speculative_reach``), so that a pair at rest beside a fast body does
-    not take candidates it cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7), body_a (R,),
-    body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
+    not take candidates it cannot reach into its manifold. Returns ``(rows_i (R, 3), rows_f (R, 7),
+    body_a (R,), body_b (R,), normal (R, 3), colliding pairs, unsupported pairs)``: the kernels' rows
     (``rows_i[:, 0]`` indexing ``kk``), the columns of ``contact_columns``, and the number of pairs
     no kernel takes (plane–plane pairs are no contacts)."""
     M = a.shape[0]
