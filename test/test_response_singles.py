@@ -276,9 +276,10 @@ def _island_body(rows, v0, target, mus, ws):
         np.arange(k), rows.a.astype(np.int64), rows.b.astype(np.int64), rows.dirs, rows.ang_a, rows.ang_b,
         rows.iang_a, rows.iang_b, rows.ima, rows.imb, v0, np.zeros(k), mus, mus, bool(mus.max() > 0),
         np.zeros((k, 3)), False,
-        DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam, ws["G"], ws["vecs"], ws["dofs"], ws["S"], ws["nz"],
-        ws["act"], ws["band"], ws["local"], ws["listed"], ws["first"], ws["jv"], ws["bv"], ws["rhs_s"], ws["every"],
-        target, *body_mass(rows), ws["mb"])
+        DIRECT_CONSISTENCY, DIRECT_MAX_ROUNDS, lam,
+        tuple(ws[n] for n in ("G", "vecs", "dofs", "S", "nz", "act", "band", "local", "listed", "first", "jv", "bv",
+                              "rhs_s", "every", "mb")),
+        target, *body_mass(rows))
     return status, residual, lam
 
 
