@@ -10,6 +10,15 @@ path) the same functions run as Python: correct, and slow; a one-line notice say
 Rules for a kernel: arrays and scalars in, arrays out (preallocated by the caller where the size is
 known); no Python objects, no dicts, no exceptions for control flow; ``float64`` and ``int64``
 arrays; deterministic (no parallel reductions), so the same inputs give bit-identical results.
+
+Reference counts: compiled code counts the references to every array it holds (an argument handed
+on to another kernel, a view such as ``vecs[0]``, a tuple of arrays unpacked) with atomic
+operations, ~10–20 ns each on this machine, which numba's pruning removes only from simple code.
+A kernel that allocates nothing and returns no array is compiled without them,
+``@njit(_nrt=False)`` (numba's option: its arrays are borrowed from the caller, which holds them
+for the call; numba refuses to compile such a kernel if it allocates or returns a view). The
+island solves are (``response.active_set``): a resting box's island took 1.65 µs with them, 1.06
+without, its first half-microsecond spent before any arithmetic.
 """
 import os
 import sys

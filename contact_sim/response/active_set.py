@@ -29,6 +29,10 @@ refinement, leaves ε's trace in it: 1e-5 of the impulses in the stack). Elsewhe
 rows than freedoms, a freedom no active row fixes, compliant rows, an inconsistent set) the rows'
 method (``_island``) solves it.
 
+The island kernels (``_single``, ``_island_body``, ``_island``) allocate nothing (their workspace
+is ``solve_islands``', shared by all islands) and are compiled without reference counts
+(``jit``: ``_nrt=False``).
+
 Shapes: ``K`` contacts, ``N`` bodies; rows as in ``rows.Rows``.
 """
 import math
@@ -510,7 +514,7 @@ def _least_norm(ids, S, ns, r, a, b, dirs, ang_a, ang_b, ima, imb, local, n, nb,
     _body_rows(ids, S, ns, a, b, dirs, ang_a, ang_b, ima, imb, local, t, out)
 
 
-@njit(inline="always")
+@njit(_nrt=False)
 def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, compliance, mu_s, mu_d, friction, warm,
                  use_warm, consistency, max_rounds, lam, ws, target, inv_mass, inv_inertia):
     """``_island``'s active set solved in the bodies' freedoms instead of the rows: where the active
@@ -521,9 +525,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     with, ``mb`` its workspace) instead of the ``3m × 3m`` Delassus matrix, which is never formed
     (every product goes through the bodies: ``_body_sum``, ``_body_rows``). ``ws`` is
     ``solve_islands``' workspace as one tuple ``(G, vecs, dofs, S, nz, act, band, local, listed,
-    first, jv, bv, rhs_s, every, mb)``: with it the call has few enough arguments to be inlined,
-    and an inlined call pays no reference counts on its arrays (~16 ns each: 0.4 µs of a resting
-    box's 2 µs island).
+    first, jv, bv, rhs_s, every, mb)``.
     The same rounds and tests as ``_island`` (its answer to round-off, and the least-norm split
     exactly where ``_island``'s regularisation leaves a trace); returns ``(_ROWS, 0)`` when the
     island is the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
@@ -646,7 +648,7 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     return SOLVED, residual
 
 
-@njit
+@njit(_nrt=False)
 def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d,
             friction, warm, use_warm, regularisation, consistency, max_rounds, lam, A, sub, L, vecs, S, nz, act,
             band):
@@ -782,7 +784,7 @@ def _island(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target,
     return SOLVED, _solved(ids, x, ax, rhs, friction, lam)
 
 
-@njit
+@njit(_nrt=False)
 def _single(c, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, compliance, mu_s, mu_d, friction, warm,
             use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S):
     """``_island`` for an island of the one contact ``c`` (a body touching only the ground or other
