@@ -127,7 +127,7 @@ def _rotate_body(q, omega, principal_q, moments, i, dt, max_split_angle, max_sub
     return qx, qy, qz, qw, wx, wy, wz, drift
 
 
-@njit
+@njit(_nrt=False)
 def rotate_free(q, omega, principal_q, moments, dt, max_split_angle, max_substeps, q_out, omega_out):
     """Torque-free rotation over ``dt`` of ``N`` bodies, written to ``q_out (N,4)`` and
     ``omega_out (N,3)``. ``q (N,4)`` orientations (x, y, z, w), ``omega (N,3)`` world angular
@@ -165,7 +165,7 @@ def _rot_energy(quat, inertia_body, omega, i):
     return 0.5 * e
 
 
-@njit
+@njit(_nrt=False)
 def advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
             half_dv, half_dw, kick, dt, iso_tolerance, max_split_angle, max_substeps):
     """Every body's motion over ``dt`` without contacts, in place: dynamic bodies ballistically
@@ -239,7 +239,7 @@ def rotational_energies(q, inertia_body, omega, idx, out):
         out[k] = _rot_energy(q, inertia_body, omega, idx[k])
 
 
-@njit
+@njit(_nrt=False)
 def all_finite(pos, vel, quat, omega):
     """Every entry of the state arrays ``pos, vel, omega (N,3)``, ``quat (N,4)`` finite."""
     for i in range(pos.shape[0]):

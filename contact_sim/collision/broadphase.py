@@ -206,7 +206,7 @@ def grid_pairs(c, h, margin):
 
 
 # ---------------------------------------------------------------- compiled warm path
-@njit
+@njit(_nrt=False)
 def world_boxes(pos, R, idx, centre, half, c, h):
     """World AABBs ``c, h (M, 3)`` of bodies ``idx (M,)``: object boxes ``centre, half (N, 3)``
     carried by ``pos (N, 3)``, ``R (N, 3, 3)`` (as ``world_aabbs``, one pass)."""
@@ -217,7 +217,7 @@ def world_boxes(pos, R, idx, centre, half, c, h):
             h[m, i] = abs(R[k, i, 0]) * half[k, 0] + abs(R[k, i, 1]) * half[k, 1] + abs(R[k, i, 2]) * half[k, 2]
 
 
-@njit
+@njit(_nrt=False)
 def inside_fat(c, h, fat_c, fat_h):
     """Every tight box ``c, h`` inside its fat box."""
     for m in range(c.shape[0]):
@@ -234,7 +234,7 @@ def _overlap(c, h, a, b, margin):
             and abs(c[a, 2] - c[b, 2]) <= h[a, 2] + h[b, 2] + margin)
 
 
-@njit
+@njit(_nrt=False)
 def overlap_filter(c, h, i, j, margin, oi, oj):
     """The pairs ``i, j`` whose boxes overlap within ``margin`` into ``oi, oj``; returns their count
     (the one exact test every method ends with, so they all return the same pairs; order kept)."""

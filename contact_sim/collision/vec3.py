@@ -107,7 +107,7 @@ def transform_rows(src, p, R, out, n):
             out[v, i] = R[i, 0] * x + R[i, 1] * y + R[i, 2] * z + p[i]
 
 
-@njit
+@njit(_nrt=False)
 def rotations(quat, R):
     """``R (N, 3, 3)`` of unit quaternions ``quat (N, 4)`` x, y, z, w (one pass, no temporaries)."""
     for k in range(quat.shape[0]):

@@ -45,7 +45,7 @@ class ContactCache:
                 c(x[keep], dtype=float) for x in self.warm[2:])
 
 
-@njit
+@njit(_nrt=False)
 def local_points(a, point, pos, R, out):
     """Contact points ``point (K,3)`` of the contacts' A bodies ``a (K,)`` in A's frame (what
     identifies a contact across steps): ``out[k] = R[a[k]]ᵀ (point[k] − pos[a[k]])``, ``R (N,3,3)``
@@ -154,7 +154,7 @@ def record(c, rows, lam, vn0):
     return c
 
 
-@njit
+@njit(_nrt=False)
 def warm_record(lam, dirs, out):
     """``out (K,4)``: impulses ``lam (K,3)`` in the rows' (n, t1, t2) basis (``dirs (K,3,3)``) as the
     normal impulse and the world tangential impulse vector (basis-free, so the next step's rows can
@@ -165,7 +165,7 @@ def warm_record(lam, dirs, out):
             out[c, 1 + x] = lam[c, 1] * dirs[c, 1, x] + lam[c, 2] * dirs[c, 2, x]
 
 
-@njit
+@njit(_nrt=False)
 def _project_warm(w, dirs, mu, out):
     """Warm impulses ``out (K,3)`` in the rows' basis (``dirs (K,3,3)``) from the ``warm_record``
     form ``w (K,4)``: the tangential vector projected on the contact's tangent plane, inside the

@@ -99,7 +99,7 @@ def stiffness_rows(a, b, depth, touch, stiffness, damping_ratio, kinematic, k_ki
     return n_soft
 
 
-@njit
+@njit(_nrt=False)
 def soft_rows(ids, K, depth, vn, stiffness, zeta, T, target, compliance):
     """The compliant rows of the resting solve over an interval ``T`` (s): for row ``j`` of contact
     ``ids[j]`` with ``stiffness > 0``, writes its ``compliance[j] = γ`` and ``target[j] = b`` (module

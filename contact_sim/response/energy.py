@@ -216,7 +216,7 @@ def _spin_product(quat, inertia_body, i, ux, uy, uz, wx, wy, wz):
     return e
 
 
-@njit
+@njit(_nrt=False)
 def kinetic(idx, mass, particle, quat, inertia_body, vel, omega):
     """Kinetic energy (J) of the bodies ``idx (k,)``: ``½ Σ m|v|² + ½ Σ ωᵀI_wω`` (no rotation for
     particles); ``quat (N,4)``, ``inertia_body (N,3,3)``, ``vel, omega (N,3)``. A loop, not numpy's
@@ -275,7 +275,7 @@ def restitution_cap(idx, mass, particle, quat, inertia_body, kinetic0, vel_c, om
     return f
 
 
-@njit
+@njit(_nrt=False)
 def push_speed(a, b, point, kinematic, dynamic, pos, vel, omega):
     """The speed (m/s) of the fastest kinematic contact point among the contacts ``a, b (K,)`` at
     ``point (K,3)`` where a kinematic body meets a ``dynamic`` one (the kinematic body's velocity
@@ -309,7 +309,7 @@ def dynamic_bodies(a, b, dynamic):
     return np.flatnonzero(mark & dynamic)
 
 
-@njit
+@njit(_nrt=False)
 def push_cap_kernel(bodies, u, mass, particle, quat, inertia_body, vel0, omega0, vref, wref, vel, omega):
     """The push cap: scale a solve's velocity change back so that no body of ``bodies (k,)`` ends
     with more kinetic energy than a body pushed inelastically by a kinematic one whose contact

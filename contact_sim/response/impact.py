@@ -163,7 +163,7 @@ def _round(ti, a, b, point, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, tou
     return it, residual, unconverged
 
 
-@njit
+@njit(_nrt=False)
 def next_round(touching, spec_target, vn, e_material, resting, rebound_speed, impact_speed, tolerance, soft, take, e,
                bounced):
     """The next impact round, from the normal velocities ``vn (K,)`` the last round left: whether

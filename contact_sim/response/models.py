@@ -112,7 +112,7 @@ def thin_and_fast(world, dt):
     return [(world.body_names[i], float(travel[i]), float(limit[i])) for i in bad]
 
 
-@njit
+@njit(_nrt=False)
 def _any_too_fast(vel, kind, limit, g, dt):
     """Whether a dynamic body's ``step_travel`` exceeds its ``limit (N,)``."""
     for i in range(vel.shape[0]):

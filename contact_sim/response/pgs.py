@@ -79,7 +79,7 @@ def disc(k00, k01, k11, f0, f1, radius, newton):
     return x0 * s, x1 * s
 
 
-@njit
+@njit(_nrt=False)
 def disc_rows(kt, vfree, radius, out):
     """``disc`` for ``k`` contacts: ``kt (k,2,2)``, ``vfree (k,2)``, ``radius (k,)``; ``out (k,2)``."""
     for c in range(kt.shape[0]):
@@ -101,7 +101,7 @@ def _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega):
     return s0, s1, s2
 
 
-@njit
+@njit(_nrt=False)
 def normal_velocities(a, b, dirs, ang_a, ang_b, vel, omega, out):
     """The contacts' normal relative velocities ``out (K,)`` (``_row_velocity``'s first row)."""
     for c in range(a.shape[0]):
@@ -206,7 +206,7 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
     return done, residual, residual > tolerance
 
 
-@njit
+@njit(_nrt=False)
 def apply_ids(ids, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega):
     """``rows.apply`` for the contacts ``ids``: impulses ``lam (K,3)`` onto ``vel, omega (N,3)``, in
     its order (A's linear parts over the contacts, then B's, then the angular parts), so the sums
@@ -229,7 +229,7 @@ def apply_ids(ids, a, b, dirs, iang_a, iang_b, ima, imb, lam, vel, omega):
                                         + lam[c, 2] * iang_b[c, 2, x])
 
 
-@njit
+@njit(_nrt=False)
 def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, hint, movable, dynamic_levers,
                t1, t2, ra, rb, ang_a, ang_b, iang_a, iang_b, ima, imb, K, dirs):
     """Constraint rows of ``K`` contacts (``rows.build_rows``' arithmetic, one contact at a time),

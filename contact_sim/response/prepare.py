@@ -159,7 +159,7 @@ def relative_velocity(world, c, m, closing=None):
     return out if closing is None else (out, None if kept == k else near)
 
 
-@njit
+@njit(_nrt=False)
 def _relative_velocity(a, b, point, pos, vel, omega, kind, particles, out, normal, depth, g, dt, base, near):
     """``out[c] = (v_a + ω_a × (p − x_a)) − (v_b + ω_b × (p − x_b))``, ω not counted for dynamic
     bodies when ``particles``; ``near[c]`` (when ``near`` has ``K`` rows) the closing filter
@@ -228,7 +228,7 @@ def speculative_reach(world, dt):
     return margin, reach, floor, (max(margin, floor + free) if plane else margin)
 
 
-@njit
+@njit(_nrt=False)
 def _reach(vel, omega, ext, moving, caps, dt, out):
     """``out (2,N)``: ``_speed · dt`` of the ``moving`` bodies at most their ``caps (N,)`` (row 0),
     and the same uncapped (row 1) for a body that turns by at most ``SPECULATIVE_MAX_TURN`` in
@@ -349,7 +349,7 @@ def stiffnesses(world, c, m):
     return out[0], out[1]
 
 
-@njit
+@njit(_nrt=False)
 def coefficient_rows(a, b, restitution, friction, static_friction, rule, kinetic, e, mu_s, mu_d):
     """``coefficients`` in a loop, for the sub-step: ``a, b (K,)`` the contacts' bodies, the
     bodies' materials ``(N,)``, ``rule`` the index of ``settings.combine`` in ``COMBINE_RULES``;

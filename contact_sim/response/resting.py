@@ -130,7 +130,7 @@ def rest_stage(a, b, point, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb,
     return kr, it, residual, unconverged, bound
 
 
-@njit
+@njit(_nrt=False)
 def _work_bound(a, b, dirs, ang_a, ang_b, vel, omega, vel_end, omega_end, target, lam):
     """A bound (J) on the work of the resting force, ``λ·(u_start + u_end)/2`` summed over the
     contacts (``u`` the contact points' relative velocity in the (n, t1, t2) basis, at the start

@@ -392,7 +392,7 @@ def _all_above(x, bound):
     return True
 
 
-@njit
+@njit(_nrt=False)
 def _finish(frac, tau, keep, dvw, rested, normal, speculative, touching, pos, vel, quat, omega, principal_q, moments,
             inertia_body, gravity, dynamic, rotating, kinematic, normal_impulse, friction_impulse, impulse, used):
     """``finish``'s kernel: store what ``_substep`` kept (``keep (4,K,3)``: the impacts' and the
@@ -405,7 +405,7 @@ def _finish(frac, tau, keep, dvw, rested, normal, speculative, touching, pos, ve
     return kept, drift, kick_error
 
 
-@njit
+@njit(_nrt=False)
 def _store(frac, lam_i, lam_r, rested, t1, t2, normal, speculative, touching, normal_impulse, friction_impulse, impulse,
            used):
     """The sub-step's impulses on A: the impacts' ``lam_i (K,3)`` plus the resting ones ``lam_r``
