@@ -789,10 +789,9 @@ def _single(c, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, target, c
             use_warm, regularisation, consistency, max_rounds, lam, A, L, vecs, S):
     """``_island`` for an island of the one contact ``c`` (a body touching only the ground or other
     immovable bodies: most islands of a scene at rest), the same arithmetic in the same order on its
-    3 × 3 block, written out with no call and no array view: a kernel call that hands on its
-    arrays costs ~16 ns per array in reference counts (atomic), which for one contact was most of
-    its solve. ``A, L (≥3, ≥3)``, ``vecs (5, ≥3)``, ``S (≥3,) int64`` are workspace. Returns
-    ``(status, residual)``."""
+    3 × 3 block, written out with no call and no array view (a call and its arrays' reference
+    counts were most of a one-contact solve). ``A, L (≥3, ≥3)``, ``vecs (5, ≥3)``, ``S (≥3,)
+    int64`` are workspace. Returns ``(status, residual)``."""
     # the block (_delassus for p = q = c: A's side, then B's; a contact never has a = b)
     for d in range(3):
         for e in range(3):
