@@ -26,6 +26,13 @@ from ..jit import njit
 
 _TINY = 1e-300
 
+#: ``sweeps``' row of numbers per contact: columns of the 3 × 3 blocks (direction ``d``, coordinate
+#: ``x`` at ``3d + x``) and of the scalars
+_DIRS, _ANG_A, _ANG_B, _IANG_A, _IANG_B = 0, 9, 18, 27, 36
+_IMA, _IMB, _KN, _K10, _K20, _K11, _K12, _K21, _K22 = 45, 46, 47, 48, 49, 50, 51, 52, 53
+_TARGET, _COMPLIANCE, _MU_S, _MU_D, _INV_KN, _IKT = 54, 55, 56, 57, 58, 59
+_P = 63
+
 
 @njit
 def disc(k00, k01, k11, f0, f1, radius, newton):
@@ -140,19 +147,32 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
     where each further sweep only moves impulses around the cycle. Returns ``(sweeps done, largest
     velocity change of the last sweep (m/s), stopped above tolerance)``."""
     k = a.shape[0]
-    # per contact, one block: K_tt⁻¹ row by row (columns 0-3), then the normal row's 1/(K_nn + c)
-    # (column 4); zero where singular
-    ikt = np.zeros((k, 5))
+    # one row of ``_P`` numbers per contact, read in order by every sweep (one stream through memory
+    # instead of fourteen arrays): the rows' directions and angular parts, the inverse masses, the
+    # entries of K the update reads, the normal row's target, compliance and 1/(K_nn + c), the
+    # friction coefficients and K_tt⁻¹ row by row (zero where singular; 1/(K_nn + c) zero where not
+    # positive)
+    P = np.empty((k, _P))
     for c in range(k):
+        for d in range(3):
+            for x in range(3):
+                P[c, _DIRS + 3 * d + x] = dirs[c, d, x]
+                P[c, _ANG_A + 3 * d + x] = ang_a[c, d, x]
+                P[c, _ANG_B + 3 * d + x] = ang_b[c, d, x]
+                P[c, _IANG_A + 3 * d + x] = iang_a[c, d, x]
+                P[c, _IANG_B + 3 * d + x] = iang_b[c, d, x]
+        P[c, _IMA], P[c, _IMB] = ima[c], imb[c]
         kn = K[c, 0, 0] + compliance[c]
-        if kn > 0.0:
-            ikt[c, 4] = 1.0 / max(kn, _TINY)
+        P[c, _KN], P[c, _K10], P[c, _K20] = kn, K[c, 1, 0], K[c, 2, 0]
+        P[c, _K11], P[c, _K12], P[c, _K21], P[c, _K22] = K[c, 1, 1], K[c, 1, 2], K[c, 2, 1], K[c, 2, 2]
+        P[c, _TARGET], P[c, _COMPLIANCE], P[c, _MU_S], P[c, _MU_D] = target_n[c], compliance[c], mu_s[c], mu_d[c]
+        P[c, _INV_KN] = 1.0 / max(kn, _TINY) if kn > 0.0 else 0.0
         det = K[c, 1, 1] * K[c, 2, 2] - K[c, 1, 2] * K[c, 2, 1]
         if det > 1e-300:
-            ikt[c, 0] = K[c, 2, 2] / det
-            ikt[c, 1] = -K[c, 1, 2] / det
-            ikt[c, 2] = -K[c, 2, 1] / det
-            ikt[c, 3] = K[c, 1, 1] / det
+            P[c, _IKT], P[c, _IKT + 1] = K[c, 2, 2] / det, -K[c, 1, 2] / det
+            P[c, _IKT + 2], P[c, _IKT + 3] = -K[c, 2, 1] / det, K[c, 1, 1] / det
+        else:
+            P[c, _IKT] = P[c, _IKT + 1] = P[c, _IKT + 2] = P[c, _IKT + 3] = 0.0
     done = 0
     residual = 0.0
     best = np.inf   # the smallest largest-change of a sweep so far, and the sweeps since
@@ -162,37 +182,50 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
         for c in range(k):
             ia = a[c]
             ib = b[c]
-            rv = _row_velocity(c, ia, ib, dirs, ang_a, ang_b, vel, omega)
+            # the relative velocity in the contact's (n, t1, t2) basis (_row_velocity's sums)
+            s0, s1, s2 = 0.0, 0.0, 0.0
+            for x in range(3):
+                dv = vel[ia, x] - vel[ib, x]
+                wa = omega[ia, x]
+                wb = omega[ib, x]
+                s0 += P[c, _DIRS + x] * dv + P[c, _ANG_A + x] * wa - P[c, _ANG_B + x] * wb
+                s1 += P[c, _DIRS + 3 + x] * dv + P[c, _ANG_A + 3 + x] * wa - P[c, _ANG_B + 3 + x] * wb
+                s2 += P[c, _DIRS + 6 + x] * dv + P[c, _ANG_A + 6 + x] * wa - P[c, _ANG_B + 6 + x] * wb
             old0 = lam[c, 0]
             old1 = lam[c, 1]
             old2 = lam[c, 2]
-            new0 = max(old0 + (target_n[c] - compliance[c] * old0 - rv[0]) * ikt[c, 4], 0.0)
+            new0 = max(old0 + (P[c, _TARGET] - P[c, _COMPLIANCE] * old0 - s0) * P[c, _INV_KN], 0.0)
             new1 = old1
             new2 = old2
             if friction:
                 dn = new0 - old0
-                vt0 = rv[1] + K[c, 1, 0] * dn
-                vt1 = rv[2] + K[c, 2, 0] * dn
-                tr0 = old1 - (ikt[c, 0] * vt0 + ikt[c, 1] * vt1)
-                tr1 = old2 - (ikt[c, 2] * vt0 + ikt[c, 3] * vt1)
-                if math.sqrt(tr0 * tr0 + tr1 * tr1) <= mu_s[c] * new0:
+                vt0 = s1 + P[c, _K10] * dn
+                vt1 = s2 + P[c, _K20] * dn
+                tr0 = old1 - (P[c, _IKT] * vt0 + P[c, _IKT + 1] * vt1)
+                tr1 = old2 - (P[c, _IKT + 2] * vt0 + P[c, _IKT + 3] * vt1)
+                if math.sqrt(tr0 * tr0 + tr1 * tr1) <= P[c, _MU_S] * new0:
                     new1 = tr0
                     new2 = tr1
                 else:
-                    free0 = vt0 - (K[c, 1, 1] * old1 + K[c, 1, 2] * old2)
-                    free1 = vt1 - (K[c, 2, 1] * old1 + K[c, 2, 2] * old2)
-                    new1, new2 = disc(K[c, 1, 1], K[c, 1, 2], K[c, 2, 2], free0, free1, mu_d[c] * new0, 12)
+                    free0 = vt0 - (P[c, _K11] * old1 + P[c, _K12] * old2)
+                    free1 = vt1 - (P[c, _K21] * old1 + P[c, _K22] * old2)
+                    new1, new2 = disc(P[c, _K11], P[c, _K12], P[c, _K22], free0, free1, P[c, _MU_D] * new0, 12)
             d0 = new0 - old0
             d1 = new1 - old1
             d2 = new2 - old2
             lam[c, 0] = new0
             lam[c, 1] = new1
             lam[c, 2] = new2
-            _apply(c, ia, ib, d0, d1, d2, dirs, iang_a, iang_b, ima, imb, vel, omega)
+            # the impulse change on A, its negative on B (_apply's sums)
+            for x in range(3):
+                p = d0 * P[c, _DIRS + x] + d1 * P[c, _DIRS + 3 + x] + d2 * P[c, _DIRS + 6 + x]
+                vel[ia, x] += P[c, _IMA] * p
+                vel[ib, x] -= P[c, _IMB] * p
+                omega[ia, x] += d0 * P[c, _IANG_A + x] + d1 * P[c, _IANG_A + 3 + x] + d2 * P[c, _IANG_A + 6 + x]
+                omega[ib, x] -= d0 * P[c, _IANG_B + x] + d1 * P[c, _IANG_B + 3 + x] + d2 * P[c, _IANG_B + 6 + x]
             # the velocity change each row made at its own contact (m/s): |Δλ| times the row's
             # effective inverse mass (and compliance), so the tolerance is one speed at any mass
-            residual = max(residual, abs(d0) * (K[c, 0, 0] + compliance[c]), abs(d1) * K[c, 1, 1],
-                           abs(d2) * K[c, 2, 2])
+            residual = max(residual, abs(d0) * P[c, _KN], abs(d1) * P[c, _K11], abs(d2) * P[c, _K22])
         done = it + 1
         if residual <= tolerance:
             break
