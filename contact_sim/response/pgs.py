@@ -148,7 +148,7 @@ def sweeps(a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, target_n, comp
     velocity change of the last sweep (m/s), stopped above tolerance)``."""
     k = a.shape[0]
     # one row of ``_P`` numbers per contact, read in order by every sweep (one stream through memory
-    # instead of fourteen arrays): the rows' directions and angular parts, the inverse masses, the
+    # instead of thirteen arrays): the rows' directions and angular parts, the inverse masses, the
     # entries of K the update reads, the normal row's target, compliance and 1/(K_nn + c), the
     # friction coefficients and K_tt⁻¹ row by row (zero where singular; 1/(K_nn + c) zero where not
     # positive)
