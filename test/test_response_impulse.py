@@ -391,20 +391,13 @@ def test_position_correction_pushes_a_squeezed_body_out_at_most_at_split_max_spe
         np.testing.assert_array_equal(w.body(b).velocity, [0.0, 0.0, 0.0])
 
 
-@pytest.mark.parametrize("slop", [0.0, 1e-7, 1e-5])
-def test_the_correction_solve_stops_once_a_sweep_moves_no_contact_by_more_than_split_slop(slop):
-    """``correction.plan`` on a column of 12 point masses (0.1 kg), each 2 mm into the one below, the
-    lowest 2 mm into static ground, by Gauss–Seidel with the contacts listed top down (the order
-    it converges slowest in: a sweep carries the push-out one contact down). Converged, each
-    contact's push-out is ``split_beta · d / dt`` exactly, so body ``i`` moves up at ``i β d/dt``.
-    The solve stops at the first sweep whose largest impulse change ``δ`` moves no contact by more
-    than ``split_slop`` over the step (``δ · K_nn · dt``, ``K_nn`` the rows' largest): the rows a
-    contact shares a body with (two in a column) were updated by at most that after it, so every
-    contact's push-out is within ``2 · split_slop`` of its target. With ``split_slop`` 0 it runs
-    to ``tolerance`` (0 here: to a fixed point of the sweep, round-off)."""
+def _correction_column(slop, m=0.1, n=12, d=2e-3, beta=0.5, dt=1 / 240):
+    """``correction.plan`` by Gauss–Seidel on a column of ``n`` point masses of ``m`` kg, each ``d``
+    into the one below, the lowest into static ground, the contacts listed top down (the order it
+    converges slowest in: a sweep carries the push-out one contact down). Returns ``(a, b, vp, wp,
+    pen)``: each contact's bodies (top one first), the pseudo-velocities and the contacts pushed."""
     from contact_sim.response import correction
 
-    n, m, d, beta, dt = 12, 0.1, 2e-3, 0.5, 1 / 240
     c = np.arange(n)[::-1]                              # contact c: body c+1 on body c, top first
     a, b = (c + 1).astype(np.int64), c.astype(np.int64)
     dynamic = np.ones(n + 1, bool)
@@ -421,6 +414,38 @@ def test_the_correction_solve_stops_once_a_sweep_moves_no_contact_by_more_than_s
     pen = correction.plan(a, b, np.full(n, d), dirs, zero, zero, zero, zero, ima, imb, K, np.zeros(0, bool), dynamic,
                           inv_mass, inv_inertia, beta, slop, dt, solver.SOLVER_METHODS.index("gs"), 0, 100_000, 0.0,
                           vp, wp)
+    return a, b, vp, wp, pen
+
+
+@pytest.mark.parametrize("slop", [1e-7, 1e-5])
+def test_the_correction_solve_stops_at_the_same_sweep_at_any_mass(slop):
+    """The correction's stopping rule is a distance (``split_slop``, m): the same column with every
+    mass 1024 times larger or smaller (a power of two: the same arithmetic, impulses scaled
+    exactly) stops at the same sweep, so its pseudo-velocities (m/s, which no mass scales) are the
+    same bit for bit. Gauss–Seidel measures a sweep's change as a speed (m/s: ``pgs.sweeps``); a
+    tolerance converted to an impulse (``split_slop / (dt · K_nn)``, N·s) and compared with that
+    speed stopped the heavy column 1024 times sooner and the light one later."""
+    runs = [_correction_column(slop, m=0.1 * s) for s in (2.0 ** -10, 1.0, 2.0 ** 10)]
+    for a, b, vp, wp, pen in runs:
+        np.testing.assert_array_equal(vp, runs[1][2])
+    a, b, vp = runs[1][:3]
+    err = np.abs((vp[a, 2] - vp[b, 2]) / 240 - 0.5 * 2e-3)
+    assert 0.0 < err.max() <= 2 * slop * (1 + 1e-9)     # stopped before converging, within the bound
+
+
+@pytest.mark.parametrize("slop", [0.0, 1e-7, 1e-5])
+def test_the_correction_solve_stops_once_a_sweep_moves_no_contact_by_more_than_split_slop(slop):
+    """``correction.plan`` on a column of 12 point masses (0.1 kg), each 2 mm into the one below, the
+    lowest 2 mm into static ground, by Gauss–Seidel with the contacts listed top down (the order
+    it converges slowest in: a sweep carries the push-out one contact down). Converged, each
+    contact's push-out is ``split_beta · d / dt`` exactly, so body ``i`` moves up at ``i β d/dt``.
+    The solve stops at the first sweep whose largest change moves no contact by more than
+    ``split_slop`` over the step (``δ · K_nn · dt`` for an impulse change ``δ``): the rows a
+    contact shares a body with (two in a column) were updated by at most that after it, so every
+    contact's push-out is within ``2 · split_slop`` of its target. With ``split_slop`` 0 it runs
+    to ``tolerance`` (0 here: to a fixed point of the sweep, round-off)."""
+    n, m, d, beta, dt = 12, 0.1, 2e-3, 0.5, 1 / 240
+    a, b, vp, wp, pen = _correction_column(slop, m, n, d, beta, dt)
     assert len(pen) == n
     push = (vp[a, 2] - vp[b, 2]) * dt                  # each contact's push-out over the step (m)
     err = np.abs(push - beta * d)

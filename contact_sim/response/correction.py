@@ -49,9 +49,11 @@ def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dyn
     contacts' indices (empty: nothing to correct).
 
     The solve stops (where it iterates: Gauss–Seidel on a large island) once a sweep changes no
-    contact's push-out over the step by more than ``split_slop`` (m): an impulse change ``δ`` on a
-    row of effective inverse mass ``K_nn`` moves its contact by ``δ·K_nn·dt``, so the impulse
-    tolerance is ``split_slop / (dt · max K_nn)`` (never tighter than ``tolerance``). Penetrations
+    contact's push-out over the step by more than ``split_slop`` (m): Gauss–Seidel measures a
+    sweep's change as a speed (``pgs.sweeps``: an impulse change ``δ`` on a row of effective
+    inverse mass ``K_nn`` changes its contact's velocity by ``δ·K_nn``, its push-out over the step
+    by ``δ·K_nn·dt``), so the tolerance is ``split_slop / dt`` (m/s; never tighter than
+    ``tolerance``), whatever the masses. Penetrations
     up to the slop are the resting solve's, not the correction's, so a finer push-out buys
     nothing, and from zero (no warm start) a settled 1000-sphere pile's correction would take
     all ``max_iterations`` sweeps every step."""
@@ -59,11 +61,9 @@ def plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dyn
     p = pen.shape[0]
     if p:
         target = np.empty(p)
-        k_max = 0.0
         for i in range(p):
             target[i] = split_beta * depth[pen[i]] / dt
-            k_max = max(k_max, K[pen[i], 0, 0])
-        tol = max(tolerance, split_slop / (dt * k_max)) if k_max > 0.0 else tolerance
+        tol = max(tolerance, split_slop / dt)
         zeros = np.zeros(p)
         solve_rows(method, a[pen], b[pen], dirs[pen], ang_a[pen], ang_b[pen], iang_a[pen], iang_b[pen], ima[pen],
                    imb[pen], K[pen], target, zeros, zeros, zeros, False, np.zeros((p, 3)), False, dynamic, inv_mass,
