@@ -305,35 +305,67 @@ def build_rows(a, b, point, normal, pos, inv_mass, inv_inertia, hint, movable, d
         dirs[c, 0, 0], dirs[c, 0, 1], dirs[c, 0, 2] = nx, ny, nz
         dirs[c, 1, 0], dirs[c, 1, 1], dirs[c, 1, 2] = ux, uy, uz
         dirs[c, 2, 0], dirs[c, 2, 1], dirs[c, 2, 2] = vx, vy, vz
-        ima[c] = inv_mass[ia]
-        imb[c] = inv_mass[ib]
-        for d in range(3):
-            for e in range(3):
-                s = 0.0
-                for x in range(3):
-                    s += dirs[c, d, x] * dirs[c, e, x]
-                K[c, d, e] = (ima[c] + imb[c]) * s
+        ima[c] = ma = inv_mass[ia]
+        imb[c] = mb = inv_mass[ib]
+        # K = (ima + imb) D Dᵀ + Σ_sides ang I⁻¹ angᵀ, ang = rows r × d: in scalars, each sum in the
+        # order of its index (0.0 + the terms left to right), stored once (a value read back from
+        # an output array is a load the compiler cannot drop: it cannot tell the arrays apart)
+        m = ma + mb
+        k00 = m * _dot3(nx, ny, nz, nx, ny, nz)
+        k01 = m * _dot3(nx, ny, nz, ux, uy, uz)
+        k02 = m * _dot3(nx, ny, nz, vx, vy, vz)
+        k10 = m * _dot3(ux, uy, uz, nx, ny, nz)
+        k11 = m * _dot3(ux, uy, uz, ux, uy, uz)
+        k12 = m * _dot3(ux, uy, uz, vx, vy, vz)
+        k20 = m * _dot3(vx, vy, vz, nx, ny, nz)
+        k21 = m * _dot3(vx, vy, vz, ux, uy, uz)
+        k22 = m * _dot3(vx, vy, vz, vx, vy, vz)
         for side in range(2):
             body = ia if side == 0 else ib
             r = ra if side == 0 else rb
             ang = ang_a if side == 0 else ang_b
             iang = iang_a if side == 0 else iang_b
-            for d in range(3):
-                ang[c, d, 0] = r[c, 1] * dirs[c, d, 2] - r[c, 2] * dirs[c, d, 1]
-                ang[c, d, 1] = r[c, 2] * dirs[c, d, 0] - r[c, 0] * dirs[c, d, 2]
-                ang[c, d, 2] = r[c, 0] * dirs[c, d, 1] - r[c, 1] * dirs[c, d, 0]
-            for d in range(3):
-                for x in range(3):
-                    s = 0.0
-                    for y in range(3):
-                        s += ang[c, d, y] * inv_inertia[body, x, y]
-                    iang[c, d, x] = s
-            for d in range(3):
-                for e in range(3):
-                    s = 0.0
-                    for x in range(3):
-                        s += ang[c, d, x] * iang[c, e, x]
-                    K[c, d, e] += s
+            r0, r1, r2 = r[c, 0], r[c, 1], r[c, 2]
+            # the rows' angular parts r × d
+            a00, a01, a02 = r1 * nz - r2 * ny, r2 * nx - r0 * nz, r0 * ny - r1 * nx
+            a10, a11, a12 = r1 * uz - r2 * uy, r2 * ux - r0 * uz, r0 * uy - r1 * ux
+            a20, a21, a22 = r1 * vz - r2 * vy, r2 * vx - r0 * vz, r0 * vy - r1 * vx
+            # their images under the inverse inertia I⁻¹ (r × d)
+            i00, i01, i02 = _rot3(inv_inertia, body, a00, a01, a02)
+            i10, i11, i12 = _rot3(inv_inertia, body, a10, a11, a12)
+            i20, i21, i22 = _rot3(inv_inertia, body, a20, a21, a22)
+            ang[c, 0, 0], ang[c, 0, 1], ang[c, 0, 2] = a00, a01, a02
+            ang[c, 1, 0], ang[c, 1, 1], ang[c, 1, 2] = a10, a11, a12
+            ang[c, 2, 0], ang[c, 2, 1], ang[c, 2, 2] = a20, a21, a22
+            iang[c, 0, 0], iang[c, 0, 1], iang[c, 0, 2] = i00, i01, i02
+            iang[c, 1, 0], iang[c, 1, 1], iang[c, 1, 2] = i10, i11, i12
+            iang[c, 2, 0], iang[c, 2, 1], iang[c, 2, 2] = i20, i21, i22
+            k00 += _dot3(a00, a01, a02, i00, i01, i02)
+            k01 += _dot3(a00, a01, a02, i10, i11, i12)
+            k02 += _dot3(a00, a01, a02, i20, i21, i22)
+            k10 += _dot3(a10, a11, a12, i00, i01, i02)
+            k11 += _dot3(a10, a11, a12, i10, i11, i12)
+            k12 += _dot3(a10, a11, a12, i20, i21, i22)
+            k20 += _dot3(a20, a21, a22, i00, i01, i02)
+            k21 += _dot3(a20, a21, a22, i10, i11, i12)
+            k22 += _dot3(a20, a21, a22, i20, i21, i22)
+        K[c, 0, 0], K[c, 0, 1], K[c, 0, 2] = k00, k01, k02
+        K[c, 1, 0], K[c, 1, 1], K[c, 1, 2] = k10, k11, k12
+        K[c, 2, 0], K[c, 2, 1], K[c, 2, 2] = k20, k21, k22
+
+
+@njit
+def _dot3(x0, x1, x2, y0, y1, y2):
+    """``x · y`` summed from 0.0 in index order (``build_rows``' sums, bit for bit)."""
+    return 0.0 + x0 * y0 + x1 * y1 + x2 * y2
+
+
+@njit
+def _rot3(m, i, x0, x1, x2):
+    """``m[i] @ x`` for ``m (N,3,3)``, each component summed from 0.0 in index order."""
+    return (0.0 + x0 * m[i, 0, 0] + x1 * m[i, 0, 1] + x2 * m[i, 0, 2],
+            0.0 + x0 * m[i, 1, 0] + x1 * m[i, 1, 1] + x2 * m[i, 1, 2],
+            0.0 + x0 * m[i, 2, 0] + x1 * m[i, 2, 1] + x2 * m[i, 2, 2])
 
 
 @njit
