@@ -3,10 +3,10 @@
 Every sub-step of the impulse (and kinematic) response runs here, whatever the models: the
 velocity stage (the contact points' relative velocities; with speculative contacts the filter of
 the gaps that can close) → prepare (coefficients, stiffnesses, rows, points in A's frame, the
-contact classes: ``prepare.classify``) → impacts (``impact.impact_stage``) → the position
-correction's plan on the first sub-step (``correction.plan``) → resting contact
-(``resting.rest_stage``) → store the impulses → advance (``free_motion.advance``). Each stage's
-kernel lives in its stage's module; ``_substep`` reads as this list. Every solve in them is
+contact classes: ``prepare.classify``) → impacts (``impact.impact_stage``) → resting contact
+(``resting.rest_stage``) → the position correction's plan on the first sub-step
+(``correction.drift_sink``, ``plan``, ``cap``) → store the impulses → advance
+(``free_motion.advance``). Each stage's kernel lives in its stage's module; ``_substep`` reads as this list. Every solve in them is
 ``solver.solve_rows`` (the settings' method: the exact active set per island, Gauss–Seidel, the
 sparse active set for an island too large for the dense one).
 
@@ -96,7 +96,7 @@ def run(ctx, whole):
     ctx.rest_bound += rest_bound
     if n_pen:   # the correction moves the bodies after the step (correction.apply)
         pw = aux[:6 * n].reshape(2, n, 3)
-        correction.cap(ctx, idx[len(idx) - int(n_pen):], pw[0], pw[1])
+        ctx.pseudo = (pw[0], pw[1])
     local = f3[0]
     used, resting, touching = flags[0], flags[1], flags[2]
     if rested:
@@ -185,8 +185,8 @@ def _fixed_args(ctx):
     ``materials = (gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
     restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic,
     rule, kinetic)``, ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance,
-    simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, method, direct_max,
-    max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
+    simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, split_max_speed, method,
+    direct_max, max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
     kinematic, whether the response is kinematic, and the world inverse inertia ``(N,3,3)`` when
     it is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only read),
     else None.
@@ -218,7 +218,8 @@ def _fixed_args(ctx):
         bodies[9],
         (float(dt), float(st.contact_margin), ctx.speculative, TOI_TOLERANCE,
          SIMULTANEOUS_FRACTION * dt, gdt, REST_REBOUND_FRACTION * gdt, ctx.impact_speed,
-         float(st.split_slop), float(st.split_beta), SOLVER_METHODS.index(st.solver_method),
+         float(st.split_slop), float(st.split_beta), float(st.split_max_speed),
+         SOLVER_METHODS.index(st.solver_method),
          DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
          int(st.solver_iterations), float(st.solver_tolerance)),
         bm.any_kinematic, particles, prepare.inv_inertia(world, m, None) if prepare.frame_free(world, m) else None)
@@ -236,7 +237,7 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
              particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule,
              kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, whole, margin,
              speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta,
-             method, direct_max, max_iterations, tolerance):
+             split_max_speed, method, direct_max, max_iterations, tolerance):
     """``run``'s kernel, a sub-step of ``t`` (s) left of a step of ``dt``. Contacts ``a, b (K,)``,
     ``point, normal (K,3)``, ``depth (K,)``; with ``look`` only the speculative ones whose gap can
     close within ``look_dt`` are kept (``look_base`` the contact margin, ``g`` gravity's magnitude);
@@ -326,13 +327,6 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
                                                  inv_inertia, mass, particle, pos, quat, inertia_body, method,
                                                  direct_max, max_iterations, tolerance, vel, omega, vel_ref, omega_ref,
                                                  lam_i, vn1)
-    # ---- the position correction's plan (first sub-step): split-impulse pseudo-velocities for
-    # the penetrating contacts; the cap on how far they move stays in Python (correction.cap)
-    pen = np.zeros(0, np.int64)
-    if first and k and counts.deepest > split_slop:
-        pen = correction.plan(a, b, depth, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft, dynamic, inv_mass,
-                              inv_inertia, split_beta, split_slop, dt, method, direct_max, max_iterations, tolerance, vp,
-                              wp)
     # ---- resting contact: the constant force over the rest of the step, warm started, on every
     # contact but those that just rebounded (none when every contact rebounded)
     rested = resting and k > 0 and (counts.touching > 0 or not exact_toi) \
@@ -348,6 +342,23 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
         unconverged = unconverged or stopped
     else:
         rest_mask[:] = False
+    # ---- the position correction's plan (first sub-step): split-impulse pseudo-velocities for
+    # the contacts overlapping at the step's end without it (the overlap now and the drift's curve
+    # of the resting ones, which needs the resting force's spin change), capped in how far they
+    # move a body
+    pen = np.zeros(0, np.int64)
+    if first and k:
+        sink = np.zeros(k)
+        deepest = counts.deepest
+        if split_beta > 0.0 and rested:
+            deepest = max(deepest, correction.drift_sink(a, b, point, normal, depth, rest_mask, pos, quat, omega, dw,
+                                                         principal_q, moments, dynamic, rotating, ext, t, split_slop,
+                                                         sink))
+        if deepest > split_slop:
+            pen, push = correction.plan(a, b, depth, sink, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, K, soft,
+                                        dynamic, inv_mass, inv_inertia, split_beta, split_slop, dt, method, direct_max,
+                                        max_iterations, tolerance, vp, wp)
+            correction.cap(a, b, pen, push, split_max_speed, dt, vp, wp)
     out[0], out[1], out[2], out[5] = max(residual_i, residual_r), counts.deepest, rest_bound, max(it_i, it_r)
     out[7], out[8], out[9] = rested, kr, unconverged
     if not whole:   # a time of impact may shorten the sub-step: _finish stores and advances
