@@ -47,8 +47,8 @@ def penetrating(depth, sink, soft, a, b, dynamic):
 
 
 @njit(cache=True)
-def drift_sink(a, b, point, normal, depth, rest_mask, pos, quat, omega, dw, principal_q, moments, dynamic, rotating, ext,
-               t, floor, sink):
+def drift_sink(a, b, point, normal, depth, rest_mask, pos, quat, omega, dw, principal_q, moments, dynamic, rotating,
+               ext, t, floor, sink):
     """How much deeper the drift's turn over ``t`` (s) curves each resting contact than the turn's
     first-order part, into ``sink (K,)`` (m, ≥ 0; 0 where it is not above ``floor`` (m) or the
     resting solve did not take the contact, ``rest_mask (K,)``); returns the deepest ``depth +

@@ -1,14 +1,14 @@
 """A sub-step's stages after detection, in one compiled call: the impulse step's one pipeline.
 
-Every sub-step of the impulse (and kinematic) response runs here, whatever the models: the
-velocity stage (the contact points' relative velocities; with speculative contacts the filter of
-the gaps that can close) → prepare (coefficients, stiffnesses, rows, points in A's frame, the
-contact classes: ``prepare.classify``) → impacts (``impact.impact_stage``) → resting contact
+Every sub-step of the impulse (and kinematic) response runs here, whatever the models: the velocity
+stage (the contact points' relative velocities; with speculative contacts the filter of the gaps
+that can close) → prepare (coefficients, stiffnesses, rows, points in A's frame, the contact
+classes: ``prepare.classify``) → impacts (``impact.impact_stage``) → resting contact
 (``resting.rest_stage``) → the position correction's plan on the first sub-step
 (``correction.drift_sink``, ``plan``, ``cap``) → store the impulses → advance
-(``free_motion.advance``). Each stage's kernel lives in its stage's module; ``_substep`` reads as this list. Every solve in them is
-``solver.solve_rows`` (the settings' method: the exact active set per island, Gauss–Seidel, the
-sparse active set for an island too large for the dense one).
+(``free_motion.advance``). Each stage's kernel lives in its stage's module; ``_substep`` reads as
+this list. Every solve in them is ``solver.solve_rows`` (the settings' method: the exact active set
+per island, Gauss–Seidel, the sparse active set for an island too large for the dense one).
 
 With exact times of impact (``fractional``, ``swept``, or ``next_step`` with fast bodies) the
 sub-step's length is known only after the solves: ``run`` then stops before storing, the stepper
@@ -182,14 +182,14 @@ def _fixed_args(ctx):
     (``StepContext``: its world, models ``m``, ``dt`` and the products it holds), in blocks of its
     argument order: ``(lead, inertia, materials, extents, solve, any_kinematic, particles)`` with
     ``lead = (g, kind)``, ``inertia = (principal_q, principal_moments, inertia_body, inv_mass)``,
-    ``materials = (gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
-    restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic,
-    rule, kinetic)``, ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance,
-    simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, split_max_speed, method,
-    direct_max, max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
-    kinematic, whether the response is kinematic, and the world inverse inertia ``(N,3,3)`` when
-    it is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only read),
-    else None.
+    ``materials = (gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, restitution,
+    friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule, kinetic)``,
+    ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance, simultaneous, gdt,
+    rebound_speed, impact_speed, split_slop, split_beta, split_max_speed, method, direct_max,
+    max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
+    kinematic, whether the response is kinematic, and the world inverse inertia ``(N,3,3)`` when it
+    is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only read), else
+    None.
 
     They follow from the body arrays (``_body_arrays``: the very same tuple while no array is
     replaced), gravity, the models ``m``, the step ``dt`` (s) and the settings (``ctx.gdt``,
@@ -257,7 +257,7 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     ``dvw (2,N,3)``, ``keep (4,K,3)`` (``K`` 0 when ``whole``): what ``_finish`` reads (the
     resting force's velocity change, the impacts' and the resting impulses, the tangents), filled
     when not ``whole``; ``idx`` the contacts the filter kept (their places among the ``K`` given,
-    when it dropped some) followed by the contacts the correction pushes apart; ``out =
+    when it dropped some); ``out =
     [residual, deepest, rest_bound, drift, kick_error, sweeps, used, resting solve ran, contacts
     resting, a solve stopped unconverged, the filter dropped some, contacts the correction
     pushes]``. The outputs are allocated here, in blocks, and the rarely read ones share one:
@@ -379,17 +379,15 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
 @njit
 def _indices(near, dropped, k, pen, out):
     """``_substep``'s ``idx``: the places of the ``k`` contacts the filter kept (``near (K,)``,
-    when ``dropped``) then the correction's ``pen``; their counts' flags into ``out[10:12]``."""
-    m = k if dropped else 0
-    idx = np.empty(m + pen.shape[0], np.int64)
+    when ``dropped``); whether it dropped some and how many contacts the correction's ``pen``
+    pushes apart into ``out[10:12]``."""
+    idx = np.empty(k if dropped else 0, np.int64)
     j = 0
     if dropped:
         for c in range(near.shape[0]):
             if near[c]:
                 idx[j] = c
                 j += 1
-    for p in range(pen.shape[0]):
-        idx[m + p] = pen[p]
     out[10], out[11] = dropped, pen.shape[0]
     return idx
 
