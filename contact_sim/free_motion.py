@@ -156,6 +156,22 @@ def _turn(quat, omega, i, dt):
 
 
 @njit
+def free_turn(quat, omega, principal_q, moments, i, dt, iso_tolerance, max_split_angle, max_substeps):
+    """Body ``i``'s torque-free turn over ``dt`` (s), in place in ``quat[i]``, ``omega[i]``: the
+    exact turn where its principal moments are equal within ``iso_tolerance`` (no split term, L ∥ ω:
+    the exact turn is the whole motion), ``_rotate_body``'s splitting otherwise. Returns the
+    splitting's rotational energy change (J; 0 for the exact turn)."""
+    if moments[i, 0] >= (1.0 - iso_tolerance) * moments[i, 2]:
+        _turn(quat, omega, i, dt)
+        return 0.0
+    qx, qy, qz, qw, wx, wy, wz, d = _rotate_body(quat, omega, principal_q, moments, i, dt, max_split_angle,
+                                                 max_substeps)
+    quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = qx, qy, qz, qw
+    omega[i, 0], omega[i, 1], omega[i, 2] = wx, wy, wz
+    return d
+
+
+@njit
 def _rot_energy(quat, inertia_body, omega, i):
     bx, by, bz = _qrot(-quat[i, 0], -quat[i, 1], -quat[i, 2], quat[i, 3], omega[i, 0], omega[i, 1], omega[i, 2])
     e = 0.0
@@ -197,14 +213,7 @@ def advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, 
             vel[i, x] += g * dt
         spins = omega[i, 0] != 0.0 or omega[i, 1] != 0.0 or omega[i, 2] != 0.0
         if spins and rotating[i]:
-            if moments[i, 0] >= (1.0 - iso_tolerance) * moments[i, 2]:
-                _turn(quat, omega, i, dt)   # no split term, L ∥ ω: the exact turn is the whole motion
-            else:
-                qx, qy, qz, qw, wx, wy, wz, d = _rotate_body(quat, omega, principal_q, moments, i, dt,
-                                                             max_split_angle, max_substeps)
-                drift += d
-                quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = qx, qy, qz, qw
-                omega[i, 0], omega[i, 1], omega[i, 2] = wx, wy, wz
+            drift += free_turn(quat, omega, principal_q, moments, i, dt, iso_tolerance, max_split_angle, max_substeps)
         elif spins and kinematic[i]:
             _turn(quat, omega, i, dt)
         if kick:

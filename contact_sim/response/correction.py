@@ -10,7 +10,7 @@ import numpy as np
 
 from .. import quat
 from ..constants import ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS
-from ..free_motion import _qmul, _qrot, _rotate_body, _rotvec_quat
+from ..free_motion import _qmul, _qrot, free_turn
 from ..jit import njit
 from .energy import potential_change
 from .solver import solve_rows
@@ -64,7 +64,7 @@ def drift_sink(a, b, point, normal, depth, rest_mask, pos, quat, omega, dw, prin
     skewed pyramid at 2 rad/s, dt 1/60: 1.34e-4 m). Counted here, the correction pushes the body
     out of the curve as it comes.
 
-    For a body the drift turns from ``q`` to ``q'`` (its own rotation, called the same way), a
+    For a body the drift turns from ``q`` to ``q'`` (``free_motion.free_turn``, as the drift does), a
     contact point ``p`` moves by ``Δ = (q'q⁻¹)(p − x) − (p − x) − t ω × (p − x)`` beyond its
     first-order motion (``x`` the centre; the translation is ballistic, exactly what the rows and
     the kicks take); the contact sinks by ``n · (Δ_B − Δ_A)`` (``normal (K,3)`` from B to A),
@@ -81,7 +81,8 @@ def drift_sink(a, b, point, normal, depth, rest_mask, pos, quat, omega, dw, prin
     wh = np.empty((n, 3))   # the half-kicked spin
     seen = np.zeros(n, np.bool_)
     turned = np.zeros(n, np.bool_)
-    qn = np.empty((n, 4))   # the turned orientation
+    qn = np.empty((n, 4))   # the turned orientation, and spin (the drift's turn, on copies)
+    wt = np.empty((n, 3))
     for c in range(k):
         if not rest_mask[c]:
             continue
@@ -98,14 +99,11 @@ def drift_sink(a, b, point, normal, depth, rest_mask, pos, quat, omega, dw, prin
             if not 0.5 * spin2 * t * t * ext[i] * (1.0 + moments[i, 2] / moments[i, 0]) >= 0.01 * floor:
                 continue
             turned[i] = True
-            if moments[i, 0] >= (1.0 - ISOTROPIC_TOLERANCE) * moments[i, 2]:
-                tx, ty, tz, tw = _rotvec_quat(wh[i, 0] * t, wh[i, 1] * t, wh[i, 2] * t)
-                qn[i, 0], qn[i, 1], qn[i, 2], qn[i, 3] = _qmul(tx, ty, tz, tw, quat[i, 0], quat[i, 1], quat[i, 2],
-                                                               quat[i, 3])
-            else:
-                qx, qy, qz, qw, _, _, _, _ = _rotate_body(quat, wh, principal_q, moments, i, t, MAX_SPLIT_ANGLE,
-                                                          MAX_SUBSTEPS)
-                qn[i, 0], qn[i, 1], qn[i, 2], qn[i, 3] = qx, qy, qz, qw
+            for x in range(4):
+                qn[i, x] = quat[i, x]
+            for x in range(3):
+                wt[i, x] = wh[i, x]
+            free_turn(qn, wt, principal_q, moments, i, t, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
     deepest = -np.inf
     for c in range(k):
         s = 0.0
