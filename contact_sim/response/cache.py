@@ -75,36 +75,61 @@ def match(world, a0, b0, p0, a1, b1, p1):
 def _match(a0, b0, p0, a1, b1, p1, ext, fraction, out):
     """``match``'s kernel: old and new contacts' bodies ``a0, b0 (K0,)``, ``a1, b1 (K1,)``; a match
     lies within ``fraction × min(ext[a1], ext[b1])`` (``ext (N,)`` the bodies' sizes); writes
-    ``out (K1,)``. The old contacts sorted by pair key ``a·N + b``, each new contact's candidates
-    are its pair's (a handful: binary search, then a scan), ties to the lower index."""
-    n = ext.shape[0]
-    keys = np.empty((2, a0.shape[0]), np.int64)   # one block: the old pairs' keys, then sorted
-    key0, sk = keys[0], keys[1]
-    for j in range(a0.shape[0]):
-        key0[j] = a0[j] * n + b0[j]
-    order = np.argsort(key0, kind="mergesort")
-    for j in range(a0.shape[0]):
-        sk[j] = key0[order[j]]
-    k1 = a1.shape[0]
+    ``out (K1,)``. Each new contact's candidates are its pair's old contacts (a handful), found
+    through a hash of the pairs (chained, a power of two of at least twice ``K0``
+    buckets: linear in the contacts, whatever ``N``); its best is the nearest, ties to the lower
+    index (a minimum, so the order of the chain does not matter). Each old contact goes to one new
+    contact, the nearest claiming first: only when two new contacts pick the same old one is the
+    claim order (by distance, ties to the lower index) needed, and sorted."""
+    k0, k1 = a0.shape[0], a1.shape[0]
+    size = 1
+    while size < 2 * k0:
+        size *= 2
+    links = np.empty(size + k0, np.int64)   # one block: each bucket's first old contact, then each one's next
+    head, nxt = links[:size], links[size:]
+    head[:] = -1
+    for j in range(k0 - 1, -1, -1):   # pushed from the last, so a chain lists its contacts in order
+        h = _bucket(a0[j], b0[j], size)
+        nxt[j] = head[h]
+        head[h] = j
     best = np.full(k1, -1, np.int64)
     dist = np.full(k1, np.inf)
     for i in range(k1):
-        key = a1[i] * n + b1[i]
         reach = fraction * min(ext[a1[i]], ext[b1[i]])
-        j = np.searchsorted(sk, key)
-        while j < sk.shape[0] and sk[j] == key:
-            o = order[j]
-            d = math.sqrt((p1[i, 0] - p0[o, 0]) ** 2 + (p1[i, 1] - p0[o, 1]) ** 2 + (p1[i, 2] - p0[o, 2]) ** 2)
-            if d <= reach and (d < dist[i] or (d == dist[i] and o < best[i])):
-                dist[i] = d
-                best[i] = o
-            j += 1
-    claimed = np.zeros(key0.shape[0], np.bool_)
+        o = head[_bucket(a1[i], b1[i], size)]
+        while o >= 0:
+            if a0[o] == a1[i] and b0[o] == b1[i]:
+                d = math.sqrt((p1[i, 0] - p0[o, 0]) ** 2 + (p1[i, 1] - p0[o, 1]) ** 2 + (p1[i, 2] - p0[o, 2]) ** 2)
+                if d <= reach and (d < dist[i] or (d == dist[i] and o < best[i])):
+                    dist[i] = d
+                    best[i] = o
+            o = nxt[o]
+    claimed = np.zeros(k0, np.bool_)
+    conflict = False
+    for i in range(k1):
+        o = best[i]
+        if o >= 0:
+            conflict = conflict or claimed[o]
+            claimed[o] = True
+            out[i] = o
+    if not conflict:
+        return
+    claimed[:] = False
+    for i in range(k1):
+        out[i] = -1
     for i in np.argsort(dist, kind="mergesort"):   # the nearest pairings claim first
         o = best[i]
         if o >= 0 and not claimed[o]:
             claimed[o] = True
             out[i] = o
+
+
+@njit(_nrt=False)
+def _bucket(a, b, size):
+    """The hash bucket of the pair ``(a, b)`` among ``size`` (a power of two): each body's index
+    times a large odd number, combined by exclusive or (no product overflows for fewer than 10¹¹
+    bodies), so a body's pairs and neighbouring bodies spread over the buckets."""
+    return ((a * 73856093) ^ (b * 19349663)) & (size - 1)
 
 
 @njit
