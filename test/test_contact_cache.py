@@ -52,6 +52,36 @@ def test_match_finds_the_nearest_unclaimed_point_of_the_same_pair(seed):
     assert len(set(got[ok])) == ok.sum()
 
 
+@pytest.mark.exact
+@pytest.mark.parametrize("seed", range(3))
+def test_match_across_many_pairs_finds_each_contacts_own_pair(seed):
+    """Hundreds of pairs among 300 bodies, so that pairs share the hash's buckets (``_match``):
+    every contact still matches only its own pair's points, as the brute force does; most new
+    contacts have no rival for their old one, a few do (the nearest claims it)."""
+    rng = np.random.default_rng(seed)
+    world = cs.World()
+    for i in range(300):
+        world.add_body(f"b{i}", cs.Sphere(0.5), position=(3.0 * i, 0, 0))
+    k0 = 600
+    a0 = rng.integers(0, 150, k0)
+    b0 = rng.integers(150, 300, k0)
+    p0 = rng.uniform(-0.2, 0.2, (k0, 3))
+    pick = rng.permutation(k0)[:500]
+    pick[480:] = pick[100:120]           # twenty old contacts wanted by two new ones each
+    a1, b1 = a0[pick], b0[pick]
+    p1 = p0[pick] + rng.normal(0, 0.005, (500, 3))
+    a1[:20] = (a1[:20] + 1) % 150        # twenty contacts of pairs that (almost surely) had none
+    got = cache.match(world, a0, b0, p0, a1, b1, p1)
+    from contact_sim.response import toi
+
+    want = _reference(toi._extents(world), len(world), a0, b0, p0, a1, b1, p1)
+    assert np.array_equal(got, want)
+    assert (got[20:] >= 0).sum() == 460   # of each contested old contact, one claim
+    ok = got >= 0
+    assert np.array_equal(a0[got[ok]], a1[ok]) and np.array_equal(b0[got[ok]], b1[ok])
+    assert len(set(got[ok])) == ok.sum()
+
+
 
 
 @pytest.mark.exact
