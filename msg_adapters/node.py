@@ -455,6 +455,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._apply_pose(p, q, now_ns, now_ns)
         self._hold_timed_out(now_ns * 1e-9)
         self._hold_robot(now_ns * 1e-9)
+        goal = self._drive_robot()
         substeps = self.cfg["substeps"]
         saved = world.snapshot()   # every sub-step or none: a failure puts the world back as it was
         dt = self.period / substeps
@@ -475,6 +476,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._maybe_diagnostics(now_ns)
             return False
         self.step_time = time.perf_counter() - t0
+        self._drove(goal)
         contacts = parts[0] if len(parts) == 1 else contact_sim.Contacts.concat(parts)
         self.contacts = contacts
         self.counts["ticks"] += 1

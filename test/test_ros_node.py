@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 import pytest
+import yaml
 
 rclpy = pytest.importorskip("rclpy", reason="ROS 2 Jazzy wheels not installed (make test installs them)")
 pytestmark = pytest.mark.ros
@@ -387,6 +388,63 @@ def test_an_arm_driver_and_a_gripper_driver_each_move_their_own_joints(ros, tmp_
         # a gripper message older than the gripper's own last one is refused as out of order
         send(["slide"], [0.0], t0 + 150_000_000)
         assert node.counts["rejected_joint_state_out_of_order"] == 1
+    finally:
+        node.destroy_node()
+
+
+def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_joint_state(ros, tmp_path):
+    """A tick poses the links at the joint positions the last tick drove them to and moves them at
+    the joint velocities ``(latest - those) / period``: two joint states in one tick (stamp
+    velocity 1.5 rad/s, 0.03 rad in all) move the shoulder at 0.03 / 0.02 s, so the step carries
+    each link ``velocity × period`` from its start, whatever the stamps. A tick without a new joint
+    state stops them there. A drive faster than the world's speed bound (here 1 m/s; a scene without gravity, so such a bound is valid) places the
+    links at the joint state at rest instead, counted in ``robot_jumps``."""
+    from builtin_interfaces.msg import Time
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header
+
+    from robot_arm import arm_urdf, write_gripper_mesh
+
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(yaml.safe_dump({"gravity": [0, 0, 0], "settings": {"max_speed": 1.0, "split_max_speed": 0.5},
+                                     "bodies": [{"name": "ball", "shape": {"type": "sphere", "radius": 0.05},
+                                                 "position": [2.0, 0, 1.0]}]}))
+    node = make_node(ros, scene=str(scene), pose_timeout=60.0)
+    try:
+        node.timer.cancel()
+        node._on_robot_description(String(data=arm_urdf("file://" + write_gripper_mesh(tmp_path / "gripper.stl"))))
+        assert node._robot is not None, node._last_reason
+        robot, world, T = node._robot, node.world, node.period
+        idx = [world.index(b) for b in robot.bodies]
+        t0 = node.get_clock().now().nanoseconds
+
+        def send(value, t_ns):
+            s = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+            node._on_joint_states(JointState(header=Header(stamp=s), name=["shoulder"], position=[value]))
+
+        send(0.0, t0)
+        node._on_timer()                                  # the first joint state places the links at rest
+        assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
+        send(0.01, t0 + 10_000_000)
+        send(0.03, t0 + 20_000_000)
+        assert robot.qd["shoulder"] == pytest.approx(2.0)   # the stamps' finite difference
+        q0, q1 = dict(robot.q, shoulder=0.0), dict(robot.q)
+        p, _, v, w = robot.body_states(q0, {n: (q1[n] - q0[n]) / T for n in q1})
+        node._on_timer()
+        np.testing.assert_allclose(world.s.vel[idx], v, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(world.s.omega[idx], w, rtol=0, atol=1e-15)
+        assert w[:, 2].max() == pytest.approx(0.03 / T, rel=1e-12)      # 1.5 rad/s, not the stamps' 2
+        np.testing.assert_allclose(world.s.pos[idx], p + v * T, rtol=0, atol=1e-15)
+        node._on_timer()                                  # no new joint state: they stop at it
+        assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
+        np.testing.assert_allclose(world.s.pos[idx], robot.body_states(q1, {n: 0.0 for n in q1})[0], atol=1e-15)
+        send(1.0, t0 + 2_020_000_000)                     # 0.485 rad/s by the stamps, 48.5 rad/s in one tick
+        node._on_timer()
+        assert node.counts["robot_jumps"] == 1 and node.counts["rejected_joint_states"] == 0
+        q2 = dict(robot.q)
+        assert q2["shoulder"] == 1.0 and not world.s.vel[idx].any() and not world.s.omega[idx].any()
+        np.testing.assert_allclose(world.s.pos[idx], robot.body_states(q2, {n: 0.0 for n in q2})[0], atol=1e-15)
+        assert "robot_jumps" in node.diagnostics_values()
     finally:
         node.destroy_node()
 
