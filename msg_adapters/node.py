@@ -455,7 +455,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._apply_pose(p, q, now_ns, now_ns)
         self._hold_timed_out(now_ns * 1e-9)
         self._hold_robot(now_ns * 1e-9)
-        goal = self._drive_robot()
+        goal = self._drive_robot(now_ns)
         substeps = self.cfg["substeps"]
         saved = world.snapshot()   # every sub-step or none: a failure puts the world back as it was
         dt = self.period / substeps

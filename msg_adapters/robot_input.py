@@ -23,13 +23,14 @@ A mixin of ``ContactSimNode``:
   ``robot_description_semantic``, empty: not read): MoveIt's SRDF; its ``disable_collisions``
   pairs are never tested (the robot is rebuilt with them). An SRDF that does not fit the robot
   (an unknown link) is refused, counted and warned about.
-- Each tick drives the links from the last tick's joint positions to the latest joint state, at
-  the joint velocities that get them there over the tick's period (``_drive_robot``). Their
-  displacement in the world is then what their velocities carry, whatever the timing: a tick the
-  timer could not honour, or joint states bunched into one tick, moves the links faster for that
-  tick, never by a jump. A jump slips a held part: its contacts follow the fingers' velocities,
-  not their jumps (test_ros_grasp: a Panda's lifted cube ended 2.5 cm low in the hand with one
-  tick in four late and one joint state in seven a tick late). The links are at the latest joint state at the end of the tick that follows it.
+- Each tick drives the links from the joint positions the last tick took them to, at the joint
+  velocities that get them over the tick's period to the latest joint state carried on (at its
+  joints' stamp velocities) to the tick's end (``_drive_robot``). Their displacement in the world
+  is then what their velocities carry, whatever the timing: a tick the timer could not honour, or
+  joint states bunched into one tick, moves the links as far as the clock moved, never by a jump.
+  A jump slips a held part: its contacts follow the fingers' velocities, not their jumps
+  (test_ros_grasp: a Panda's lifted cube ended 2.5 cm low in the hand with one tick in four late
+  and one joint state in seven a tick late, when each joint state placed the links).
 - After ``pose_timeout`` without joint states the links hold their last pose with zero velocity.
 """
 import dataclasses
@@ -254,17 +255,36 @@ class RobotInput:
         self._drive_moving = False
         self._robot_held = True
 
-    def _drive_robot(self):
+    def _drive_robot(self, now_ns):
         """Before a tick's steps: pose the links at the joint positions the last tick drove them to
-        (``start``; the latest joint state when there is none: a new robot, a reset) with the joint
-        velocities ``(goal - start) / period`` towards the latest joint state (``goal``), so that
-        the tick's steps carry them there. Returns the goal, which becomes the next start once the
-        steps succeed (``_drove``); None when no joint state arrived and the links are at rest."""
+        (``start``; the goal itself when there is none: a new robot, a reset, after holding) with the
+        joint velocities ``(goal - start) / period`` that carry them to ``goal`` over the tick. The
+        goal is each joint's latest position carried on at its velocity (the finite difference of its
+        stamps) to the end of this tick on the node's clock (``now_ns`` + period), at most its last
+        stamps' interval and a period beyond its stamp, within the joint's limits: a publisher slower
+        than the ticks moves the links smoothly between its messages, and a tick that comes late
+        carries them as far as the clock moved. Returns the goal, the next start once the steps
+        succeed (``_drove``); None when nothing moves the links."""
         robot = self._robot
-        if robot is None or robot not in self.world.robots or not (self._drive_moving or self._js_since_drive):
+        if robot is None or robot not in self.world.robots:
+            return None
+        moving = any(robot.qd.values())
+        if not (moving or self._drive_moving or self._js_since_drive):
             return None
         self._js_since_drive = False
         goal = dict(robot.q)
+        if moving:
+            t_end = (now_ns - self._js_t0_ns) * 1e-9 + self.period
+            for n, qd in robot.qd.items():
+                if qd:
+                    # carried on to the tick's end, but never back (a stamp ahead of the node's clock
+                    # is taken as it is) and never further than the joint's own last interval and a
+                    # period beyond its stamp: joint states that reach a busy node late are not
+                    # carried past where the robot stopped (and then back in one tick)
+                    last = robot.t[n]
+                    ahead = min(max(t_end - last, 0.0), last - robot.before[n][1] + self.period)
+                    lo, hi = robot.by_name[n]["limits"]
+                    goal[n] = min(max(goal[n] + qd * ahead, lo), hi)
         start = self._drive_from
         if start is None or start.keys() != goal.keys():
             start = goal

@@ -394,11 +394,13 @@ def test_an_arm_driver_and_a_gripper_driver_each_move_their_own_joints(ros, tmp_
 
 def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_joint_state(ros, tmp_path):
     """A tick poses the links at the joint positions the last tick drove them to and moves them at
-    the joint velocities ``(latest - those) / period``: two joint states in one tick (stamp
-    velocity 1.5 rad/s, 0.03 rad in all) move the shoulder at 0.03 / 0.02 s, so the step carries
-    each link ``velocity × period`` from its start, whatever the stamps. A tick without a new joint
-    state stops them there. A drive faster than the world's speed bound (here 1 m/s; a scene without gravity, so such a bound is valid) places the
-    links at the joint state at rest instead, counted in ``robot_jumps``."""
+    the joint velocities that take them, over the period T, to the latest joint state carried on at
+    its stamp velocity to the tick's end (at most the last stamps' interval and a period past the
+    last stamp): the step carries each link ``velocity × T`` from there, whatever the stamps (two
+    joint states in one tick; a tick with none moves on at the stamps' velocity; a repeated
+    position stops the joint). A drive faster than the world's speed bound
+    (here 2 m/s; a scene without gravity, so such a bound is valid) places the links at the goal at
+    rest instead, counted in ``robot_jumps``. The node's clock is the test's."""
     from builtin_interfaces.msg import Time
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Header
@@ -406,7 +408,7 @@ def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_
     from robot_arm import arm_urdf, write_gripper_mesh
 
     scene = tmp_path / "scene.yaml"
-    scene.write_text(yaml.safe_dump({"gravity": [0, 0, 0], "settings": {"max_speed": 1.0, "split_max_speed": 0.5},
+    scene.write_text(yaml.safe_dump({"gravity": [0, 0, 0], "settings": {"max_speed": 2.0, "split_max_speed": 0.5},
                                      "bodies": [{"name": "ball", "shape": {"type": "sphere", "radius": 0.05},
                                                  "position": [2.0, 0, 1.0]}]}))
     node = make_node(ros, scene=str(scene), pose_timeout=60.0)
@@ -417,33 +419,44 @@ def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_
         robot, world, T = node._robot, node.world, node.period
         idx = [world.index(b) for b in robot.bodies]
         t0 = node.get_clock().now().nanoseconds
+        clock = {"ns": t0}
+        node._now_ns = lambda: clock["ns"]
 
-        def send(value, t_ns):
+        def send(value, ms):
+            t_ns = t0 + round(ms * 1e6)
             s = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
             node._on_joint_states(JointState(header=Header(stamp=s), name=["shoulder"], position=[value]))
 
-        send(0.0, t0)
-        node._on_timer()                                  # the first joint state places the links at rest
-        assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
-        send(0.01, t0 + 10_000_000)
-        send(0.03, t0 + 20_000_000)
-        assert robot.qd["shoulder"] == pytest.approx(2.0)   # the stamps' finite difference
-        q0, q1 = dict(robot.q, shoulder=0.0), dict(robot.q)
-        p, _, v, w = robot.body_states(q0, {n: (q1[n] - q0[n]) / T for n in q1})
-        node._on_timer()
-        np.testing.assert_allclose(world.s.vel[idx], v, rtol=0, atol=1e-15)
-        np.testing.assert_allclose(world.s.omega[idx], w, rtol=0, atol=1e-15)
-        assert w[:, 2].max() == pytest.approx(0.03 / T, rel=1e-12)      # 1.5 rad/s, not the stamps' 2
-        np.testing.assert_allclose(world.s.pos[idx], p + v * T, rtol=0, atol=1e-15)
-        node._on_timer()                                  # no new joint state: they stop at it
-        assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
-        np.testing.assert_allclose(world.s.pos[idx], robot.body_states(q1, {n: 0.0 for n in q1})[0], atol=1e-15)
-        send(1.0, t0 + 2_020_000_000)                     # 0.485 rad/s by the stamps, 48.5 rad/s in one tick
+        def tick(ms, start, goal):
+            """A tick at ``ms``: the links leave ``start`` at (goal - start) / T, and end there + v·T."""
+            clock["ns"] = t0 + round(ms * 1e6)
+            q0, q1 = dict(robot.q, shoulder=start), dict(robot.q, shoulder=goal)
+            p, _, v, w = robot.body_states(q0, {n: (q1[n] - q0[n]) / T for n in q1})
+            node._on_timer()
+            np.testing.assert_allclose(world.s.vel[idx], v, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(world.s.omega[idx], w, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(world.s.pos[idx], p + v * T, rtol=0, atol=1e-14)
+            return w[:, 2].max()
+
+        send(0.0, 0)
+        assert tick(0, 0.0, 0.0) == 0.0                      # the first joint state places the links at rest
+        send(0.01, 10)
+        send(0.03, 20)                                       # stamp velocity 2 rad/s
+        assert tick(20, 0.0, 0.07) == pytest.approx(3.5)     # to 0.03 + 2 × (20 + 20 - 20) ms
+        # no joint state: on at the stamps' velocity, to at most 10 + 20 ms past the last stamp
+        assert tick(40, 0.07, 0.09) == pytest.approx(1.0)
+        send(0.13, 60)
+        send(0.13, 70)                                       # stopped
+        assert tick(70, 0.09, 0.13) == pytest.approx(2.0)
+        assert tick(90, 0.13, 0.13) == 0.0
+        assert node.counts["robot_jumps"] == 0
+        send(1.0, 2070)                                      # 0.435 rad/s by the stamps, ~44 rad/s in one tick
+        clock["ns"] = t0 + 2_070_000_000
         node._on_timer()
         assert node.counts["robot_jumps"] == 1 and node.counts["rejected_joint_states"] == 0
-        q2 = dict(robot.q)
-        assert q2["shoulder"] == 1.0 and not world.s.vel[idx].any() and not world.s.omega[idx].any()
-        np.testing.assert_allclose(world.s.pos[idx], robot.body_states(q2, {n: 0.0 for n in q2})[0], atol=1e-15)
+        goal = dict(robot.q, shoulder=1.0 + (1.0 - 0.13) / 2.0 * T)
+        assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
+        np.testing.assert_allclose(world.s.pos[idx], robot.body_states(goal, {n: 0.0 for n in goal})[0], atol=1e-14)
         assert "robot_jumps" in node.diagnostics_values()
     finally:
         node.destroy_node()
