@@ -284,6 +284,9 @@ class Vector(Rule):
         return a
 
 
+_SQRT = {n: math.sqrt(n) * (1.0 + 1e-12) for n in range(1, 17)}   # sqrt(n), rounded up
+
+
 @dataclass(frozen=True)
 class Rows(Rule):
     """An ``(M, n)`` array of finite numbers, each row within the bounds of ``Vector``; errors name
@@ -308,6 +311,12 @@ class Rows(Rule):
             raise ContactSimError(f"{path}: must be an {shape} array, got {len(a)} {what}")
         if len(a) < min_rows:
             raise ContactSimError(f"{path}: needs at least {min_rows} {what}, got {len(a)}")
+        # the common case in one reduction: every coordinate finite and within ``bound``, and
+        # ``sqrt(n)`` × the largest within ``norm_bound`` (no row's length can be more); NaN fails
+        top = float(np.abs(a).max(initial=0.0))
+        box, ball = _resolve(self.bound, ctx), _resolve(self.norm_bound, ctx)
+        if top < math.inf and (box is None or top <= box) and (ball is None or top * _SQRT[self.n] <= ball):
+            return a
         finite = np.isfinite(a)
         if not finite.all():
             i = int(np.argmin(finite.all(axis=1)))

@@ -166,12 +166,14 @@ class BodyInput:
                 raise ContactSimError(f"{label}({names[i]!r}).angular_velocity: a particle does not rotate")
         # ---- commit (nothing below can fail)
         s = self.s
+        com = self.com_local[idx]
+        offset = com.any()   # a centre of mass off the body's origin (else the origin is the centre)
         origin = parts.get("position")
         if origin is None:
-            origin = s.pos[idx] - quat.rotate(s.quat[idx], self.com_local[idx])
+            origin = s.pos[idx] - quat.rotate(s.quat[idx], com) if offset else s.pos[idx]
         if "orientation" in parts:
             s.quat[idx] = parts["orientation"]
-        s.pos[idx] = origin + quat.rotate(s.quat[idx], self.com_local[idx])
+        s.pos[idx] = origin + quat.rotate(s.quat[idx], com) if offset else origin
         if "velocity" in parts:
             s.vel[idx] = parts["velocity"]
         if om is not None:
