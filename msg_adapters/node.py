@@ -395,6 +395,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
 
     def _on_pause(self, request, response):
         self.paused = bool(request.data)
+        self._drive_from = None   # paused or resumed, the world's time left the clock's: the robot's next drive places it
         response.success = True
         response.message = "paused" if self.paused else "running"
         return response

@@ -257,7 +257,8 @@ class RobotInput:
 
     def _drive_robot(self, now_ns):
         """Before a tick's steps: pose the links at the joint positions the last tick drove them to
-        (``start``; the goal itself when there is none: a new robot, a reset, after holding) with the
+        (``start``; the goal itself when there is none: a new robot, a reset, after holding, paused
+        or resumed) with the
         joint velocities ``(goal - start) / period`` that carry them to ``goal`` over the tick. The
         goal is each joint's latest position carried on at its velocity (the finite difference of its
         stamps) to the end of this tick on the node's clock (``now_ns`` + period), at most its last
@@ -286,7 +287,7 @@ class RobotInput:
                     lo, hi = robot.by_name[n]["limits"]
                     goal[n] = min(max(goal[n] + qd * ahead, lo), hi)
         start = self._drive_from
-        if start is None or start.keys() != goal.keys():
+        if start is None or start.keys() != goal.keys() or self.paused:   # paused: ~/step's time is not the clock's
             start = goal
         qd = {n: (goal[n] - start[n]) / self.period for n in goal}
         p, q, v, w = robot.body_states(start, qd)

@@ -398,12 +398,14 @@ def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_
     its stamp velocity to the tick's end (at most the last stamps' interval and a period past the
     last stamp): the step carries each link ``velocity × T`` from there, whatever the stamps (two
     joint states in one tick; a tick with none moves on at the stamps' velocity; a repeated
-    position stops the joint). A drive faster than the world's speed bound
+    position stops the joint). Paused (``~/step``) and on resuming, the links are placed at the
+    joint state at rest. A drive faster than the world's speed bound
     (here 2 m/s; a scene without gravity, so such a bound is valid) places the links at the goal at
     rest instead, counted in ``robot_jumps``. The node's clock is the test's."""
     from builtin_interfaces.msg import Time
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Header
+    from std_srvs.srv import SetBool, Trigger
 
     from robot_arm import arm_urdf, write_gripper_mesh
 
@@ -449,12 +451,23 @@ def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_
         send(0.13, 70)                                       # stopped
         assert tick(70, 0.09, 0.13) == pytest.approx(2.0)
         assert tick(90, 0.13, 0.13) == 0.0
+        # paused, ~/step's time is not the clock's: a step places the links at the joint state at
+        # rest, and so does the first tick after resuming (never a sweep across the pause)
+        node._on_pause(SetBool.Request(data=True), SetBool.Response())
+        send(0.2, 200)
+        send(0.2, 210)
+        node._on_step(Trigger.Request(), Trigger.Response())
+        assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
+        send(0.3, 400)
+        send(0.3, 410)
+        node._on_pause(SetBool.Request(data=False), SetBool.Response())
+        assert tick(410, 0.3, 0.3) == 0.0
         assert node.counts["robot_jumps"] == 0
-        send(1.0, 2070)                                      # 0.435 rad/s by the stamps, ~44 rad/s in one tick
-        clock["ns"] = t0 + 2_070_000_000
+        send(1.0, 2410)                                      # 0.35 rad/s by the stamps, ~35 rad/s in one tick
+        clock["ns"] = t0 + 2_410_000_000
         node._on_timer()
         assert node.counts["robot_jumps"] == 1 and node.counts["rejected_joint_states"] == 0
-        goal = dict(robot.q, shoulder=1.0 + (1.0 - 0.13) / 2.0 * T)
+        goal = dict(robot.q, shoulder=1.0 + (1.0 - 0.3) / 2.0 * T)
         assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
         np.testing.assert_allclose(world.s.pos[idx], robot.body_states(goal, {n: 0.0 for n in goal})[0], atol=1e-14)
         assert "robot_jumps" in node.diagnostics_values()
