@@ -724,7 +724,7 @@ def _touching_pairs(world, model):
     return {tuple(sorted((names[i], names[j]))) for i, j in zip(a[keep], b[keep])}
 
 
-def set_joint_positions(world, names, positions, stamp=None):
+def set_joint_positions(world, names, positions, stamp=None, place=True):
     """See ``World.set_joint_positions``."""
     from .validate import STAMP
 
@@ -744,9 +744,11 @@ def set_joint_positions(world, names, positions, stamp=None):
     for r, ns, xs in new.values():
         state = r.update(ns, xs, t, call)
         states.append((r, state))
-        bodies += r.bodies
-        parts.append(r.body_states(state[0], state[1]))
-    P, Q, V, W = (np.concatenate([part[k] for part in parts]) for k in range(4))
-    world.set_states(bodies, positions=P, orientations=Q, velocities=V, angular_velocities=W)   # checks first
+        if place:
+            bodies += r.bodies
+            parts.append(r.body_states(state[0], state[1]))
+    if place:
+        P, Q, V, W = (np.concatenate([part[k] for part in parts]) for k in range(4))
+        world.set_states(bodies, positions=P, orientations=Q, velocities=V, angular_velocities=W)   # checks first
     for r, (q, qd, tt, before) in states:
         r.q, r.qd, r.t, r.before = q, qd, tt, before

@@ -454,7 +454,7 @@ class World(BodyInput):
                               material, srdf=srdf, disable_collisions=disable_collisions,
                               exclude_touching=exclude_touching)
 
-    def set_joint_positions(self, names, positions, stamp=None):
+    def set_joint_positions(self, names, positions, stamp=None, place=True):
         """Move robots: ``names (M,)`` joints (with their robot's prefix), ``positions (M,)`` (rad or m)
         at ``stamp`` (s; default the world time). Each joint keeps its own stamp (as
         robot_state_publisher does): its velocity is the finite difference of its consecutive
@@ -464,10 +464,13 @@ class World(BodyInput):
         position that agrees with its leader's (within 1e-9) is accepted and ignored. Refused by name,
         world unchanged: an unknown joint, a mimic joint that disagrees with its leader, a repeated
         name, a non-finite value, a position beyond its limits by more than 1e-9, a stamp before the
-        joint's previous one, a body speed beyond the world's bounds."""
+        joint's previous one, a body speed beyond the world's bounds. ``place=False`` only records
+        the joints' positions, stamps and velocities (``joint_positions``, the robot's ``q``,
+        ``qd``), checked as above but for the body speeds, and leaves the bodies where they are: for
+        a caller that poses them itself (the ROS node drives them once a tick)."""
         from . import robot
 
-        robot.set_joint_positions(self, names, positions, stamp)
+        robot.set_joint_positions(self, names, positions, stamp, place)
 
     def joint_positions(self):
         """Every robot's movable joint positions ``{name: position}`` (mimic joints excluded)."""

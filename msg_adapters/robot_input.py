@@ -224,7 +224,8 @@ class RobotInput:
         if self._js_t0_ns is None:
             self._js_t0_ns = stamp_ns
         try:
-            self.world.set_joint_positions([names[i] for i in keep], pos[keep], t)
+            # the links are posed by the tick's drive; paused, by each joint state (nothing steps)
+            self.world.set_joint_positions([names[i] for i in keep], pos[keep], t, place=self.paused)
         except contact_sim.ContactSimError as exc:
             return self._reject_joint_state("invalid", str(exc))
         self._js_last_rx = now_ns * 1e-9

@@ -109,6 +109,26 @@ def test_a_second_position_at_the_same_stamp_replaces_the_first(mesh):
 
 
 @pytest.mark.exact
+def test_joint_positions_recorded_without_placing_leave_the_bodies_where_they_are(mesh):
+    """``place=False`` records the joint positions, stamps and velocities, checked, and moves no
+    body; the next placed call takes its velocity from the recorded stamps."""
+    w, _ = arm_world(mesh)
+    w.set_joint_positions(["shoulder"], [0.1], stamp=1.0)
+    state = w.s.pos.copy(), w.s.quat.copy(), w.s.vel.copy(), w.s.omega.copy()
+    w.set_joint_positions(["shoulder"], [0.2], stamp=1.1, place=False)
+    for a, b in zip(state, (w.s.pos, w.s.quat, w.s.vel, w.s.omega)):
+        assert np.array_equal(a, b)
+    robot = w.robots[0]
+    assert w.joint_positions()["shoulder"] == 0.2 and robot.qd["shoulder"] == pytest.approx(1.0, rel=1e-12)
+    with pytest.raises(cs.ContactSimError, match="outside its limits"):
+        w.set_joint_positions(["shoulder"], [9.0], stamp=1.2, place=False)
+    assert w.joint_positions()["shoulder"] == 0.2
+    w.set_joint_positions(["shoulder"], [0.25], stamp=1.15)
+    assert np.allclose(w.velocities()[1][w.index("gripper")], [0, 0, 0.05 / 0.05], rtol=0, atol=1e-12)
+    assert np.allclose(w.body("gripper").position, hand_fk(0.25, 0.0)["gripper"][0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.exact
 def test_a_mimic_joint_that_agrees_with_its_leader_is_accepted(mesh):
     """A driver's JointState lists mimic joints too: a value within 1e-9 of ``multiplier × leader +
     offset`` is accepted (and ignored), with the leader given in the same call or before."""
