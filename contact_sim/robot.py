@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import ContactSimError
 from .jit import njit
+from .quat import rotate as quat_rotate
 from .validate import show
 from .constants import LIMIT_TOLERANCE, MIMIC_TOLERANCE, CONVEX_MESH_TOLERANCE
 
@@ -722,6 +723,32 @@ def _touching_pairs(world, model):
     keep = (mine[a] & mine[b]) | (mine[a] & (world.kind[b] == STATIC)) | (mine[b] & (world.kind[a] == STATIC))
     names = world._names
     return {tuple(sorted((names[i], names[j]))) for i, j in zip(a[keep], b[keep])}
+
+
+def pose_robot(world, robot, positions, velocities):
+    """See ``World.pose_robot``."""
+    from .validate import ANGULAR_VELOCITIES, POSITIONS, VELOCITIES
+
+    if not any(r is robot for r in world.robots):
+        raise ContactSimError(f"pose_robot: {getattr(robot, 'name', robot)!r} is not a robot of this world")
+    p, q, v, w = robot.body_states(positions, velocities)
+    st, call = world.settings, f"pose_robot({robot.name!r})"
+    names = robot.bodies
+
+    def row(what):
+        return lambda i: f"{call}: link {names[i]!r} {what}"
+
+    POSITIONS.check(p, call, st, count=len(p), row_path=row("position"))
+    VELOCITIES.check(v, call, st, count=len(v), row_path=row("velocity"))
+    ANGULAR_VELOCITIES.check(w, call, st, count=len(w), row_path=row("angular velocity"))
+    idx = np.array([world.index(n) for n in names], np.int64)
+    com = world.com_local[idx]
+    s = world.s
+    s.pos[idx] = p + quat_rotate(q, com) if com.any() else p
+    s.quat[idx] = q
+    s.vel[idx] = v
+    s.omega[idx] = w
+    s.posed[idx] = False
 
 
 def set_joint_positions(world, names, positions, stamp=None, place=True):

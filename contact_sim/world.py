@@ -472,6 +472,19 @@ class World(BodyInput):
 
         robot.set_joint_positions(self, names, positions, stamp, place)
 
+    def pose_robot(self, robot, positions, velocities):
+        """Pose the links of ``robot`` (a ``RobotModel`` of ``robots``) at the joint positions
+        ``positions`` moving at the joint velocities ``velocities`` (mappings over every movable
+        joint that is not a mimic, rad or m, rad/s or m/s): forward kinematics and the links'
+        velocities in one pass, as ``set_joint_positions`` poses them, but from the given velocities
+        and leaving the joints' record (``joint_positions``, stamps) as it is. For a caller that
+        drives the links between the joint states it records (the ROS node, once a tick). Refused,
+        world unchanged: a robot not in this world, a link beyond ``settings.max_position`` or
+        faster than ``max_speed`` / ``max_angular_speed`` (``BoundsError``)."""
+        from . import robot as robot_mod
+
+        robot_mod.pose_robot(self, robot, positions, velocities)
+
     def joint_positions(self):
         """Every robot's movable joint positions ``{name: position}`` (mimic joints excluded)."""
         return {n: x for r in self.robots for n, x in r.q.items()}

@@ -248,9 +248,7 @@ class RobotInput:
             return
         if now_s - self._js_last_rx <= self.cfg["pose_timeout"]:
             return
-        p, q = robot.body_poses(robot.q)
-        zeros = np.zeros((len(p), 3))
-        self.world.set_states(robot.bodies, positions=p, orientations=q, velocities=zeros, angular_velocities=zeros)
+        self.world.pose_robot(robot, robot.q, {n: 0.0 for n in robot.q})
         robot.restart_stamps()   # at rest: the next joint state places the links, no difference across the gap
         self._drive_from = None
         self._drive_moving = False
@@ -291,16 +289,14 @@ class RobotInput:
         if start is None or start.keys() != goal.keys() or self.paused:   # paused: ~/step's time is not the clock's
             start = goal
         qd = {n: (goal[n] - start[n]) / self.period for n in goal}
-        p, q, v, w = robot.body_states(start, qd)
         try:
-            self.world.set_states(robot.bodies, positions=p, orientations=q, velocities=v, angular_velocities=w)
+            self.world.pose_robot(robot, start, qd)
         except contact_sim.ContactSimError as exc:   # faster than the world's bounds (settings.max_*)
             self.counts["robot_jumps"] += 1
             self._warn("robot_jump", f"the links cannot move to the latest joint state in one tick ({exc}); "
                                      f"they are placed there at rest")
-            start, qd = goal, {n: 0.0 for n in goal}
-            p, q, v, w = robot.body_states(start, qd)
-            self.world.set_states(robot.bodies, positions=p, orientations=q, velocities=v, angular_velocities=w)
+            start = goal
+            self.world.pose_robot(robot, start, {n: 0.0 for n in goal})
         self._drive_moving = start != goal
         return goal
 

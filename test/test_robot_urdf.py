@@ -129,6 +129,33 @@ def test_joint_positions_recorded_without_placing_leave_the_bodies_where_they_ar
 
 
 @pytest.mark.exact
+def test_pose_robot_places_the_links_with_the_given_joint_velocities_and_keeps_the_record(mesh):
+    """``pose_robot``: the links at the forward kinematics of ``q``, moving as the joint velocities
+    say (the gripper at ``θ̇ ẑ × (p − p_shoulder) + ḋ (cos θ, sin θ, 0)``, its frame turning at
+    ``θ̇``); the joints' record (positions, stamps) as it was. A link faster than ``max_speed``, or
+    another world's robot, is refused and changes nothing."""
+    w, _ = arm_world(mesh)
+    w.set_joint_positions(["shoulder", "slide"], [0.1, 0.01], stamp=1.0)
+    robot, record = w.robots[0], dict(w.joint_positions())
+    w.pose_robot(robot, {"shoulder": 0.25, "slide": 0.03}, {"shoulder": 0.5, "slide": 0.1})
+    g = w.index("gripper")
+    p_g, p_u = hand_fk(0.25, 0.03)["gripper"][0], np.array([0, 0, SHOULDER_Z])
+    assert np.allclose(w.body("gripper").position, p_g, rtol=0, atol=1e-12)
+    want = np.cross([0, 0, 0.5], p_g - p_u) + 0.1 * np.array([np.cos(0.25), np.sin(0.25), 0.0])
+    assert np.allclose(w.s.vel[g], want, rtol=0, atol=1e-12)
+    assert np.allclose(w.s.omega[g], [0, 0, 0.5], rtol=0, atol=1e-12)
+    assert w.joint_positions() == record and robot.t["shoulder"] == 1.0
+    state = w.s.pos.copy(), w.s.vel.copy()
+    fast = cs.World(gravity=[0, 0, 0], settings=cs.Settings(max_speed=1.0, split_max_speed=0.5))
+    fast.add_urdf(arm_urdf(mesh))
+    with pytest.raises(cs.BoundsError, match="link 'gripper' velocity"):
+        fast.pose_robot(fast.robots[0], {"shoulder": 0.0, "slide": 0.0}, {"shoulder": 3.0, "slide": 0.0})
+    with pytest.raises(cs.ContactSimError, match="not a robot of this world"):
+        w.pose_robot(fast.robots[0], {"shoulder": 0.0, "slide": 0.0}, {"shoulder": 0.0, "slide": 0.0})
+    assert np.array_equal(state[0], w.s.pos) and np.array_equal(state[1], w.s.vel)
+
+
+@pytest.mark.exact
 def test_a_mimic_joint_that_agrees_with_its_leader_is_accepted(mesh):
     """A driver's JointState lists mimic joints too: a value within 1e-9 of ``multiplier × leader +
     offset`` is accepted (and ignored), with the leader given in the same call or before."""
