@@ -727,13 +727,19 @@ def _touching_pairs(world, model):
 
 def pose_robot(world, robot, positions, velocities):
     """See ``World.pose_robot``."""
-    from .validate import ANGULAR_VELOCITIES, POSITIONS, VELOCITIES
-
     if not any(r is robot for r in world.robots):
         raise ContactSimError(f"pose_robot: {getattr(robot, 'name', robot)!r} is not a robot of this world")
+    _commit_links(world, [_link_states(world, robot, positions, velocities, f"pose_robot({robot.name!r})")])
+
+
+def _link_states(world, robot, positions, velocities, call):
+    """``(indices (B,), positions, quaternions, velocities, angular velocities)`` of ``robot``'s
+    links for the joint ``positions`` and ``velocities`` (mappings), checked against the world's
+    bounds (``BoundsError`` naming ``call`` and the link); nothing changed yet."""
+    from .validate import ANGULAR_VELOCITIES, POSITIONS, VELOCITIES
+
     p, q, v, w = robot.body_states(positions, velocities)
-    st, call = world.settings, f"pose_robot({robot.name!r})"
-    names = robot.bodies
+    st, names = world.settings, robot.bodies
 
     def row(what):
         return lambda i: f"{call}: link {names[i]!r} {what}"
@@ -741,14 +747,20 @@ def pose_robot(world, robot, positions, velocities):
     POSITIONS.check(p, call, st, count=len(p), row_path=row("position"))
     VELOCITIES.check(v, call, st, count=len(v), row_path=row("velocity"))
     ANGULAR_VELOCITIES.check(w, call, st, count=len(w), row_path=row("angular velocity"))
-    idx = np.array([world.index(n) for n in names], np.int64)
-    com = world.com_local[idx]
+    return np.array([world.index(n) for n in names], np.int64), p, q, v, w
+
+
+def _commit_links(world, parts):
+    """Write ``_link_states``' answers into the world's state (a link's origin is its centre of
+    mass unless ``com_local`` says otherwise); their pose histories start again."""
     s = world.s
-    s.pos[idx] = p + quat_rotate(q, com) if com.any() else p
-    s.quat[idx] = q
-    s.vel[idx] = v
-    s.omega[idx] = w
-    s.posed[idx] = False
+    for idx, p, q, v, w in parts:
+        com = world.com_local[idx]
+        s.pos[idx] = p + quat_rotate(q, com) if com.any() else p
+        s.quat[idx] = q
+        s.vel[idx] = v
+        s.omega[idx] = w
+        s.posed[idx] = False
 
 
 def set_joint_positions(world, names, positions, stamp=None, place=True):
@@ -767,15 +779,12 @@ def set_joint_positions(world, names, positions, stamp=None, place=True):
         new.setdefault(id(r), (r, [], []))
         new[id(r)][1].append(n)
         new[id(r)][2].append(x)
-    states, bodies, parts = [], [], []
+    states, parts = [], []
     for r, ns, xs in new.values():
         state = r.update(ns, xs, t, call)
         states.append((r, state))
-        if place:
-            bodies += r.bodies
-            parts.append(r.body_states(state[0], state[1]))
-    if place:
-        P, Q, V, W = (np.concatenate([part[k] for part in parts]) for k in range(4))
-        world.set_states(bodies, positions=P, orientations=Q, velocities=V, angular_velocities=W)   # checks first
+        if place:   # every robot checked before any changes
+            parts.append(_link_states(world, r, state[0], state[1], call))
+    _commit_links(world, parts)
     for r, (q, qd, tt, before) in states:
         r.q, r.qd, r.t, r.before = q, qd, tt, before
