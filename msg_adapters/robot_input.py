@@ -248,7 +248,10 @@ class RobotInput:
             return
         if now_s - self._js_last_rx <= self.cfg["pose_timeout"]:
             return
-        self.world.pose_robot(robot, robot.q, {n: 0.0 for n in robot.q})
+        try:
+            self.world.pose_robot(robot, robot.q, {n: 0.0 for n in robot.q})
+        except contact_sim.ContactSimError as exc:   # beyond the world's bounds: they stay where they are
+            self._warn("robot_jump", f"the links cannot hold at the last joint state ({exc})")
         robot.restart_stamps()   # at rest: the next joint state places the links, no difference across the gap
         self._drive_from = None
         self._drive_moving = False
@@ -257,14 +260,14 @@ class RobotInput:
     def _drive_robot(self, now_ns):
         """Before a tick's steps: pose the links at the joint positions the last tick drove them to
         (``start``; the goal itself when there is none: a new robot, a reset, after holding, paused
-        or resumed) with the
-        joint velocities ``(goal - start) / period`` that carry them to ``goal`` over the tick. The
-        goal is each joint's latest position carried on at its velocity (the finite difference of its
-        stamps) to the end of this tick on the node's clock (``now_ns`` + period), at most its last
-        stamps' interval and a period beyond its stamp, within the joint's limits: a publisher slower
-        than the ticks moves the links smoothly between its messages, and a tick that comes late
-        carries them as far as the clock moved. Returns the goal, the next start once the steps
-        succeed (``_drove``); None when nothing moves the links."""
+        or resumed) with the joint velocities ``(goal - start) / period`` that carry them to
+        ``goal`` over the tick. The goal is each joint's latest position carried on at its velocity
+        (the finite difference of its stamps) to the end of this tick on the node's clock
+        (``now_ns`` + period), at most its last stamps' interval and a period beyond its stamp,
+        within the joint's limits: a publisher slower than the ticks moves the links smoothly
+        between its messages, and a tick that comes late carries them as far as the clock moved.
+        Returns the goal, the next start once the steps succeed (``_drove``); None when nothing
+        moves the links."""
         robot = self._robot
         if robot is None or robot not in self.world.robots:
             return None
@@ -293,10 +296,15 @@ class RobotInput:
             self.world.pose_robot(robot, start, qd)
         except contact_sim.ContactSimError as exc:   # faster than the world's bounds (settings.max_*)
             self.counts["robot_jumps"] += 1
+            start = goal
+            try:
+                self.world.pose_robot(robot, start, {n: 0.0 for n in goal})
+            except contact_sim.ContactSimError as again:   # the goal itself beyond them: the links stay
+                self._warn("robot_jump", f"the links cannot move to the latest joint state ({again}); they stay "
+                                         f"where they are")
+                return None
             self._warn("robot_jump", f"the links cannot move to the latest joint state in one tick ({exc}); "
                                      f"they are placed there at rest")
-            start = goal
-            self.world.pose_robot(robot, start, {n: 0.0 for n in goal})
         self._drive_moving = start != goal
         return goal
 
