@@ -61,6 +61,8 @@ DIRECT_REGULARISATION = 1e-10   # relative diagonal shift: redundant contacts (4
 DIRECT_ISLAND_MAX = 128         # islands up to this many contacts: the compiled dense kernel (active_set); above, sparse
 DIRECT_BAND_MIN = 8             # islands above this many contacts: each contact's coupling range only (active_set)
 DIRECT_PIVOT_FRACTION = 1e-9    # a body-space factor's pivot below this × its diagonal: a freedom no active row fixes
+DIRECT_FREEDOM_FLOOR = 1e-12    # and a freedom whose diagonal is below this × the island's largest (levers under
+#                                 a micrometre, or a normal tilted by round-off): one no active row fixes either
 DIRECT_REFINEMENTS = 2          # body-space solve: iterative refinements at most, while a row misses by more than
 DIRECT_ROUNDOFF = 4 * 2.220446049250313e-16   # this × (its largest term: Delassus diagonal × impulse, or the rhs)
 PGS_STALL_SWEEPS = 16   # Gauss–Seidel stops after this many sweeps without a new smallest residual (friction's cycle)

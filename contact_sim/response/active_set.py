@@ -40,7 +40,8 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..constants import DIRECT_BAND_MIN, DIRECT_PIVOT_FRACTION, DIRECT_REFINEMENTS, DIRECT_ROUNDOFF
+from ..constants import (DIRECT_BAND_MIN, DIRECT_FREEDOM_FLOOR, DIRECT_PIVOT_FRACTION, DIRECT_REFINEMENTS,
+                         DIRECT_ROUNDOFF)
 from .pgs import _apply, _row_velocity
 
 _TINY = 1e-300
@@ -529,7 +530,8 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
     The same rounds and tests as ``_island`` (its answer to round-off, and the least-norm split
     exactly where ``_island``'s regularisation leaves a trace); returns ``(_ROWS, 0)`` when the
     island is the row-space method's: compliant rows, fewer active rows than freedoms, a freedom no active
-    row fixes (a factor's pivot below ``DIRECT_PIVOT_FRACTION`` of its diagonal), a body that does not
+    row fixes (a factor's pivot below ``DIRECT_PIVOT_FRACTION`` of its diagonal, or of
+    ``DIRECT_FREEDOM_FLOOR`` × the island's largest diagonal), a body that does not
     rotate (its inverse inertia not invertible: ``_body_mass``), or active rows that cannot all hold
     (``_island`` then decides)."""
     G, vecs, dofs, S, nz, act, band, local, listed, first, jv, bv, rhs_s, every, mb = ws
@@ -569,11 +571,16 @@ def _island_body(ids, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, v0, co
                 break
             dmax = _body_matrices(ids, S, ns, a, b, dirs, ang_a, ang_b, iang_a, iang_b, ima, imb, local, n, band, G,
                                   jv, bv)
+            gmax = 0.0
             for i in range(n):
                 diag[i] = G[i, i]
+                gmax = max(gmax, diag[i])
             ok = _cholesky(G, n, nz, band)
+            # a freedom only a negligible lever reaches (a sphere on two nearly parallel normals: its
+            # spin about them) is not fixed: its pivot, tiny but positive, divided a solve to overflow
+            floor = DIRECT_FREEDOM_FLOOR * gmax
             for i in range(n):
-                ok = ok and G[i, i] * G[i, i] >= DIRECT_PIVOT_FRACTION * diag[i]
+                ok = ok and G[i, i] * G[i, i] >= DIRECT_PIVOT_FRACTION * max(diag[i], floor)
             if not ok:
                 status = _ROWS
                 break
