@@ -28,7 +28,7 @@ import numpy as np
 from .errors import ContactSimError
 from .jit import njit
 from .quat import rotate as quat_rotate
-from .validate import show
+from .validate import ANGULAR_VELOCITIES, POSITIONS, VELOCITIES, show
 from .constants import LIMIT_TOLERANCE, MIMIC_TOLERANCE, CONVEX_MESH_TOLERANCE
 
 MOVABLE = ("revolute", "continuous", "prismatic")
@@ -736,8 +736,6 @@ def _link_states(world, robot, positions, velocities, call):
     """``(indices (B,), positions, quaternions, velocities, angular velocities)`` of ``robot``'s
     links for the joint ``positions`` and ``velocities`` (mappings), checked against the world's
     bounds (``BoundsError`` naming ``call`` and the link); nothing changed yet."""
-    from .validate import ANGULAR_VELOCITIES, POSITIONS, VELOCITIES
-
     p, q, v, w = robot.body_states(positions, velocities)
     st, names = world.settings, robot.bodies
 
