@@ -79,7 +79,7 @@ class _State:
     kinematic bodies; copied whole by ``World.snapshot``, ``reset`` and input refused atomically."""
 
     NAMES = ("pos", "vel", "quat", "omega", "principal_q", "principal_moments", "stamp", "posed", "pose_pos",
-             "pose_quat", "stepped")
+             "pose_quat", "pose_vel", "pose_omega", "pose_gap", "stepped")
 
     def __init__(self):
         self.pos = np.zeros((0, 3))
@@ -92,6 +92,9 @@ class _State:
         self.posed = np.zeros(0, bool)        # has a pose been given yet
         self.pose_pos = np.zeros((0, 3))      # centre of mass and orientation at that last pose: the
         self.pose_quat = np.zeros((0, 4))     # finite differences start there, not where the body drifted to
+        self.pose_vel = np.zeros((0, 3))      # the last pose's velocity and angular velocity (the finite
+        self.pose_omega = np.zeros((0, 3))    # differences from the pose before; 0 after a first pose) and
+        self.pose_gap = np.zeros(0)           # the interval of those two poses' stamps (s; 0 after a first pose)
         self.stepped = np.zeros((0, 7))       # centre and orientation where the last step left each body: a
         #                                       pose given since moved a kinematic body at once (energy.pose_work)
 
@@ -339,6 +342,9 @@ class World(BodyInput):
         s.posed = np.append(s.posed, False)
         s.pose_pos = np.vstack([s.pose_pos, com_world])
         s.pose_quat = np.vstack([s.pose_quat, q])
+        s.pose_vel = np.vstack([s.pose_vel, np.zeros(3)])
+        s.pose_omega = np.vstack([s.pose_omega, np.zeros(3)])
+        s.pose_gap = np.append(s.pose_gap, 0.0)
         s.stepped = np.vstack([s.stepped, np.concatenate([com_world, q])])
         self.kind = np.append(self.kind, np.int8(KINDS.index(kind)))
         self.particle = np.append(self.particle, model == "particle")

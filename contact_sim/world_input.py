@@ -30,7 +30,7 @@ def _rows(check, value, m, path, row_path, settings, row_rule):
 class BodyInput:
     """``set_pose(s)``, ``restart_pose_history``, ``set_state(s)`` of ``World``."""
 
-    def set_pose(self, name, position, orientation, stamp=None):
+    def set_pose(self, name, position, orientation, stamp=None, place=True):
         """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time
         ``stamp`` (s; default the world time). From the second pose on its linear and angular
         velocity are the finite differences of successive poses over their stamps, so responses
@@ -38,17 +38,21 @@ class BodyInput:
         at that velocity: a trajectory ``p(t)`` is followed by giving ``p(t)`` stamped ``t`` (the
         world's time) before each step. Stamps must increase. Bad input changes nothing; a position
         beyond ``settings.max_position`` or a pose implying a speed beyond ``max_speed`` /
-        ``max_angular_speed`` raises ``BoundsError``."""
-        self._set_poses([name], [position], [orientation], stamp, single=True)
+        ``max_angular_speed`` raises ``BoundsError``.
 
-    def set_poses(self, names, positions, orientations, stamp=None):
+        With ``place=False`` the pose and its velocity are only recorded (the body goes on as it
+        was, except at a first pose, which places it: there is nothing to drive it from), for
+        ``drive_poses`` to move the body there without a jump."""
+        self._set_poses([name], [position], [orientation], stamp, single=True, place=place)
+
+    def set_poses(self, names, positions, orientations, stamp=None, place=True):
         """``set_pose`` for several kinematic bodies at one ``stamp``, vectorised: ``names (M,)``,
         ``positions (M, 3)``, ``orientations (M, 4)``. The whole batch is checked before anything
         changes, so a bad row leaves every body as it was; errors name the body and the reason.
         An empty batch changes nothing."""
-        self._set_poses(names, positions, orientations, stamp, single=False)
+        self._set_poses(names, positions, orientations, stamp, single=False, place=place)
 
-    def _set_poses(self, names, positions, orientations, stamp, single):
+    def _set_poses(self, names, positions, orientations, stamp, single, place=True):
         st = self.settings
         call = "set_pose" if single else "set_poses"
         if isinstance(names, (str, bytes)) or not hasattr(names, "__iter__"):
@@ -104,15 +108,76 @@ class BodyInput:
             omega = turn / dt
             vel = move / dt
         # ---- commit (nothing below can fail)
+        placed = slice(None) if place else ~posed   # a first pose is always placed
         if j.size:
-            s.omega[ij] = omega
-            s.vel[ij] = vel
-        s.pos[idx] = com_world
-        s.quat[idx] = q
+            if place:
+                s.omega[ij] = omega
+                s.vel[ij] = vel
+            s.pose_vel[ij], s.pose_omega[ij], s.pose_gap[ij] = vel, omega, dt[:, 0]
+        first = idx[~posed]
+        s.pose_vel[first], s.pose_omega[first], s.pose_gap[first] = 0.0, 0.0, 0.0
+        s.pos[idx[placed]] = com_world[placed]
+        s.quat[idx[placed]] = q[placed]
         s.pose_pos[idx] = com_world
         s.pose_quat[idx] = q
         s.stamp[idx] = t
         s.posed[idx] = True
+
+    def drive_poses(self, names, until, period, at_rest=False):
+        """Drive the named kinematic bodies over the next ``period`` (s) to their last pose carried
+        on at its velocity (``set_poses``' finite differences) to time ``until`` (s, the poses'
+        stamps' clock), never back and at most its last two poses' interval plus ``period`` past its
+        stamp: each body keeps its place and gets the linear and angular velocity that take its
+        centre of mass and orientation there in ``period``, so the steps over ``period`` carry it
+        there smoothly. A caller that steps late or receives poses in bunches (the ROS node) moves
+        the bodies as far as its clock moved, never by a jump, which contacts (velocity-level)
+        would not see: a part held between two pose-driven pads would be left behind by it.
+        ``at_rest``: place the bodies there at rest instead (paused, or a drive beyond the bounds).
+
+        A body with no pose given (or whose pose history was restarted) is left as it is; the pose
+        record is kept (the next pose differences from the last). ``BoundsError`` (nothing
+        changed) when the goal is beyond ``settings.max_position`` or the drive beyond
+        ``max_speed`` / ``max_angular_speed``."""
+        names = [names] if isinstance(names, str) else list(names)
+        idx = np.array([self.index(n) for n in names], np.int64)
+        bad = np.flatnonzero(self.kind[idx] != KINEMATIC)
+        if bad.size:
+            i = bad[0]
+            raise ContactSimError(f"drive_poses({names[i]!r}): only kinematic bodies are driven by poses; "
+                                  f"{names[i]!r} is {KINDS[self.kind[idx[i]]]}")
+        until = STAMP.check(until, "drive_poses.until")
+        period = float(STAMP.check(period, "drive_poses.period"))
+        if not period > 0.0:
+            raise ContactSimError(f"drive_poses.period: must be > 0 s, got {period!r}")
+        s, st = self.s, self.settings
+        on = np.flatnonzero(s.posed[idx])
+        i = idx[on]
+        if not i.size:
+            return
+        ahead = np.minimum(np.maximum(until - s.stamp[i], 0.0), s.pose_gap[i] + period)[:, None]
+        goal_c = s.pose_pos[i] + s.pose_vel[i] * ahead
+        goal_q = quat.normalize(quat.mul(quat.from_rotvec(s.pose_omega[i] * ahead), s.pose_quat[i]))
+        origin = goal_c - quat.rotate(goal_q, self.com_local[i])
+        far = np.flatnonzero(np.abs(origin).max(axis=1) > st.max_position)
+        if far.size:
+            k = int(far[0])
+            raise BoundsError(f"drive_poses({names[on[k]]!r}): its pose carried on to {until:.9g} s is at "
+                              f"{show(origin[k])}, beyond max_position ({st.max_position:g} m)")
+        if at_rest:
+            s.pos[i], s.quat[i], s.vel[i], s.omega[i] = goal_c, goal_q, 0.0, 0.0
+            return
+        vel = (goal_c - s.pos[i]) / period
+        turn = quat.mul(goal_q, quat.conj(s.quat[i]))
+        omega = quat.to_rotvec(turn) / period   # the shorter way round
+        for v, bound, unit in ((vel, "max_speed", "m/s"), (omega, "max_angular_speed", "rad/s")):
+            speed = np.linalg.norm(v, axis=1)
+            over = np.flatnonzero(speed > getattr(st, bound))
+            if over.size:
+                k = int(over[0])
+                raise BoundsError(f"drive_poses({names[on[k]]!r}): reaching its pose carried on to {until:.9g} s "
+                                  f"in {period:.6g} s takes {speed[k]:.6g} {unit}, above {bound} "
+                                  f"({getattr(st, bound):g} {unit})")
+        s.vel[i], s.omega[i] = vel, omega
 
     def restart_pose_history(self, names=None):
         """The next pose of each named kinematic body (every body when ``names`` is None) is taken

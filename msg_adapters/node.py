@@ -314,7 +314,8 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._t0_ns = stamp_ns
         t = (stamp_ns - self._t0_ns) * 1e-9
         try:  # checked as a whole by the engine: a refused batch changes nothing
-            self.world.set_poses(self.tracked, p, q, t)
+            # recorded; each tick drives the bodies there (_drive_poses), paused they are placed at once
+            self.world.set_poses(self.tracked, p, q, t, place=self.paused)
         except contact_sim.ContactSimError as exc:   # out_of_bounds: beyond a world bound (settings.max_*)
             return self._reject_pose(engine_reject_reason(exc), str(exc))
         self._last_pose_stamp_ns = stamp_ns
@@ -446,6 +447,35 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         self.world.set_states([self.tracked[j] for j in stale], positions=self._held_pos[stale],
                               orientations=self._held_quat[stale], velocities=v, angular_velocities=w)
 
+    def _drive_poses(self, now_ns):
+        """Before a tick's steps: the tracked bodies with a live pose (not held after
+        ``pose_timeout``) get the velocities that carry them, over the tick's period, from where
+        they are to their latest pose carried on at its stamp velocity to the tick's end
+        (``World.drive_poses``: never further than its last stamps' interval and a period past its
+        stamp). A tick the timer could not honour, or poses bunched into one tick, move them as
+        far as the clock moved, never by a jump (a jump slips a part held between pose-driven
+        pads: its contacts follow the pads' velocities, not their jumps). Paused (``~/step``'s time
+        is not the clock's) they are placed there at rest; a drive faster than the world's bounds
+        places them there at rest too, counted (``pose_jumps``)."""
+        if not self._posed.any() or self._t0_ns is None:
+            return
+        names = [n for n, on in zip(self.tracked, self._posed) if on]
+        until = (now_ns - self._t0_ns) * 1e-9 + self.period
+        try:
+            self.world.drive_poses(names, until, self.period, at_rest=self.paused)
+            return
+        except contact_sim.ContactSimError as exc:   # faster than the world's bounds (settings.max_*)
+            self.counts["pose_jumps"] += 1
+            why = exc
+        try:
+            self.world.drive_poses(names, until, self.period, at_rest=True)
+        except contact_sim.ContactSimError as again:   # the goal itself beyond them: the bodies stay
+            self._warn("pose_jump", f"the tracked bodies cannot move to the latest pose ({again}); they stay "
+                                    f"where they are")
+            return
+        self._warn("pose_jump", f"the tracked bodies cannot move to the latest pose in one tick ({why}); they are "
+                                f"placed there at rest")
+
     def _tick_work(self, start, cpu_start):
         """One fixed step (substeps engine steps) and the publications. False if the engine failed."""
         world = self.world
@@ -455,6 +485,7 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
             self._pending = None
             self._apply_pose(p, q, now_ns, now_ns)
         self._hold_timed_out(now_ns * 1e-9)
+        self._drive_poses(now_ns)
         self._hold_robot(now_ns * 1e-9)
         goal = self._drive_robot(now_ns)
         substeps = self.cfg["substeps"]

@@ -32,7 +32,8 @@ MAX_REASONS = 20   # distinct refusal texts per category in one /diagnostics rep
 #: counters whose growth since the last /diagnostics message makes it a WARN
 WARN_COUNTERS = ("rejected_poses", "rejected_parameters", "overruns", "poses_dropped", "rejected_body_states",
                  "rejected_spawns", "rejected_deletes", "clock_jumps_back", "rejected_robot_descriptions",
-                 "rejected_joint_states", "joint_states_unknown_joints", "unconverged_steps", "robot_jumps")
+                 "rejected_joint_states", "joint_states_unknown_joints", "unconverged_steps", "robot_jumps",
+                 "pose_jumps")
 
 
 _CONTACT_FIELDS_CDR = point_fields_cdr(point_fields(CONTACT_DTYPE))   # the contacts' layout, once
@@ -163,7 +164,8 @@ class Outputs:
         for key in ("rejected_parameters", "step_errors", "resets", "clock_jumps_back", "body_states_set",
                     "rejected_body_states", "spawned_bodies", "rejected_spawns", "deleted_bodies", "rejected_deletes",
                     "robot_descriptions", "robot_semantic_descriptions", "rejected_robot_descriptions", "joint_states_received", "joint_states_accepted",
-                    "rejected_joint_states", "joint_states_unknown_joints", "unconverged_steps", "robot_jumps"):
+                    "rejected_joint_states", "joint_states_unknown_joints", "unconverged_steps", "robot_jumps",
+                    "pose_jumps"):
             values[key] = c[key]
         for r in JOINT_STATE_REASONS:
             values["rejected_joint_state_" + r] = c["rejected_joint_state_" + r]

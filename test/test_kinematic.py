@@ -225,3 +225,64 @@ def test_a_ball_squeezed_between_a_paddle_and_a_box_at_a_wall_rebounds_within_th
         names = {frozenset((int(a), int(b))) for a, b in zip(w.contacts.body_a, w.contacts.body_b)}
         squeezed += {frozenset((1, 2)), frozenset((2, 3)), frozenset((3, 4))} <= names
     assert squeezed > 3     # not vacuous: the three contacts held at once
+
+
+def test_a_recorded_pose_leaves_the_body_and_the_drive_takes_it_there_in_the_period():
+    """``set_pose(place=False)`` records the pose and its finite-difference velocity without moving
+    the body (a first pose places it: nothing to drive from); ``drive_poses`` gives the body the
+    velocity and angular velocity that take its centre of mass and orientation, over ``period``,
+    to that pose carried on at its velocity to ``until`` (at most its stamps' interval plus the
+    period past its stamp), and the steps over the period end there."""
+    w = cs.World(gravity=(0, 0, 0))
+    w.add_body("pad", cs.Box([0.2, 0.1, 0.1]), kind="kinematic", position=[1.0, 0.0, 0.0])
+    w.set_pose("pad", [0.5, 0.0, 0.0], [0, 0, 0, 1], stamp=0.0, place=False)    # a first pose: placed
+    np.testing.assert_allclose(w.body("pad").position, [0.5, 0.0, 0.0], rtol=0, atol=1e-15)
+    q1 = quat.from_rotvec([0.0, 0.0, 0.02])
+    w.set_pose("pad", [0.52, 0.0, 0.0], q1, stamp=0.01, place=False)           # 2 m/s, 2 rad/s (origin)
+    np.testing.assert_allclose(w.body("pad").position, [0.5, 0.0, 0.0], rtol=0, atol=1e-15)   # not moved
+    assert not w.body("pad").velocity.any()
+    T = 0.004
+    w.drive_poses(["pad"], until=0.015, period=T)        # carried on 5 ms: the pose at 0.015 s
+    turn = quat.from_rotvec([0.0, 0.0, 2.0 * 0.005])
+    goal_q = quat.mul(turn, q1)
+    goal_c = np.array([0.52, 0.0, 0.0]) + w.s.pose_vel[0] * 0.005
+    c0 = np.array([0.5, 0.0, 0.0])
+    np.testing.assert_allclose(w.s.vel[0], (goal_c - c0) / T, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(w.s.omega[0], quat.to_rotvec(goal_q) / T, rtol=0, atol=1e-12)
+    for _ in range(4):
+        w.step(T / 4)
+    np.testing.assert_allclose(w.s.pos[0], goal_c, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(w.body("pad").orientation, goal_q, rtol=0, atol=1e-15)
+    # the next pose still differences from the last one (the record was kept), and a drive ahead of
+    # the stamps by more than their interval and the period is held there
+    w.set_pose("pad", [0.54, 0.0, 0.0], quat.from_rotvec([0.0, 0.0, 0.04]), stamp=0.02, place=False)
+    np.testing.assert_allclose(w.s.pose_omega[0], [0, 0, 2.0], rtol=0, atol=1e-12)
+    assert w.s.pose_gap[0] == pytest.approx(0.01, abs=1e-15)
+    w.drive_poses(["pad"], until=1.0, period=T, at_rest=True)
+    np.testing.assert_allclose(quat.to_rotvec(w.s.quat[0]), [0, 0, 0.04 + 2.0 * (0.01 + T)], rtol=0, atol=1e-14)
+    assert not w.s.vel[0].any() and not w.s.omega[0].any()
+
+
+def test_drive_poses_refuses_what_it_cannot_do_and_changes_nothing():
+    w = world_with_paddle()
+    w.settings.max_speed = 5.0
+    w.settings.split_max_speed = 1.0
+    w.drive_poses(["paddle"], until=1.0, period=0.01)    # no pose given yet: left as it is
+    assert not w.s.vel.any()
+    w.set_pose("paddle", [0, 0, 0], [0, 0, 0, 1], stamp=0.0, place=False)
+    w.set_pose("paddle", [1.0, 0, 0], [0, 0, 0, 1], stamp=0.5, place=False)   # 2 m/s: a valid pose
+    before = w.snapshot()
+    with pytest.raises(cs.BoundsError, match=r"drive_poses\('paddle'\): reaching .* takes 102 m/s, above max_speed"):
+        w.drive_poses(["paddle"], until=0.51, period=0.01)   # 1.02 m in 0.01 s
+    with pytest.raises(cs.ContactSimError, match="only kinematic bodies are driven"):
+        w.drive_poses(["paddle", "ball"], until=0.51, period=0.01)
+    with pytest.raises(cs.ContactSimError, match="period: must be > 0"):
+        w.drive_poses(["paddle"], until=0.51, period=0.0)
+    with pytest.raises(cs.ContactSimError, match="unknown body 'ghost'"):
+        w.drive_poses(["ghost"], until=0.51, period=0.01)
+    w.set_pose("paddle", [w.settings.max_position - 0.01, 0, 0], [0, 0, 0, 1], stamp=1e6, place=False)
+    with pytest.raises(cs.BoundsError, match="beyond max_position"):
+        w.drive_poses(["paddle"], until=2e6, period=0.01, at_rest=True)
+    after = w.snapshot()
+    for n in ("pos", "vel", "quat", "omega"):
+        assert np.array_equal(getattr(before.state, n), getattr(after.state, n))

@@ -144,8 +144,10 @@ def test_poses_drive_the_paddle_and_it_holds_after_the_timeout(running):
     client.send([[x0, 0.0, 0.16]], IDENTITY, stamp)
     client.send([[x0 + 0.01, 0.0, 0.16]], IDENTITY, stamp + 10_000_000)  # 1 m/s along x
     spin.until(lambda: node.counts["poses_accepted"] >= 2, 5, "two accepted poses")
-    paddle = node.world.body("paddle")
-    np.testing.assert_allclose(paddle.velocity, [1.0, 0.0, 0.0], atol=1e-6)
+    # the next tick drives it on along x (the exact drive: test_each_tick_drives_the_tracked_bodies...)
+    spin.until(lambda: node.world.body("paddle").velocity[0] > 0.0, 5, "the paddle driven along x")
+    v = node.world.body("paddle").velocity
+    assert v[1] == v[2] == 0.0 and not node.world.body("paddle").angular_velocity.any()
     # no more poses: after pose_timeout (0.1 s) it is put back at the last pose and stops
     spin.until(lambda: not np.any(node.world.body("paddle").velocity), 5, "the paddle to stop")
     ticks = node.counts["ticks"]
@@ -471,6 +473,83 @@ def test_each_tick_drives_the_links_from_where_the_last_left_them_to_the_latest_
         assert not world.s.vel[idx].any() and not world.s.omega[idx].any()
         np.testing.assert_allclose(world.s.pos[idx], robot.body_states(goal, {n: 0.0 for n in goal})[0], atol=1e-14)
         assert "robot_jumps" in node.diagnostics_values()
+    finally:
+        node.destroy_node()
+
+
+def test_each_tick_drives_the_tracked_bodies_to_the_latest_pose_carried_on(ros, tmp_path):
+    """A tick gives each tracked body the velocity and angular velocity that carry it, over the
+    period T, from where it is to its latest pose carried on at the poses' stamp velocity to the
+    tick's end (at most the last stamps' interval and a period past the last stamp): the step then
+    takes it there, whatever the stamps (two poses in one tick; a tick with none moves on at the
+    stamps' velocity; a late tick catches up by velocity, not by a jump). A first pose places the
+    body. Paused (``~/step``), the bodies are placed at the pose at rest. A drive faster than the
+    world's speed bound (here 5 m/s; no gravity, so such a bound is valid) places them at the goal
+    at rest instead, counted in ``pose_jumps``. The node's clock is the test's."""
+    from contact_sim import quat
+
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(yaml.safe_dump({"gravity": [0, 0, 0], "settings": {"max_speed": 5.0, "split_max_speed": 0.5},
+                                     "bodies": [{"name": "pad", "kind": "kinematic",
+                                                 "shape": {"type": "box", "size": [0.1, 0.1, 0.1]},
+                                                 "position": [0.0, 0.0, 1.0]}]}))
+    node = make_node(ros, scene=str(scene), pose_timeout=60.0, tracked_bodies=["pad"])
+    try:
+        node.timer.cancel()
+        world, T = node.world, node.period
+        t0 = node.get_clock().now().nanoseconds
+        clock = {"ns": t0}
+        node._now_ns = lambda: clock["ns"]
+
+        def send(x, angle, ms):
+            q = quat.from_rotvec([0.0, 0.0, angle])
+            node._handle_pose(cv.posearray_cdr(np.array([[x, 0.0, 1.0]]), q[None], "world", t0 + round(ms * 1e6)))
+
+        def tick(ms, x, angle, vx, wz):
+            """A tick at ``ms``: the pad leaves ``x, angle`` at ``vx, wz`` and ends ``T`` later on."""
+            clock["ns"] = t0 + round(ms * 1e6)
+            np.testing.assert_allclose(world.s.pos[0], [x, 0.0, 1.0], rtol=0, atol=1e-15)
+            np.testing.assert_allclose(quat.to_rotvec(world.s.quat[0]), [0.0, 0.0, angle], rtol=0, atol=1e-15)
+            node._on_timer()
+            np.testing.assert_allclose(world.s.vel[0], [vx, 0.0, 0.0], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(world.s.omega[0], [0.0, 0.0, wz], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(world.s.pos[0], [x + vx * T, 0.0, 1.0], rtol=0, atol=1e-14)
+            np.testing.assert_allclose(quat.to_rotvec(world.s.quat[0]), [0.0, 0.0, angle + wz * T], rtol=0,
+                                       atol=1e-14)
+
+        assert T == 0.02
+        send(0.0, 0.0, 0)                                  # a first pose places the pad
+        tick(0, 0.0, 0.0, 0.0, 0.0)
+        send(0.01, 0.01, 10)
+        send(0.03, 0.03, 20)                               # stamp velocity 2 m/s, 2 rad/s; not placed
+        tick(20, 0.0, 0.0, 3.5, 3.5)                       # to 0.03 + 2 × (20 + 20 − 20) ms over 20 ms
+        # no pose: on at the stamps' velocity, to at most 10 + 20 ms past the last stamp
+        tick(40, 0.07, 0.07, 1.0, 1.0)
+        send(0.13, 0.13, 60)
+        send(0.13, 0.13, 70)                               # stopped
+        tick(70, 0.09, 0.09, 2.0, 2.0)
+        tick(90, 0.13, 0.13, 0.0, 0.0)
+        # poses at 1 m/s, then a tick late by one period: it catches up by velocity, not by a jump
+        send(0.14, 0.13, 100)
+        send(0.15, 0.13, 110)
+        tick(130, 0.13, 0.13, 2.5, 0.0)                    # to 0.15 + 1 × min(130 + 20 − 110, 10 + 20) ms
+        tick(150, 0.18, 0.13, 0.0, 0.0)
+        # paused, ~/step's time is not the clock's: a step places the pad at the pose at rest
+        node._on_pause(SetBool.Request(data=True), SetBool.Response())
+        send(0.2, 0.2, 200)
+        send(0.2, 0.2, 210)
+        node._on_step(Trigger.Request(), Trigger.Response())
+        assert not world.s.vel.any() and not world.s.omega.any()
+        np.testing.assert_allclose(world.s.pos[0], [0.2, 0.0, 1.0], rtol=0, atol=1e-15)
+        node._on_pause(SetBool.Request(data=False), SetBool.Response())
+        assert node.counts["pose_jumps"] == 0
+        send(1.0, 0.2, 2210)                               # 0.4 m/s by the stamps, ~40 m/s in one tick
+        clock["ns"] = t0 + 2_210_000_000
+        node._on_timer()
+        assert node.counts["pose_jumps"] == 1 and node.counts["rejected_poses"] == 0
+        assert not world.s.vel.any() and not world.s.omega.any()
+        np.testing.assert_allclose(world.s.pos[0], [1.0 + 0.4 * T, 0.0, 1.0], rtol=0, atol=1e-14)
+        assert "pose_jumps" in node.diagnostics_values()
     finally:
         node.destroy_node()
 

@@ -164,7 +164,11 @@ def test_sim_time_zero_stamps_within_one_clock_tick_take_the_latest(manual):
     spin.until(lambda: node.get_clock().now().nanoseconds == 60_020_000_000, 5, "the clock moves")
     node._on_timer()                            # the latest is applied with the tick's time
     assert node.counts["poses_accepted"] == 2
-    np.testing.assert_allclose(node.world.body("paddle").velocity, [0.2 / 0.02, 0, 0], rtol=1e-9)
+    w = node.world
+    i = w.index("paddle")
+    np.testing.assert_allclose(w.s.pose_vel[i], [0.2 / 0.02, 0, 0], rtol=1e-9)   # over the tick's 0.02 s
+    # and the tick drove the paddle from the first pose to the latest carried on to its end
+    np.testing.assert_allclose(w.s.vel[i], [(-0.1 + 10.0 * 0.02 + 0.3) / 0.02, 0, 0], rtol=1e-9)
     tick(node, spin, client, "diag")
     assert cv.diagnostics_to_dict(client.last("diag"))["rejected_pose_stamp"] == "0"
 
@@ -277,7 +281,8 @@ def test_queue_drops_are_counted_from_sequence_gaps(manual):
     spin.until(lambda: node.counts["poses_received"] + node.counts["poses_dropped"] == burst + 1, 10, "the burst")
     c = node.counts
     assert 0 < c["poses_dropped"] < burst and c["poses_accepted"] == c["poses_received"]
-    np.testing.assert_allclose(node.world.body("paddle").position[0], -0.4 + 1e-6 * burst)   # the last one came
+    # the last one came (recorded: the next tick drives the paddle there)
+    np.testing.assert_allclose(node.world.s.pose_pos[node.world.index("paddle"), 0], -0.4 + 1e-6 * burst)
     node._on_timer()
     # earlier ticks' diagnostics may still be in flight under load: wait for this tick's own
     spin.until(lambda: client.last("diag") is not None and cv.diagnostics_to_dict(client.last("diag")).get(
