@@ -2,7 +2,7 @@
 state overwrites, each checked in full before anything changes (``World`` inherits these)."""
 import numpy as np
 
-from . import quat
+from . import free_motion, quat
 from .errors import BoundsError, ContactSimError
 from .kinds import KINDS, KINEMATIC, STATIC
 from .validate import (ANGULAR_VELOCITIES, ANGULAR_VELOCITY, ORIENTATION, POSITION, POSITIONS, STAMP, VELOCITIES,
@@ -154,30 +154,23 @@ class BodyInput:
         i = idx[on]
         if not i.size:
             return
-        ahead = np.minimum(np.maximum(until - s.stamp[i], 0.0), s.pose_gap[i] + period)[:, None]
-        goal_c = s.pose_pos[i] + s.pose_vel[i] * ahead
-        goal_q = quat.normalize(quat.mul(quat.from_rotvec(s.pose_omega[i] * ahead), s.pose_quat[i]))
-        origin = goal_c - quat.rotate(goal_q, self.com_local[i])
-        far = np.flatnonzero(np.abs(origin).max(axis=1) > st.max_position)
-        if far.size:
-            k = int(far[0])
-            raise BoundsError(f"drive_poses({names[on[k]]!r}): its pose carried on to {until:.9g} s is at "
-                              f"{show(origin[k])}, beyond max_position ({st.max_position:g} m)")
+        out = np.empty((i.size, 13))
+        code, row = free_motion.pose_drive(i, float(until), period, bool(at_rest), s.pose_pos, s.pose_quat, s.pose_vel,
+                                           s.pose_omega, s.stamp, s.pose_gap, s.pos, s.quat, float(st.max_position),
+                                           float(st.max_speed), float(st.max_angular_speed), out)
+        if code != free_motion.DRIVE_OK:
+            name = names[on[row]]
+            if code == free_motion.DRIVE_POSITION:
+                raise BoundsError(f"drive_poses({name!r}): its pose carried on to {until:.9g} s is beyond max_position "
+                                  f"({st.max_position:g} m)")
+            bound, unit = ("max_speed", "m/s") if code == free_motion.DRIVE_SPEED else ("max_angular_speed", "rad/s")
+            part = slice(7, 10) if code == free_motion.DRIVE_SPEED else slice(10, 13)
+            speed = float(np.linalg.norm(out[row, part]))
+            raise BoundsError(f"drive_poses({name!r}): reaching its pose carried on to {until:.9g} s in {period:.6g} s "
+                              f"takes {speed:.6g} {unit}, above {bound} ({getattr(st, bound):g} {unit})")
         if at_rest:
-            s.pos[i], s.quat[i], s.vel[i], s.omega[i] = goal_c, goal_q, 0.0, 0.0
-            return
-        vel = (goal_c - s.pos[i]) / period
-        turn = quat.mul(goal_q, quat.conj(s.quat[i]))
-        omega = quat.to_rotvec(turn) / period   # the shorter way round
-        for v, bound, unit in ((vel, "max_speed", "m/s"), (omega, "max_angular_speed", "rad/s")):
-            speed = np.linalg.norm(v, axis=1)
-            over = np.flatnonzero(speed > getattr(st, bound))
-            if over.size:
-                k = int(over[0])
-                raise BoundsError(f"drive_poses({names[on[k]]!r}): reaching its pose carried on to {until:.9g} s "
-                                  f"in {period:.6g} s takes {speed[k]:.6g} {unit}, above {bound} "
-                                  f"({getattr(st, bound):g} {unit})")
-        s.vel[i], s.omega[i] = vel, omega
+            s.pos[i], s.quat[i] = out[:, 0:3], out[:, 3:7]
+        s.vel[i], s.omega[i] = out[:, 7:10], out[:, 10:13]
 
     def restart_pose_history(self, names=None):
         """The next pose of each named kinematic body (every body when ``names`` is None) is taken
