@@ -28,7 +28,7 @@ def _rows(check, value, m, path, row_path, settings, row_rule):
 
 
 class BodyInput:
-    """``set_pose(s)``, ``restart_pose_history``, ``set_state(s)`` of ``World``."""
+    """``set_pose(s)``, ``drive_poses``, ``restart_pose_history``, ``set_state(s)`` of ``World``."""
 
     def set_pose(self, name, position, orientation, stamp=None, place=True):
         """Pose a kinematic body (``position (3,)`` origin, ``orientation (4,)`` x,y,z,w) at time

@@ -485,11 +485,13 @@ def test_each_tick_drives_the_tracked_bodies_to_the_latest_pose_carried_on(ros, 
     stamps' velocity; a late tick catches up by velocity, not by a jump). A first pose places the
     body. Paused (``~/step``), the bodies are placed at the pose at rest. A drive faster than the
     world's speed bound (here 5 m/s; no gravity, so such a bound is valid) places them at the goal
-    at rest instead, counted in ``pose_jumps``. The node's clock is the test's."""
+    at rest instead, counted in ``pose_jumps``; one whose goal is beyond the world's bounds even
+    at rest stops the bodies where they are. The node's clock is the test's."""
     from contact_sim import quat
 
     scene = tmp_path / "scene.yaml"
-    scene.write_text(yaml.safe_dump({"gravity": [0, 0, 0], "settings": {"max_speed": 5.0, "split_max_speed": 0.5},
+    scene.write_text(yaml.safe_dump({"gravity": [0, 0, 0], "settings": {"max_speed": 5.0, "split_max_speed": 0.5,
+                                                                              "max_position": 1.1},
                                      "bodies": [{"name": "pad", "kind": "kinematic",
                                                  "shape": {"type": "box", "size": [0.1, 0.1, 0.1]},
                                                  "position": [0.0, 0.0, 1.0]}]}))
@@ -550,6 +552,17 @@ def test_each_tick_drives_the_tracked_bodies_to_the_latest_pose_carried_on(ros, 
         assert not world.s.vel.any() and not world.s.omega.any()
         np.testing.assert_allclose(world.s.pos[0], [1.0 + 0.4 * T, 0.0, 1.0], rtol=0, atol=1e-14)
         assert "pose_jumps" in node.diagnostics_values()
+        # a pose carried on beyond the world's bounds (max_position 1.1 m) even at rest: the pad stops
+        # where it is, and its next pose places it
+        send(1.05, 0.2, 2300)
+        tick(2300, 1.0 + 0.4 * T, 0.2, (1.05 + 0.05 / 0.09 * 0.02 - 1.0 - 0.4 * T) / T, 0.0)
+        send(1.09, 0.2, 2320)                              # 2 m/s: on to 1.17 m by a late tick's end
+        clock["ns"] = t0 + 2_360_000_000
+        x = world.s.pos[0, 0]
+        node._on_timer()
+        assert node.counts["pose_jumps"] == 2 and not world.s.vel.any() and world.s.pos[0, 0] == x
+        send(1.095, 0.2, 2380)
+        np.testing.assert_allclose(world.s.pos[0], [1.095, 0.0, 1.0], rtol=0, atol=1e-15)
     finally:
         node.destroy_node()
 
