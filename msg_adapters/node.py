@@ -470,9 +470,12 @@ class ContactSimNode(Outputs, BodyControl, RobotInput, Node):
         try:
             self.world.drive_poses(names, until, self.period, at_rest=True)
         except contact_sim.ContactSimError as again:   # the goal itself beyond them: the bodies stop
-            n = len(names)   # where they are (their pose history restarts: the next pose places them)
-            self.world.set_states(names, velocities=np.zeros((n, 3)), angular_velocities=np.zeros((n, 3)))
-            self._warn("pose_jump", f"the tracked bodies cannot move to the latest pose ({again}); they stop "
+            reason, n = str(again), len(names)   # where they are (their pose history restarts: the next
+            try:                                 # pose places them)
+                self.world.set_states(names, velocities=np.zeros((n, 3)), angular_velocities=np.zeros((n, 3)))
+            except contact_sim.ContactSimError as exc:   # (tracked bodies are kinematic: not expected)
+                reason += f"; stopping them failed too: {exc}"
+            self._warn("pose_jump", f"the tracked bodies cannot move to the latest pose ({reason}); they stop "
                                     f"where they are")
             return
         self._warn("pose_jump", f"the tracked bodies cannot move to the latest pose in one tick ({why}); they are "
