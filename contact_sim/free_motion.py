@@ -149,13 +149,36 @@ def rotate_free(q, omega, principal_q, moments, dt, max_split_angle, max_substep
 
 
 @njit
+def _turned(qx, qy, qz, qw, rx, ry, rz):
+    """``normalize(exp(r) ⊗ q)``: the orientation ``q`` turned by the rotation vector ``r`` (rad)."""
+    tx, ty, tz, tw = _rotvec_quat(rx, ry, rz)
+    x, y, z, w = _qmul(tx, ty, tz, tw, qx, qy, qz, qw)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    return x / n, y / n, z / n, w / n
+
+
+@njit
+def turn_vector(x1, y1, z1, w1, qx, qy, qz, qw):
+    """The rotation vector (rad, the shorter way round) that turns the unit quaternion ``q`` into
+    ``(x1, y1, z1, w1)``: ``log(q₁ ⊗ q⁻¹)``."""
+    x0, y0, z0, w0 = -qx, -qy, -qz, qw
+    rw = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
+    rx = w1 * x0 + w0 * x1 + y1 * z0 - z1 * y0
+    ry = w1 * y0 + w0 * y1 + z1 * x0 - x1 * z0
+    rz = w1 * z0 + w0 * z1 + x1 * y0 - y1 * x0
+    if rw < 0.0:
+        rw, rx, ry, rz = -rw, -rx, -ry, -rz
+    sv = math.sqrt(rx * rx + ry * ry + rz * rz)
+    f = 2.0 * math.atan2(sv, rw) / sv if sv > 1e-300 else 2.0
+    return f * rx, f * ry, f * rz
+
+
+@njit
 def _turn(quat, omega, i, dt):
     """``quat[i] ← normalize(exp(ω dt) ⊗ quat[i])``: the exact turn of a body whose ω is constant
     (equal principal moments, or a kinematic body)."""
-    tx, ty, tz, tw = _rotvec_quat(omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt)
-    x, y, z, w = _qmul(tx, ty, tz, tw, quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3])
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = x / n, y / n, z / n, w / n
+    quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = _turned(quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3],
+                                                             omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt)
 
 
 @njit
@@ -287,20 +310,13 @@ def pose_drive(idx, until, period, at_rest, pose_pos, pose_quat, pose_vel, pose_
         cx = pose_pos[i, 0] + pose_vel[i, 0] * ahead
         cy = pose_pos[i, 1] + pose_vel[i, 1] * ahead
         cz = pose_pos[i, 2] + pose_vel[i, 2] * ahead
-        tx, ty, tz, tw = _rotvec_quat(pose_omega[i, 0] * ahead, pose_omega[i, 1] * ahead, pose_omega[i, 2] * ahead)
-        gx, gy, gz, gw = _qmul(tx, ty, tz, tw, pose_quat[i, 0], pose_quat[i, 1], pose_quat[i, 2], pose_quat[i, 3])
-        norm = math.sqrt(gx * gx + gy * gy + gz * gz + gw * gw)
-        gx, gy, gz, gw = gx / norm, gy / norm, gz / norm, gw / norm
+        gx, gy, gz, gw = _turned(pose_quat[i, 0], pose_quat[i, 1], pose_quat[i, 2], pose_quat[i, 3],
+                                 pose_omega[i, 0] * ahead, pose_omega[i, 1] * ahead, pose_omega[i, 2] * ahead)
         vx = vy = vz = wx = wy = wz = 0.0
         if not at_rest:
             vx, vy, vz = (cx - pos[i, 0]) / period, (cy - pos[i, 1]) / period, (cz - pos[i, 2]) / period
-            # the turn goal ⊗ start⁻¹ as a rotation vector, the shorter way round
-            dx, dy, dz, dw = _qmul(gx, gy, gz, gw, -quat[i, 0], -quat[i, 1], -quat[i, 2], quat[i, 3])
-            if dw < 0.0:
-                dx, dy, dz, dw = -dx, -dy, -dz, -dw
-            sin_half = math.sqrt(dx * dx + dy * dy + dz * dz)
-            scale = 2.0 / max(dw, 1e-300) if sin_half < 1e-12 else 2.0 * math.atan2(sin_half, dw) / sin_half
-            wx, wy, wz = dx * scale / period, dy * scale / period, dz * scale / period
+            tx, ty, tz = turn_vector(gx, gy, gz, gw, quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3])
+            wx, wy, wz = tx / period, ty / period, tz / period
         out[r, 0], out[r, 1], out[r, 2] = cx, cy, cz
         out[r, 3], out[r, 4], out[r, 5], out[r, 6] = gx, gy, gz, gw
         out[r, 7], out[r, 8], out[r, 9] = vx, vy, vz

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from ..free_motion import _qrot
+from ..free_motion import _qrot, turn_vector
 from ..jit import njit
 from ..kinds import DYNAMIC, KINEMATIC, STATIC
 from ..vec import cross
@@ -72,18 +72,9 @@ def _pose_work(a, b, point, normal, depth, stiffness, kind, pos, quat, stepped):
             i = a[c] if side == 0 else b[c]
             if kind[i] != KINEMATIC:
                 continue
-            # the turn: q · conj(q_stepped) as a rotation vector (the shorter way round)
-            x1, y1, z1, w1 = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
-            x0, y0, z0, w0 = -stepped[i, 3], -stepped[i, 4], -stepped[i, 5], stepped[i, 6]
-            rw = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
-            rx = w1 * x0 + w0 * x1 + y1 * z0 - z1 * y0
-            ry = w1 * y0 + w0 * y1 + z1 * x0 - x1 * z0
-            rz = w1 * z0 + w0 * z1 + x1 * y0 - y1 * x0
-            if rw < 0.0:
-                rw, rx, ry, rz = -rw, -rx, -ry, -rz
-            sv = math.sqrt(rx * rx + ry * ry + rz * rz)
-            f = 2.0 * math.atan2(sv, rw) / sv if sv > 1e-300 else 2.0
-            tx, ty, tz = f * rx, f * ry, f * rz
+            # the turn since the step as a rotation vector (the shorter way round)
+            tx, ty, tz = turn_vector(quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3], stepped[i, 3], stepped[i, 4],
+                                     stepped[i, 5], stepped[i, 6])
             px, py, pz = point[c, 0] - pos[i, 0], point[c, 1] - pos[i, 1], point[c, 2] - pos[i, 2]
             ux = pos[i, 0] - stepped[i, 0] + ty * pz - tz * py
             uy = pos[i, 1] - stepped[i, 1] + tz * px - tx * pz
