@@ -34,12 +34,18 @@ friction parts), ``world.last_solve`` a ``StepStats`` with the solver's iteratio
 maximum penetration at the start of the step, contact and impact counts, the models used and the
 energy terms the step declares.
 """
+import time
+
 import numpy as np
 
-from .constants import FAT_STEPS
+from .constants import FAT_STEPS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS
+from .contacts import Contacts
+from .free_motion import advance, all_finite
+from .jit import njit
 from .stats import StepStats
 from .response import models as _models
-from .collision import detect_world
+from .collision import (DetectionStats, _bodies_of, _NO_KEYS, broadphase, detect_world, disabled_keys,
+                        rebuild_pair_cache)
 from .collision.vec3 import rotations
 from .response import toi as toi_mod
 from .response import correction, prepare, substep, swept
@@ -53,9 +59,10 @@ def describe_models(world):
     return _models.describe(world)
 
 
-def step(world, dt):
-    """Advance ``world`` by ``dt`` (already validated, > 0)."""
-    m = _models.choose(world, dt)
+def step(world, dt, m=None):
+    """Advance ``world`` by ``dt`` (already validated, > 0) with the models ``m`` (``models.choose``'s,
+    chosen here when None)."""
+    m = _models.choose(world, dt) if m is None else m
     if world.contact_cache.preflight_dt != dt:
         world.contact_cache.preflight_dt = dt
         _models.warn_preflight(world, m, dt)
@@ -68,6 +75,126 @@ def step(world, dt):
     # a kinematic one at once (energy.pose_work)
     np.concatenate((s.pos, s.quat), axis=1, out=s.stepped)
     world.time += dt
+
+
+# ---------------------------------------------------------------------------- free flight
+#: ``_flight``'s answers: the step is done; a body left its fat box (the pair cache must be rebuilt);
+#: the full pipeline must take it (a pair is near, or the motion would not be finite: the full step
+#: then names the bodies)
+FLOWN, STALE, DECLINED = 0, 1, 2
+
+
+def flight(world, dt):
+    """The step of ``dt`` when nothing is near anything: one compiled call (``_flight``) runs the
+    stages that have work in it, detection's broad phase (with the look-ahead margin) and the
+    advance, and the step's outputs are those of a step without contacts. Returns None when it
+    stepped the world; otherwise the world is unchanged and it returns the models it chose, for
+    ``step`` to take the step through the whole pipeline.
+
+    It is tried only where the step before found no candidate pair (``world.last_detection``): in a
+    scene at rest the broad phase would find pairs and run twice. It declines what the pipeline
+    does besides the advance even without contacts: the penalty response, exact times of impact and
+    the time-of-impact search of ``next_step``'s fast bodies, a pair cache never built, the
+    first step of a ``dt`` (its preflight warnings). All or nothing: the state arrays are written
+    only when the step is done and finite. The same kernels in the same order as the pipeline, so
+    the same state to the bit (``test_stepper``)."""
+    m = _models.choose(world, dt)
+    det = world.last_detection
+    if (det is None or det.candidate_pairs or world.contact_cache.preflight_dt != dt or m.response == "penalty"
+            or m.toi in _EXACT or m.continuous):
+        return m
+    t0 = time.perf_counter()
+    s, st, bm = world.s, world.settings, world.body_masks()
+    bodies = _bodies_of(world)
+    cache = bodies.pair_cache
+    pairs = bodies.n >= 2
+    if pairs and cache.fat_c is None:
+        return m
+    ext, moving, caps, cap, plane = prepare._margin_facts(world)
+    disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
+    for attempt in range(2):
+        status, drift, margin = _flight(
+            s.pos, s.vel, s.quat, s.omega, s.stepped, s.principal_q, s.principal_moments, world.inertia_body,
+            world._gravity, bm.dynamic, bm.rotating, bm.kinematic, st.speculative, ext, moving, caps, cap, plane,
+            float(st.contact_margin), world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c,
+            bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d, cache.fat_c if pairs else _NO_BOX,
+            cache.fat_h if pairs else _NO_BOX, cache.i if pairs else _NO_KEYS, cache.j if pairs else _NO_KEYS,
+            cache.margin, world.kind, world.group, world.mask, disabled, float(dt), ISOTROPIC_TOLERANCE,
+            MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
+        if status != STALE or attempt:
+            break
+        # a body left its fat box: the cache rebuilt as detection rebuilds it, then the pass again
+        R = np.empty((len(s.pos), 3, 3))
+        rotations(s.quat, R)
+        rebuild_pair_cache(world, bodies, s.pos, R, margin, FAT_STEPS * dt)
+    if status != FLOWN:
+        return m
+    if pairs and not attempt:
+        cache.reuses += 1
+    seconds = time.perf_counter() - t0
+    # what a step without contacts leaves (``_finish``): no warm start, no contact, its statistics
+    world.contact_cache.warm = None
+    world.contacts = Contacts.empty()
+    world.last_detection = DetectionStats(bodies.n, 0, 0, 0, 0, 0, 0, 0, 0, st.bounding_volume, margin,
+                                          {"prepare": 0.0, "broad": seconds, "total": seconds})
+    world.last_solve = StepStats(0, 0.0, False, 0.0, 0, 0, m.toi, m.response, 0.0, 0.0, 0.0, 0.0 + drift,
+                                 0.0, 0.0)   # 0.0 + drift: the sum the pipeline forms (-0.0 -> 0.0)
+    world.time += dt
+    return None
+
+
+_EXACT = ("fractional", "swept")
+_NO_BOX = np.zeros((0, 3))
+
+
+@njit
+def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
+            speculative, ext, moving, caps, cap, plane, base, g, pairs, fin, centre, half, planes, plane_n, plane_d,
+            fat_c, fat_h, ci, cj, fat_margin, kind, group, mask, disabled, dt, iso_tolerance, max_split_angle,
+            max_substeps):
+    """``flight``'s compiled step: the detection margin as ``prepare.speculative_reach`` and
+    ``_detect_stage`` make it (``base`` the contact margin, ``g = |g| dt²``; with ``speculative``
+    the look-ahead of ``ext, moving, caps (N,)``, ``cap``, ``plane``: ``prepare._margin_facts``),
+    then with ``pairs`` (two bodies or more) the broad phase's pass on the pair cache
+    (``broadphase.world_pairs``, arguments as there); when it finds no pair, the advance
+    (``free_motion.advance``, no kicks) on copies, written back with where the step left the bodies
+    into ``stepped (N,7)`` when all is finite. Returns ``(FLOWN, STALE or DECLINED, drift (J),
+    margin (m))``, the state unchanged unless ``FLOWN``."""
+    n = pos.shape[0]
+    margin, plane_margin = base, base
+    if speculative:
+        reach = np.empty((2, n))
+        vmax, free = prepare._reach(vel, omega, ext, moving, caps, dt, reach)
+        if vmax >= 0.0:
+            look = max(base, min(2.0 * vmax * dt + g, cap))
+            if look > base:   # else no speculative contact: every pair takes the contact margin
+                margin = look
+                plane_margin = max(look, (base + g) + free) if plane else look
+    if pairs:
+        R = np.empty((n, 3, 3))
+        rotations(quat, R)
+        ok, ia, _ = broadphase.world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
+                                           fat_margin, margin, plane_margin, kind, group, mask, disabled)
+        if not ok:
+            return STALE, 0.0, margin
+        if ia.shape[0]:
+            return DECLINED, 0.0, margin
+    p, v, q, w = pos.copy(), vel.copy(), quat.copy(), omega.copy()   # written back only when finite
+    no_kick = np.zeros((0, 3))
+    drift, _ = advance(p, v, q, w, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic, no_kick,
+                       no_kick, False, dt, iso_tolerance, max_split_angle, max_substeps)
+    if not all_finite(p, v, q, w):
+        return DECLINED, 0.0, margin
+    pos[:] = p
+    vel[:] = v
+    quat[:] = q
+    omega[:] = w
+    for i in range(n):
+        for x in range(3):
+            stepped[i, x] = p[i, x]
+        for x in range(4):
+            stepped[i, 3 + x] = q[i, x]
+    return FLOWN, drift, margin
 
 
 # ---------------------------------------------------------------------------- helpers

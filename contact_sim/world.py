@@ -548,9 +548,12 @@ class World(BodyInput):
         non-finite (``EngineError``: an engine failure on valid input, to be reported), the world
         is put back as it was before the step and the error raised."""
         dt = self._check_dt(dt)
+        m = stepper.flight(self, dt)   # nothing near anything: one compiled call, all or nothing itself
+        if m is None:
+            return
         saved = self._step_snapshot()
         try:
-            stepper.step(self, dt)
+            stepper.step(self, dt, m)
         except ContactSimError as exc:
             # every input was checked before the step: a refusal from inside it is the engine's own
             # failure (an internal query handed a bad value), not the caller's bad input

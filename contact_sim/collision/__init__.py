@@ -318,7 +318,7 @@ def _world_pairs(world, bodies, pos, R, margin, horizon=0.0, plane_margin=None):
     pairs that never collide (both static, group/mask, ``world.disabled_pairs``). One compiled pass
     (``broadphase.world_pairs``) while the pair cache holds; a rebuild of the cache first otherwise,
     its fat boxes stretched by each body's velocity × ``horizon`` (s)."""
-    fin, cache = bodies.finite, bodies.pair_cache
+    cache = bodies.pair_cache
     disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
     plane_margin = margin if plane_margin is None else plane_margin
     if cache.fat_c is not None:
@@ -326,13 +326,21 @@ def _world_pairs(world, bodies, pos, R, margin, horizon=0.0, plane_margin=None):
         if ok:
             cache.reuses += 1
             return ia, ib
-    c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
-    broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
-    cache.rebuild(c, h, margin, world.s.vel[fin] if horizon else None, horizon)
+    rebuild_pair_cache(world, bodies, pos, R, margin, horizon)
     # the fat boxes hold the boxes they were built from
     ok, ia, ib = _cached_pairs(world, bodies, pos, R, margin, plane_margin, disabled)
     assert ok
     return ia, ib
+
+
+def rebuild_pair_cache(world, bodies, pos, R, margin, horizon):
+    """The broad phase's pair cache built anew from the finite bodies' world boxes at ``pos (N,3)``,
+    ``R (N,3,3)`` for pairs within ``margin`` (m), the fat boxes stretched by each body's velocity ×
+    ``horizon`` (s; none at 0)."""
+    fin = bodies.finite
+    c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
+    broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
+    bodies.pair_cache.rebuild(c, h, margin, world.s.vel[fin] if horizon else None, horizon)
 
 
 def _cached_pairs(world, bodies, pos, R, margin, plane_margin, disabled):
