@@ -46,6 +46,12 @@ def warm_up():
     rest.add_body("box", shapes["box"], density=1000.0, position=(0.0, 0.0, 0.15))
     for _ in range(3):
         rest.step(0.01)
+    # the free-flight step (``stepper.flight``): a ball far above the ground, after its first step
+    fly = cs.World(settings=cs.Settings(toi="next_step"))
+    fly.add_body("ground", shapes["plane"], kind="static")
+    fly.add_body("ball", shapes["sphere"], density=1000.0, position=(0.0, 0.0, 5.0))
+    for _ in range(3):
+        fly.step(0.01)
     # the compiled Gauss–Seidel (large contact sets) and the penalty response's friction sweeps
     from .response import solver
 
