@@ -119,8 +119,7 @@ def flight(world, dt):
             float(st.contact_margin), world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c,
             bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d, cache.fat_c if pairs else _NO_BOX,
             cache.fat_h if pairs else _NO_BOX, cache.i if pairs else _NO_KEYS, cache.j if pairs else _NO_KEYS,
-            cache.margin, world.kind, world.group, world.mask, disabled, float(dt), ISOTROPIC_TOLERANCE,
-            MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
+            cache.margin, world.kind, world.group, world.mask, disabled, _NO_BOX, float(dt))
         if status != STALE or attempt:
             break
         # a body left its fat box: the cache rebuilt as detection rebuilds it, then the pass again
@@ -150,15 +149,14 @@ _NO_BOX = np.zeros((0, 3))
 @njit
 def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
             speculative, ext, moving, caps, cap, plane, base, g, pairs, fin, centre, half, planes, plane_n, plane_d,
-            fat_c, fat_h, ci, cj, fat_margin, kind, group, mask, disabled, dt, iso_tolerance, max_split_angle,
-            max_substeps):
+            fat_c, fat_h, ci, cj, fat_margin, kind, group, mask, disabled, no_kick, dt):
     """``flight``'s compiled step: the detection margin as ``prepare.speculative_reach`` and
     ``_detect_stage`` make it (``base`` the contact margin, ``g = |g| dt²``; with ``speculative``
     the look-ahead of ``ext, moving, caps (N,)``, ``cap``, ``plane``: ``prepare._margin_facts``),
     then with ``pairs`` (two bodies or more) the broad phase's pass on the pair cache
     (``broadphase.world_pairs``, arguments as there); when it finds no pair, the advance
-    (``free_motion.advance``, no kicks) on copies, written back with where the step left the bodies
-    into ``stepped (N,7)`` when all is finite. Returns ``(FLOWN, STALE or DECLINED, drift (J),
+    (``free_motion.advance``, no kicks: ``no_kick (0,3)``) in place, with where the step left the
+    bodies into ``stepped (N,7)`` when all is finite, else the state put back. Returns ``(FLOWN, STALE or DECLINED, drift (J),
     margin (m))``, the state unchanged unless ``FLOWN``."""
     n = pos.shape[0]
     margin, plane_margin = base, base
@@ -179,22 +177,27 @@ def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, 
             return STALE, 0.0, margin
         if ia.shape[0]:
             return DECLINED, 0.0, margin
-    p, v, q, w = pos.copy(), vel.copy(), quat.copy(), omega.copy()   # written back only when finite
-    no_kick = np.zeros((0, 3))
-    drift, _ = advance(p, v, q, w, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic, no_kick,
-                       no_kick, False, dt, iso_tolerance, max_split_angle, max_substeps)
-    if not all_finite(p, v, q, w):
-        return DECLINED, 0.0, margin
-    pos[:] = p
-    vel[:] = v
-    quat[:] = q
-    omega[:] = w
+    kept = np.empty((n, 13))   # the state before, put back if the motion is not finite
     for i in range(n):
         for x in range(3):
-            stepped[i, x] = p[i, x]
+            kept[i, x], kept[i, 3 + x], kept[i, 6 + x] = pos[i, x], vel[i, x], omega[i, x]
         for x in range(4):
-            stepped[i, 3 + x] = q[i, x]
-    return FLOWN, drift, margin
+            kept[i, 9 + x] = quat[i, x]
+    drift, _ = advance(pos, vel, quat, omega, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
+                       no_kick, no_kick, False, dt, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
+    finite = all_finite(pos, vel, quat, omega)
+    for i in range(n):
+        for x in range(3):
+            if finite:
+                stepped[i, x] = pos[i, x]
+            else:
+                pos[i, x], vel[i, x], omega[i, x] = kept[i, x], kept[i, 3 + x], kept[i, 6 + x]
+        for x in range(4):
+            if finite:
+                stepped[i, 3 + x] = quat[i, x]
+            else:
+                quat[i, x] = kept[i, 9 + x]
+    return (FLOWN if finite else DECLINED), drift, margin
 
 
 # ---------------------------------------------------------------------------- helpers

@@ -9,7 +9,6 @@ import pytest
 
 import contact_sim as cs
 from contact_sim import stepper
-from contact_sim.constants import ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS
 from contact_sim.response import models
 
 from test_substep import _same_step
@@ -137,8 +136,7 @@ def test_a_motion_that_would_not_be_finite_is_declined_with_the_state_untouched(
             yes, yes, ~yes, False, np.ones(1), yes, np.ones(1), 1.0, False, 0.0, 0.0, False, np.zeros(0, np.int64),
             np.zeros((1, 3)), np.ones((1, 3)), np.zeros(0, np.int64), np.zeros((1, 3)), np.zeros(1), np.zeros((0, 3)),
             np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), 0.0, np.full(1, 2, np.int8),
-            np.ones(1, np.uint32), np.ones(1, np.uint32), np.zeros(0, np.int64), 10.0, ISOTROPIC_TOLERANCE,
-            MAX_SPLIT_ANGLE, MAX_SUBSTEPS)
+            np.ones(1, np.uint32), np.ones(1, np.uint32), np.zeros(0, np.int64), np.zeros((0, 3)), 10.0)
     assert status == stepper.DECLINED
     for a, b in zip(state, (pos, vel, quat, omega, stepped)):
         assert np.array_equal(a, b)
