@@ -97,7 +97,9 @@ def flight(world, dt):
     the time-of-impact search of ``next_step``'s fast bodies, a pair cache never built, the
     first step of a ``dt`` (its preflight warnings). All or nothing: the state arrays are written
     only when the step is done and finite. The same kernels in the same order as the pipeline, so
-    the same state to the bit (``test_stepper``)."""
+    the same state, contacts and statistics to the bit (``test/test_flight.py``); only the pair
+    cache's counters can differ, where a cache rebuilt here finds a pair: the pipeline's pass on it
+    then counts a reuse that a rebuild inside the pipeline would not."""
     m = _models.choose(world, dt)
     det = world.last_detection
     if (det is None or det.candidate_pairs or world.contact_cache.preflight_dt != dt or m.response == "penalty"
@@ -156,8 +158,8 @@ def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, 
     then with ``pairs`` (two bodies or more) the broad phase's pass on the pair cache
     (``broadphase.world_pairs``, arguments as there); when it finds no pair, the advance
     (``free_motion.advance``, no kicks: ``no_kick (0,3)``) in place, with where the step left the
-    bodies into ``stepped (N,7)`` when all is finite, else the state put back. Returns ``(FLOWN, STALE or DECLINED, drift (J),
-    margin (m))``, the state unchanged unless ``FLOWN``."""
+    bodies into ``stepped (N,7)`` when all is finite, else the state put back. Returns ``(FLOWN,
+    STALE or DECLINED, drift (J), margin (m))``, the state unchanged unless ``FLOWN``."""
     n = pos.shape[0]
     margin, plane_margin = base, base
     if speculative:
