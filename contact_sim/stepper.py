@@ -115,13 +115,15 @@ def flight(world, dt):
     ext, moving, caps, cap, plane = prepare._margin_facts(world)
     disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
     for attempt in range(2):
+        work, keys = _workspace(world, len(s.pos), len(bodies.finite),
+                                (len(cache.i) + len(bodies.planes) * len(bodies.finite)) if pairs else 0)
         status, drift, margin = _flight(
             s.pos, s.vel, s.quat, s.omega, s.stepped, s.principal_q, s.principal_moments, world.inertia_body,
             world._gravity, bm.dynamic, bm.rotating, bm.kinematic, st.speculative, ext, moving, caps, cap, plane,
             float(st.contact_margin), world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c,
             bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d, cache.fat_c if pairs else _NO_BOX,
             cache.fat_h if pairs else _NO_BOX, cache.i if pairs else _NO_KEYS, cache.j if pairs else _NO_KEYS,
-            cache.margin, world.kind, world.group, world.mask, disabled, _NO_BOX, float(dt))
+            cache.margin, world.kind, world.group, world.mask, disabled, _NO_BOX, float(dt), work, keys)
         if status != STALE or attempt:
             break
         # a body left its fat box: the cache rebuilt as detection rebuilds it, then the pass again
@@ -148,22 +150,39 @@ _EXACT = ("fractional", "swept")
 _NO_BOX = np.zeros((0, 3))
 
 
-@njit
+def _workspace(world, n, m, n_keys):
+    """``_flight``'s workspace for ``n`` bodies, ``m`` of them finite, and ``n_keys`` candidate keys:
+    ``(work (24n + 6m,), keys (≥ n_keys,) int64)``, kept on the world while the sizes fit (the
+    kernel writes every entry it reads)."""
+    hit = world._derived.get("flight_work")
+    size = 24 * n + 6 * m
+    if hit is None or hit[0].shape[0] != size or hit[1].shape[0] < n_keys:
+        hit = world._derived["flight_work"] = (np.empty(size), np.empty(max(n_keys, 64), np.int64))
+    return hit
+
+
+@njit(_nrt=False)
 def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
             speculative, ext, moving, caps, cap, plane, base, g, pairs, fin, centre, half, planes, plane_n, plane_d,
-            fat_c, fat_h, ci, cj, fat_margin, kind, group, mask, disabled, no_kick, dt):
+            fat_c, fat_h, ci, cj, fat_margin, kind, group, mask, disabled, no_kick, dt, work, keys):
     """``flight``'s compiled step: the detection margin as ``prepare.speculative_reach`` and
     ``_detect_stage`` make it (``base`` the contact margin, ``g = |g| dt²``; with ``speculative``
     the look-ahead of ``ext, moving, caps (N,)``, ``cap``, ``plane``: ``prepare._margin_facts``),
     then with ``pairs`` (two bodies or more) the broad phase's pass on the pair cache
-    (``broadphase.world_pairs``, arguments as there); when it finds no pair, the advance
-    (``free_motion.advance``, no kicks: ``no_kick (0,3)``) in place, with where the step left the
-    bodies into ``stepped (N,7)`` when all is finite, else the state put back. Returns ``(FLOWN,
+    (``broadphase.cached_keys`` and ``may_touch``, arguments as ``world_pairs``'); when it finds no
+    pair, the advance (``free_motion.advance``, no kicks: ``no_kick (0,3)``) in place, with where the
+    step left the bodies into ``stepped (N,7)`` when all is finite, else the state put back.
+    Workspace: ``work (≥ 24N + 6M,)``, ``keys (≥ C + P·M,) int64`` (``world_pairs``' sizes). It
+    allocates nothing, so it is compiled without reference counts: its ~30 arrays would otherwise
+    each be wrapped for numba's counting at every call (~3 µs of a 14 µs step). Returns ``(FLOWN,
     STALE or DECLINED, drift (J), margin (m))``, the state unchanged unless ``FLOWN``."""
-    n = pos.shape[0]
+    n, m = pos.shape[0], fin.shape[0]
+    reach = work[:2 * n].reshape((2, n))
+    R = work[2 * n:11 * n].reshape((n, 3, 3))
+    kept = work[11 * n:24 * n].reshape((n, 13))
+    boxes = work[24 * n:24 * n + 6 * m].reshape((2, m, 3))
     margin, plane_margin = base, base
     if speculative:
-        reach = np.empty((2, n))
         vmax, free = prepare._reach(vel, omega, ext, moving, caps, dt, reach)
         if vmax >= 0.0:
             look = max(base, min(2.0 * vmax * dt + g, cap))
@@ -171,16 +190,15 @@ def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, 
                 margin = look
                 plane_margin = max(look, (base + g) + free) if plane else look
     if pairs:
-        R = np.empty((n, 3, 3))
         rotations(quat, R)
-        ok, ia, _ = broadphase.world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
-                                           fat_margin, margin, plane_margin, kind, group, mask, disabled)
-        if not ok:
+        count = broadphase.cached_keys(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
+                                       fat_margin, margin, plane_margin, boxes[0], boxes[1], keys)
+        if count < 0:
             return STALE, 0.0, margin
-        if ia.shape[0]:
-            return DECLINED, 0.0, margin
-    kept = np.empty((n, 13))   # the state before, put back if the motion is not finite
-    for i in range(n):
+        for k in range(count):
+            if broadphase.may_touch(keys[k], n, kind, group, mask, disabled):
+                return DECLINED, 0.0, margin
+    for i in range(n):   # the state before, put back if the motion is not finite
         for x in range(3):
             kept[i, x], kept[i, 3 + x], kept[i, 6 + x] = pos[i, x], vel[i, x], omega[i, x]
         for x in range(4):

@@ -258,17 +258,42 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
     ``fin``) that overlap within ``margin`` (``PairCache.pairs``' answer), and each plane of
     ``planes (P,)`` (object normal and offset ``plane_n (N, 3)``, ``plane_d (N,)``) with every
     finite box whose lowest point along the world normal reaches within ``plane_margin`` of the plane;
-    sorted by ``(i, j)``, ``i < j`` body indices; without the pairs that may not touch (both
-    static, or a group outside the other's mask) nor the sorted keys ``i·N + j`` in ``disabled
-    (D,)``. One compiled pass: a dozen numpy calls a step were most of a small world's detection."""
+    sorted by ``(i, j)``, ``i < j`` body indices; without the pairs that may not touch
+    (``may_touch``). One compiled pass (``cached_keys``, then the filter): a dozen numpy calls a step
+    were most of a small world's detection."""
     m = fin.shape[0]
     nb = pos.shape[0]
     boxes = np.empty((2, m, 3))   # the world boxes' centres and half sizes, one block
-    c, h = boxes[0], boxes[1]
+    keys = np.empty(ci.shape[0] + planes.shape[0] * m, np.int64)
+    n = cached_keys(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj, fat_margin, margin,
+                    plane_margin, boxes[0], boxes[1], keys)
+    if n < 0:
+        return False, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    keys = keys[:n]
+    if planes.shape[0]:
+        keys.sort()   # in place: the plane pairs among the cached ones
+    pairs = np.empty((2, n), np.int64)   # the kept pairs' i and j, one block
+    oi, oj = pairs[0], pairs[1]
+    out = 0
+    for k in range(n):
+        if may_touch(keys[k], nb, kind, group, mask, disabled):
+            oi[out], oj[out] = keys[k] // nb, keys[k] % nb
+            out += 1
+    return True, oi[:out], oj[:out]
+
+
+@njit(_nrt=False)
+def cached_keys(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj, fat_margin, margin,
+                plane_margin, c, h, keys):
+    """``world_pairs``' pass before its filter, into workspace (arguments as there): the world boxes
+    ``c, h (M,3)`` of the finite bodies, and the keys ``i·N + j`` of the candidate pairs into ``keys
+    (≥ C + P·M,)``, unsorted (the cached pairs' in their order, then each plane's). Returns how many,
+    −1 when a body left its fat box or ``margin`` grew past ``fat_margin`` (nothing else done)."""
+    m = fin.shape[0]
+    nb = pos.shape[0]
     world_boxes(pos, R, fin, centre, half, c, h)
     if fat_c.shape[0] != m or not margin <= fat_margin or not inside_fat(c, h, fat_c, fat_h):
-        return False, np.zeros(0, np.int64), np.zeros(0, np.int64)
-    keys = np.empty(ci.shape[0] + planes.shape[0] * m, np.int64)
+        return -1
     n = 0
     for k in range(ci.shape[0]):
         a, b = ci[k], cj[k]
@@ -288,20 +313,18 @@ def world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_
             if low <= dw + plane_margin:
                 keys[n] = min(p, fin[f]) * nb + max(p, fin[f])
                 n += 1
-    keys = keys[:n]
-    if planes.shape[0]:
-        keys.sort()   # in place: the plane pairs among the cached ones
-    pairs = np.empty((2, n), np.int64)   # the kept pairs' i and j, one block
-    oi, oj = pairs[0], pairs[1]
-    out = 0
-    for k in range(n):
-        a, b = keys[k] // nb, keys[k] % nb
-        if not ((kind[a] != 0 or kind[b] != 0) and (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0):
-            continue   # both static, or a group outside the other's mask
-        if disabled.shape[0]:
-            d = np.searchsorted(disabled, keys[k])
-            if d < disabled.shape[0] and disabled[d] == keys[k]:
-                continue
-        oi[out], oj[out] = a, b
-        out += 1
-    return True, oi[:out], oj[:out]
+    return n
+
+
+@njit
+def may_touch(key, nb, kind, group, mask, disabled):
+    """Whether the pair of ``key = i·nb + j`` may touch: not both static, each one's group in the
+    other's mask, and not among the sorted keys ``disabled (D,)``."""
+    a, b = key // nb, key % nb
+    if not ((kind[a] != 0 or kind[b] != 0) and (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0):
+        return False
+    if disabled.shape[0]:
+        d = np.searchsorted(disabled, key)
+        if d < disabled.shape[0] and disabled[d] == key:
+            return False
+    return True
