@@ -308,8 +308,8 @@ def test_a_step_that_fails_inside_the_engine_leaves_the_world_as_it_was(monkeypa
     before = snapshot(vars(w))
     real = stepper.step
 
-    def half_a_step_then_raise(world, dt):
-        real(world, dt)                  # moves bodies, replaces contacts and caches, advances time
+    def half_a_step_then_raise(world, dt, m=None):
+        real(world, dt, m)               # moves bodies, replaces contacts and caches, advances time
         world.s.pos[1, 2] += 1.0         # and edits the state arrays in place
         raise RuntimeError("engine bug")
 
@@ -318,8 +318,8 @@ def test_a_step_that_fails_inside_the_engine_leaves_the_world_as_it_was(monkeypa
         w.step()
     assert snapshot(vars(w)) == before
 
-    def nan_result(world, dt):
-        real(world, dt)
+    def nan_result(world, dt, m=None):
+        real(world, dt, m)
         world.s.vel[2] = np.nan          # a solver failure that raises nothing
 
     monkeypatch.setattr(stepper, "step", nan_result)

@@ -222,8 +222,8 @@ def test_a_step_that_would_leave_a_non_finite_state_is_undone_and_names_the_bodi
     before = w.s.copy(), w.time, w.contacts
     real = stepper.step
 
-    def broken(world, dt):
-        real(world, dt)
+    def broken(world, dt, m=None):
+        real(world, dt, m)
         world.s.vel[world.index("crate"), 2] = np.nan      # what a numerical failure would leave
 
     monkeypatch.setattr(stepper, "step", broken)
