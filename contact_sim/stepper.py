@@ -59,10 +59,9 @@ def describe_models(world):
     return _models.describe(world)
 
 
-def step(world, dt, m=None):
-    """Advance ``world`` by ``dt`` (already validated, > 0) with the models ``m`` (``models.choose``'s,
-    chosen here when None)."""
-    m = _models.choose(world, dt) if m is None else m
+def step(world, dt, m):
+    """Advance ``world`` by ``dt`` (already validated, > 0) with the models ``m`` (``models.choose``'s
+    for this step: ``flight`` chose them)."""
     if world.contact_cache.preflight_dt != dt:
         world.contact_cache.preflight_dt = dt
         _models.warn_preflight(world, m, dt)
