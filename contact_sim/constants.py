@@ -78,6 +78,8 @@ TOI_TOLERANCE = 1e-9   # × the smaller body's size: a pair this close counts as
 XTOL = 1e-15   # s: Brent's absolute tolerance on a time of impact
 MAX_ADVANCES = 16      # conservative-advancement evaluations per pair and search, then bounded sampling
 MAX_SAMPLES = 32       # samples of the rest of the interval when advancement is slow (its bound is loose)
+TOI_DEEPEN = 0.1   # × the thinner body's thinnest size: a pair in contact sinking this much deeper within a
+                   # sub-step is an event of its own (another corner of a spinning body swinging in)
 RTOL = 4 * np.finfo(float).eps   # Brent's relative tolerance on the root
 WIDE = 1e3     # the narrow phase's margin for a distance (m): pairs farther apart count as this far
 MAX_BRENT = 100   # Brent iterations per root (it converges in a few dozen at XTOL, RTOL)

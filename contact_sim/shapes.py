@@ -19,6 +19,7 @@ class Shape:
 
     type = "shape"
     finite = True
+    convex = True         # a plane (its half-space), a sphere, a box, a hull; a mesh says
     size_field = "size"   # the argument that sets the shape's size, named when it is out of bounds
 
     def mass_properties(self, density):
@@ -107,8 +108,6 @@ def _unique_edges(faces):
 
 class Polyhedron(Shape):
     """Shared geometry of box, convex and mesh shapes (see the module docstring for the arrays)."""
-
-    convex = True
 
     def _set_geometry(self, vertices, faces):
         self.vertices = np.ascontiguousarray(vertices, dtype=float)

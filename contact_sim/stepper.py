@@ -284,20 +284,21 @@ def _detect_stage(ctx):
 
 def _time_of_impact(ctx):
     """The length of this sub-step: the first instant in ``(0, t_left)`` at which a pair that is
-    apart touches (``fractional``/``swept``, or ``next_step`` for the fast bodies of
-    ``Models.continuous``), else ``t_left``. Pairs already in contact are not searched."""
+    apart touches, or one in contact sinks deeper than a tolerance (``fractional``/``swept``, or
+    ``next_step`` for the fast bodies of ``Models.continuous``: ``toi.earliest_event``), else
+    ``t_left``."""
     world, m = ctx.world, ctx.models
     if not (ctx.exact_toi or m.continuous) or ctx.events >= world.settings.max_impacts_per_step:
         return ctx.t_left
-    exclude = np.zeros(0, np.int64)
+    held = np.zeros(0, np.int64)
     if ctx.k:   # pairs in contact: keys min·N + max
         near = ctx.touching if ctx.rest_mask is None else ctx.touching | ctx.rest_mask
         ea, eb = ctx.contacts.body_a[near], ctx.contacts.body_b[near]
-        exclude = np.minimum(ea, eb) * len(world) + np.maximum(ea, eb)
+        held = np.minimum(ea, eb) * len(world) + np.maximum(ea, eb)
     acc = ctx.gravity if ctx.dv_rest is None else ctx.gravity + ctx.dv_rest / ctx.t_left
     motion = toi_mod.Motion(world, acc, ctx.rotating)
     # next_step with continuous bodies: a search for the fast bodies' pairs only
-    ev, _ = toi_mod.earliest_event(world, motion, ctx.t_left, exclude, swept=m.toi == "swept",
+    ev, _ = toi_mod.earliest_event(world, motion, ctx.t_left, held, swept=m.toi == "swept",
                                    only=m.continuous if not ctx.exact_toi else None)
     if ev >= ctx.t_left:
         return ctx.t_left

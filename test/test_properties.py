@@ -560,20 +560,24 @@ def test_fuzz(name):
 
 def test_a_hull_that_stops_tumbling_late_settles_within_the_margin():
     """The long profile's case (``make fuzz``): a 14-point hull tumbling on the ground under
-    ``swept`` (a pair already in contact is not searched again within a step, so a corner swings a
-    few mm in) stops 0.08 s before 1.5 s with 0.36 mm left. Position correction halves that each
-    step: ten steps later it is within the margin and stays there."""
+    ``swept`` lands late with a corner swung in (up to ``TOI_DEEPEN`` of its thinnest size before
+    its event: it stops 1.85 s in, 0.38 mm deep). Position correction halves that each step: once
+    it has been slow for ``REST_STEPS`` steps it is within the margin."""
     import json
 
     with open(os.path.join(os.path.dirname(__file__), "data", "tumbling_hull_lands_late.json")) as fh:
         world = cs.load_scene(json.load(fh))
-    n = int(round(1.5 / world.settings.dt))
+    hull = world.body_names.index("b0")
+    slow = 0
     with warnings.catch_warnings():   # its mass ratio (283) warns, as it should
         warnings.simplefilter("ignore", MassRatioWarning)
-        for _ in range(n + REST_STEPS):
+        for _ in range(int(round(3.0 / world.settings.dt))):
             step_checked(world)
+            slow = slow + 1 if np.linalg.norm(world.s.vel[hull]) < 1e-3 else 0
+            if slow == REST_STEPS:
+                break
+    assert slow == REST_STEPS                                      # it stops within 3 s
     c, _ = detect_world(world, margin=world.settings.contact_margin)
-    hull = world.body_names.index("b0")
     on = (c.body_a == hull) | (c.body_b == hull)
-    assert on.any() and np.linalg.norm(world.s.vel[hull]) < 1e-3
+    assert on.any()
     assert c.depth[on].max() <= world.settings.contact_margin

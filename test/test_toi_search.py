@@ -223,3 +223,61 @@ def test_candidate_pairs_follow_their_contract():
         got_i, got_j = toi.candidate_pairs(w, m, T, exclude, only=only)
         assert set(zip(got_i.tolist(), got_j.tolist())) == want and len(got_i) == len(want)
         assert len(want) > (2 if only else 20)
+
+
+def _bar_on_plate(mode, spin, velocity=(0.0, 0.0, 0.0)):
+    """A 0.4 × 0.02 × 0.02 m bar tilted 0.2 rad about y, its +x end's bottom edge 0.1 µm into a 1 cm
+    static plate (top face z = 0), spinning about y (a principal axis: the spin stays constant)
+    with no gravity, e = 1, no friction."""
+    w = cs.World(gravity=(0, 0, 0), settings={"toi": mode, "dt": 1 / 60},
+                 materials={"m": {"restitution": 1.0, "friction": 0.0}})
+    w.add_body("plate", cs.Box([2.0, 2.0, 0.01]), kind="static", material="m", position=[0, 0, -0.005])
+    th, L, t = 0.2, 0.4, 0.02
+    cz = (L / 2) * np.sin(th) + (t / 2) * np.cos(th) - 1e-7
+    w.add_body("bar", cs.Box([L, t, t]), mass=1.0, position=[0, 0, cz], orientation=[0, np.sin(th / 2), 0,
+               np.cos(th / 2)], angular_velocity=[0, spin, 0], velocity=list(velocity), material="m")
+    return w
+
+
+@pytest.mark.parametrize("mode", ["fractional", "swept"])
+def test_a_pair_in_contact_is_searched_for_another_corner_swinging_in(mode):
+    # the bar's touching end lifts (ω_y = −40 rad/s) and its other end swings down 0.67 rad within
+    # the step: the pair is in contact, so its event is the instant it is TOI_DEEPEN × the thinner
+    # body's thinnest size (the plate's 1 cm: 1 mm) deeper than now, where it takes its impact.
+    # Unsearched, that end went 4.9 cm into the plate within the step.
+    from contact_sim.constants import TOI_DEEPEN, TOI_TOLERANCE
+
+    w = _bar_on_plate(mode, -40.0)
+    e0 = w.energy()
+    w.step()
+    assert w.last_solve["impacts"] == 1
+    target = 1e-7 + TOI_DEEPEN * 0.01
+    tol = TOI_TOLERANCE * np.linalg.norm([0.2, 0.01, 0.01])          # the search's, × the smaller extent
+    assert target - tol <= w.contacts.depth.max() <= target         # the instant it is reached, never late
+    assert abs(w.energy() - e0) <= 1e-12 * e0                       # e = 1: the impact keeps the energy
+    assert w.s.omega[1, 1] > 0                                      # and the bar rebounds
+    for _ in range(3):                                              # and flies off the plate
+        w.step()
+        assert w.last_solve["max_penetration"] <= 0
+
+
+def test_a_pair_in_contact_that_only_translates_costs_no_search():
+    # convex shapes that only translate keep their contacts' depth (the solve left them not
+    # closing): no distance is evaluated for the pair in contact
+    w = _bar_on_plate("fractional", 0.0, velocity=(0.5, 0.2, 0.0))   # sliding along the plate
+    n0 = toi.COUNTS["distance_evaluations"]
+    for _ in range(5):
+        w.step()
+        assert w.last_solve["impacts"] == 0
+    assert toi.COUNTS["distance_evaluations"] == n0
+
+
+def test_disabled_pairs_have_no_time_of_impact():
+    # a pair never tested for contact has no event to split the step at
+    w = cs.World(gravity=(0, 0, 0), settings={"toi": "fractional", "dt": 1 / 60})
+    w.add_body("a", cs.Box([0.1, 0.1, 0.1]), mass=1.0, position=[0, 0, 0], velocity=[12.0, 0, 0])
+    w.add_body("b", cs.Box([0.1, 0.1, 0.1]), mass=1.0, position=[0.2, 0, 0])
+    w.disable_collisions([("a", "b")])
+    w.step()
+    assert w.last_solve["impacts"] == 0 and len(w.contacts) == 0
+    assert w.body("a").position[0] == 12.0 / 60                    # through b, as if it were not there

@@ -184,10 +184,15 @@ def closing_bound(i, j, T, motion, flags, facts):
 
 @njit
 def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, flags, split, i, j, T, tolerance,
-           max_advances, max_samples, xtol, rtol):
+           max_advances, max_samples, xtol, rtol, deepen):
     """First touching time of bodies ``i, j`` in ``(0, T]`` (``inf`` if none) by conservative
     advancement, then bounded sampling and Brent's method on a sign change (``toi.pair_toi``);
-    ``tolerance`` × the smaller extent counts as touching. Returns ``(τ, distance evaluations)``."""
+    ``tolerance`` × the smaller extent counts as touching. Returns ``(τ, distance evaluations)``.
+
+    ``deepen > 0`` (a fraction of the thinner body's thinnest size) searches a pair already in
+    contact: the first time it is that much deeper than it is now (a spinning body's other corner
+    swinging in), the root of ``distance − (min(distance(0), 0) − deepen × thinnest)``. With
+    ``deepen = 0`` the target is ``0``: the first touch of a pair apart."""
     p, q, R = np.empty((2, 3)), np.empty((2, 4)), np.empty((2, 3, 3))
     si, sf = np.empty((4, 3), np.int64), np.empty((4, 7))
     rows = pair_rows(i, j, shape_of, rank)
@@ -196,8 +201,9 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
     if rate <= 0:
         return np.inf, 0
     evals = 1
-    tau, d = 0.0, _at(0.0, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j,
-                      p, q, R, si, sf)
+    d0 = _at(0.0, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j, p, q, R, si, sf)
+    target = min(d0, 0.0) - deepen * min(facts[i, F_THIN], facts[j, F_THIN]) if deepen > 0 else 0.0
+    tau, d = 0.0, d0 - target
     if d <= 0:
         return np.inf, evals
     lo, hi, f_lo, f_hi = 0.0, 0.0, 0.0, 0.0
@@ -209,7 +215,7 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
         if nxt > T:
             return np.inf, evals
         dn = _at(nxt, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
-                 R, si, sf)
+                 R, si, sf) - target
         evals += 1
         if dn < 0:   # the bound was beaten by round-off: the root is between the two, find it exactly
             lo, hi, f_lo, f_hi, found = tau, nxt, d, dn, True
@@ -227,7 +233,7 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
         for s in range(1, n + 1):
             t = T if s == n else s * step + tau
             ft = _at(t, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j,
-                     p, q, R, si, sf)
+                     p, q, R, si, sf) - target
             evals += 1
             if ft <= tol:
                 if not ft < 0:
@@ -274,7 +280,7 @@ def search(which, geo, bvh, shape_of, rank, code, facts, verts, vrange, motion, 
         a, fa = b, fb
         b += dstep if abs(dstep) > half else (half if mid > 0 else -half)
         fb = _at(b, which, geo, bvh, rows, code, facts, verts, vrange, motion, flags, split, i, j, p, q,
-                 R, si, sf)
+                 R, si, sf) - target
         evals += 1
     return b, evals
 

@@ -31,9 +31,9 @@ from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Box, Plane, Sphere
 from . import advancement
-from .bounds import _extent, _extents, _first_quadratic_root  # noqa: F401 (_extent: tests)
+from .bounds import _extent, _extents, _first_quadratic_root, max_spin  # noqa: F401 (_extent: tests)
 from .swept import swept_toi
-from ..constants import MAX_ADVANCES, MAX_SAMPLES, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, RTOL, TOI_TOLERANCE, XTOL
+from ..constants import MAX_ADVANCES, MAX_SAMPLES, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, RTOL, TOI_DEEPEN, TOI_TOLERANCE, XTOL
 
 _SPLIT = (MAX_SPLIT_ANGLE, float(MAX_SUBSTEPS))   # the free rotation's sub-step rule
 COUNTS = {"distance_evaluations": 0}   # the searches' distance evaluations (for tests and benchmarks)
@@ -90,27 +90,30 @@ def signed_distance(world, i, j, pi, qi, pj, qj):
                                       np.empty((4, 7))))
 
 
-def pair_toi(world, motion, i, j, T):
-    """First touching time of bodies ``i, j`` in ``(0, T]`` (``inf`` if none)."""
+def pair_toi(world, motion, i, j, T, in_contact=False):
+    """First touching time of bodies ``i, j`` in ``(0, T]`` (``inf`` if none). A pair
+    ``in_contact`` (touching now) has no first touch to find: its event is the first time it sinks
+    ``TOI_DEEPEN`` × the thinner body's thinnest size deeper than now (another feature swinging in;
+    the conservative search, never a closed form)."""
     si, sj = world.shapes[i], world.shapes[j]
     m = motion
-    # closed forms
-    if isinstance(si, Plane) or isinstance(sj, Plane):
-        pl, ot = (i, j) if isinstance(si, Plane) else (j, i)
-        osh = world.shapes[ot]
-        if isinstance(osh, Sphere) and not np.any(m.omega[pl]):
-            n, off = plane_world(world.shapes[pl], m.pos[pl], m.quat[pl])
-            c0 = m.pos[ot] @ n - off - osh.radius
-            c1 = (m.vel[ot] - m.vel[pl]) @ n
-            c2 = 0.5 * (m.acc[ot] - m.acc[pl]) @ n
-            return float(_first_quadratic_root(c0, c1, c2, T))
-    if isinstance(si, Sphere) and isinstance(sj, Sphere) and np.allclose(m.acc[i], m.acc[j], rtol=0, atol=0):
-        dx = m.pos[i] - m.pos[j]
-        dv = m.vel[i] - m.vel[j]
-        R = si.radius + sj.radius
-        # |dx|² - R² = (|dx| - R)(|dx| + R): compute c0 without cancellation
-        c0 = (np.linalg.norm(dx) - R) * (np.linalg.norm(dx) + R)
-        return float(_first_quadratic_root(c0, 2 * dx @ dv, dv @ dv, T))
+    if not in_contact:   # closed forms
+        if isinstance(si, Plane) or isinstance(sj, Plane):
+            pl, ot = (i, j) if isinstance(si, Plane) else (j, i)
+            osh = world.shapes[ot]
+            if isinstance(osh, Sphere) and not np.any(m.omega[pl]):
+                n, off = plane_world(world.shapes[pl], m.pos[pl], m.quat[pl])
+                c0 = m.pos[ot] @ n - off - osh.radius
+                c1 = (m.vel[ot] - m.vel[pl]) @ n
+                c2 = 0.5 * (m.acc[ot] - m.acc[pl]) @ n
+                return float(_first_quadratic_root(c0, c1, c2, T))
+        if isinstance(si, Sphere) and isinstance(sj, Sphere) and np.allclose(m.acc[i], m.acc[j], rtol=0, atol=0):
+            dx = m.pos[i] - m.pos[j]
+            dv = m.vel[i] - m.vel[j]
+            R = si.radius + sj.radius
+            # |dx|² - R² = (|dx| - R)(|dx| + R): compute c0 without cancellation
+            c0 = (np.linalg.norm(dx) - R) * (np.linalg.norm(dx) + R)
+            return float(_first_quadratic_root(c0, 2 * dx @ dv, dv @ dv, T))
     # conservative advancement, compiled (advancement.search): the closing-speed bound is relative
     # centre speed, plus what the relative acceleration adds over the interval, plus each body's
     # largest spin over its torque-free motion (max_spin) times its extent
@@ -122,7 +125,7 @@ def pair_toi(world, motion, i, j, T):
     motion, flags = m.arrays()
     t, evals = advancement.search(which, b.geom.arrays(), bvh, b.shape_of, b.rank, code, facts, verts, vrange,
                                   motion, flags, _SPLIT, int(i), int(j), float(T), TOI_TOLERANCE, MAX_ADVANCES,
-                                  MAX_SAMPLES, XTOL, RTOL)
+                                  MAX_SAMPLES, XTOL, RTOL, TOI_DEEPEN if in_contact else 0.0)
     COUNTS["distance_evaluations"] += evals
     return float(t)
 
@@ -179,8 +182,8 @@ def candidate_pairs(world, motion, T, exclude, swept=False, only=None):
     """Pairs ``(i, j)`` (two ``(P,) int`` arrays, ``i < j``) that may touch within ``T``: the
     spheres bounding their paths overlap, found by the broad phase over the boxes of those spheres
     (O(N log N)); planes against every path that reaches them. Pairs without a dynamic body, pairs
-    whose collision groups exclude each other and pairs in ``exclude`` (keys ``min·N + max (E,)``,
-    those already in contact) are skipped, and so are pairs with no relative motion at all. With
+    whose collision groups exclude each other and pairs in ``exclude`` (keys ``min·N + max (E,)``:
+    ``world.disabled_pairs``) are skipped, and so are pairs with no relative motion at all. With
     ``only`` (body indices), pairs without one of those bodies are skipped too."""
     from ..collision import broadphase
 
@@ -249,30 +252,63 @@ def _closed_form_tois(world, motion, i, j, T):
     return out
 
 
-def earliest_event(world, motion, T, exclude, swept=False, only=None):
-    """``(τ, (i, j))`` of the first touching event in ``(0, T]`` or ``(inf, None)``.
+def _may_deepen(world, motion, i, j, T):
+    """Whether bodies ``i, j`` in contact can sink ``TOI_DEEPEN`` × the thinner one's thinnest size
+    deeper within ``T``. Two convex shapes that only translate cannot: the solve left every contact
+    point at a normal speed and acceleration that do not close (the resting force is in
+    ``motion.acc``), and a translation moves every point as those. So only spin can: a pair whose
+    spins move no point by half that over ``T`` (``max_spin`` × extent × ``T``) keeps its depth. A
+    concave mesh can meet another of its own faces by translation alone: always searched."""
+    shapes = world.shapes
+    if not (shapes[i].convex and shapes[j].convex):
+        return True
+    ext = _extents(world)
+    turn = 0.0
+    for k in (i, j):
+        if np.any(motion.omega[k]):
+            if not np.isfinite(ext[k]):
+                return True     # a spinning plane
+            turn += max_spin(motion, k) * T * ext[k]
+    return turn > 0.5 * TOI_DEEPEN * min(shapes[i].thinnest(), shapes[j].thinnest())
+
+
+def earliest_event(world, motion, T, held, swept=False, only=None):
+    """``(τ, (i, j))`` of the first event in ``(0, T]`` or ``(inf, None)``: a pair apart touching,
+    or a pair in contact (``held``: keys ``min·N + max (H,)``) sinking ``TOI_DEEPEN`` × its thinner
+    body's thinnest size deeper than now (``pair_toi``'s ``in_contact``). The contacts of a pair in
+    contact hold its touching features; another feature can swing in within the step (a spinning
+    sliver wedged against a box turned its far corners 3 cm into it when such pairs were not
+    searched). Sphere–plane and sphere–sphere pairs of a closed form have one feature, which their
+    contact holds: in contact, they have no event.
 
     Closed-form pairs are solved together (vectorised); the pairs that need the sampled search
     (``pair_toi``: bracket + Brent, inherently one root at a time) are searched only up to the
-    earliest closed-form time, nearest paths first. With ``swept`` the other pairs get the
+    earliest closed-form time, nearest paths first. With ``swept`` the other pairs apart get the
     swept-volume test first (``response.swept``: closed-form roots along separating directions,
     for pairs that only translate), and the search only where it cannot decide;
     ``motion.swept_pair`` is then the pair when the event came from a sweep (else ``None``)."""
     motion.swept_pair = None
-    i, j = candidate_pairs(world, motion, T, exclude, swept, only)
+    from ..collision import disabled_keys
+
+    never = disabled_keys(world) if world.disabled_pairs else np.zeros(0, np.int64)
+    i, j = candidate_pairs(world, motion, T, never, swept, only)
     if len(i) == 0:
         return np.inf, None
+    in_contact = np.isin(i * len(world) + j, held)
     tau = _closed_form_tois(world, motion, i, j, T)
+    tau[in_contact & ~np.isnan(tau)] = np.inf
     best, pair = np.inf, None
     closed = np.isfinite(tau)
     if closed.any():
         k = int(np.argmin(np.where(closed, tau, np.inf)))
         best, pair = float(tau[k]), (int(i[k]), int(j[k]))
     for k in np.flatnonzero(np.isnan(tau)):   # general shapes: the sweep, else the scalar root search
-        t = swept_toi(world, motion, int(i[k]), int(j[k]), min(T, best)) if swept else np.nan
+        if in_contact[k] and not _may_deepen(world, motion, int(i[k]), int(j[k]), min(T, best)):
+            continue
+        t = swept_toi(world, motion, int(i[k]), int(j[k]), min(T, best)) if swept and not in_contact[k] else np.nan
         by_sweep = not np.isnan(t)
         if not by_sweep:
-            t = pair_toi(world, motion, int(i[k]), int(j[k]), min(T, best))
+            t = pair_toi(world, motion, int(i[k]), int(j[k]), min(T, best), bool(in_contact[k]))
         if t < best:
             best, pair = t, (int(i[k]), int(j[k]))
             motion.swept_pair = pair if by_sweep else None
