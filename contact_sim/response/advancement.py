@@ -166,6 +166,19 @@ def max_spin(k, motion, flags):
 
 
 @njit
+def spin_reach(motion, flags, facts, out):
+    """How fast each body's spin can move a point relative to its centre (m/s, into ``out (N,)``):
+    ``max_spin`` × its extent; 0 for a body that does not spin, ``inf`` for a spinning plane."""
+    omega = motion[4]
+    for k in range(out.shape[0]):
+        if omega[k, 0] != 0.0 or omega[k, 1] != 0.0 or omega[k, 2] != 0.0:
+            ext = facts[k, F_EXTENT]
+            out[k] = max_spin(k, motion, flags) * ext if ext < np.inf else np.inf
+        else:
+            out[k] = 0.0
+
+
+@njit
 def closing_bound(i, j, T, motion, flags, facts):
     """An upper bound (m/s) on how fast any point of body ``i`` can approach any point of body
     ``j`` during ``[0, T]``: relative centre speed, plus what the relative acceleration adds over

@@ -31,7 +31,7 @@ from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Box, Plane, Sphere
 from . import advancement
-from .bounds import _extent, _extents, _first_quadratic_root, max_spin  # noqa: F401 (_extent: tests)
+from .bounds import _extent, _extents, _first_quadratic_root  # noqa: F401 (_extent: tests)
 from .swept import swept_toi
 from ..constants import MAX_ADVANCES, MAX_SAMPLES, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, RTOL, TOI_DEEPEN, TOI_TOLERANCE, XTOL
 
@@ -252,26 +252,6 @@ def _closed_form_tois(world, motion, i, j, T):
     return out
 
 
-def _may_deepen(world, motion, i, j, T):
-    """Whether bodies ``i, j`` in contact can sink ``TOI_DEEPEN`` × the thinner one's thinnest size
-    deeper within ``T``. Two convex shapes that only translate cannot: the solve left every contact
-    point at a normal speed and acceleration that do not close (the resting force is in
-    ``motion.acc``), and a translation moves every point as those. So only spin can: a pair whose
-    spins move no point by half that over ``T`` (``max_spin`` × extent × ``T``) keeps its depth. A
-    concave mesh can meet another of its own faces by translation alone: always searched."""
-    shapes = world.shapes
-    if not (shapes[i].convex and shapes[j].convex):
-        return True
-    ext = _extents(world)
-    turn = 0.0
-    for k in (i, j):
-        if np.any(motion.omega[k]):
-            if not np.isfinite(ext[k]):
-                return True     # a spinning plane
-            turn += max_spin(motion, k) * T * ext[k]
-    return turn > 0.5 * TOI_DEEPEN * min(shapes[i].thinnest(), shapes[j].thinnest())
-
-
 def earliest_event(world, motion, T, held, swept=False, only=None):
     """``(τ, (i, j))`` of the first event in ``(0, T]`` or ``(inf, None)``: a pair apart touching,
     or a pair in contact (``held``: keys ``min·N + max (H,)``) sinking ``TOI_DEEPEN`` × its thinner
@@ -294,17 +274,34 @@ def earliest_event(world, motion, T, held, swept=False, only=None):
     i, j = candidate_pairs(world, motion, T, never, swept, only)
     if len(i) == 0:
         return np.inf, None
-    in_contact = np.isin(i * len(world) + j, held)
     tau = _closed_form_tois(world, motion, i, j, T)
-    tau[in_contact & ~np.isnan(tau)] = np.inf
+    in_contact = np.zeros(len(i), bool)
+    if len(held):
+        held = np.sort(held)
+        keys = i * len(world) + j
+        in_contact = held[np.minimum(np.searchsorted(held, keys), len(held) - 1)] == keys
+        tau[in_contact & ~np.isnan(tau)] = np.inf
+        # which pairs in contact can sink deeper within T: two convex shapes that only translate
+        # cannot (the solve left their contact points at a normal speed and acceleration that do not
+        # close, the resting force being in ``motion.acc``, and a translation moves every point as
+        # those: their overlap along the contact normal, which bounds the depth, does not grow); a
+        # spin moves each point at most its reach × the time from where the translation takes it,
+        # so the depth grows by at most the pair's summed reach × T. A concave mesh can meet another
+        # of its own faces by translation alone: always searched
+        facts = _shape_facts(world)[1]
+        reach = np.empty(len(world))
+        advancement.spin_reach(*motion.arrays(), facts, reach)
+        target = TOI_DEEPEN * np.minimum(facts[i, advancement.F_THIN], facts[j, advancement.F_THIN])
+        convex = derived(world, "convex", (), lambda: np.array([sh.convex for sh in world.shapes], bool),
+                         key=len(world))
+        still = in_contact & convex[i] & convex[j] & ~((reach[i] + reach[j]) * T > target)
+        tau[still] = np.inf
     best, pair = np.inf, None
     closed = np.isfinite(tau)
     if closed.any():
         k = int(np.argmin(np.where(closed, tau, np.inf)))
         best, pair = float(tau[k]), (int(i[k]), int(j[k]))
     for k in np.flatnonzero(np.isnan(tau)):   # general shapes: the sweep, else the scalar root search
-        if in_contact[k] and not _may_deepen(world, motion, int(i[k]), int(j[k]), min(T, best)):
-            continue
         t = swept_toi(world, motion, int(i[k]), int(j[k]), min(T, best)) if swept and not in_contact[k] else np.nan
         by_sweep = not np.isnan(t)
         if not by_sweep:
