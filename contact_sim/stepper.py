@@ -48,7 +48,7 @@ from .collision import (DetectionStats, _bodies_of, _NO_KEYS, broadphase, detect
                         rebuild_pair_cache)
 from .collision.vec3 import rotations
 from .response import toi as toi_mod
-from .response import correction, prepare, substep, swept
+from .response import compliance, correction, prepare, substep, swept
 from .response.cache import merge_records
 from .response.context import StepContext
 from .response.energy import pose_work
@@ -299,7 +299,8 @@ def _time_of_impact(ctx):
     motion = toi_mod.Motion(world, acc, ctx.rotating)
     # next_step with continuous bodies: a search for the fast bodies' pairs only
     ev, _ = toi_mod.earliest_event(world, motion, ctx.t_left, held, swept=m.toi == "swept",
-                                   only=m.continuous if not ctx.exact_toi else None)
+                                   only=m.continuous if not ctx.exact_toi else None,
+                                   soft=m.response == "impulse" and m.resting and compliance.possible(world))
     if ev >= ctx.t_left:
         return ctx.t_left
     ctx.events += 1

@@ -281,3 +281,20 @@ def test_disabled_pairs_have_no_time_of_impact():
     w.step()
     assert w.last_solve["impacts"] == 0 and len(w.contacts) == 0
     assert w.body("a").position[0] == 12.0 / 60                    # through b, as if it were not there
+
+
+def test_a_compliant_squeeze_is_no_event():
+    # two kinematic jaws closing on a cube and turning (a compliant contact: the default
+    # kinematic_stiffness): the contacts' depth is their springs' deflection, which grows as the
+    # jaws squeeze; no time of impact splits the step for it (it split every step while the pairs
+    # in contact were searched regardless)
+    w = cs.World(gravity=(0, 0, 0), settings={"toi": "fractional", "dt": 1 / 60})
+    w.add_body("cube", cs.Box([0.1, 0.1, 0.1]), mass=0.5)
+    for name, side in (("left", -1.0), ("right", 1.0)):
+        w.add_body(name, cs.Box([0.02, 0.1, 0.1]), kind="kinematic", position=[side * 0.059, 0, 0],
+                   velocity=[-side * 0.05, 0, 0], angular_velocity=[0, -side * 2.0, 0])
+    assert w.settings.kinematic_stiffness > 0
+    for _ in range(30):
+        w.step()
+        assert w.last_solve["impacts"] == 0
+    assert w.last_solve["max_penetration"] > 0.01                  # squeezed: the springs deflect

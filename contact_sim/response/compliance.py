@@ -127,6 +127,15 @@ def stored_energy(stiffness, depth):
     return float(0.5 * np.sum(stiffness * d * d))
 
 
+def compliant_pairs(world, i, j):
+    """``(P,) bool``: whether the contacts of the body pairs ``i, j (P,)`` are compliant when the
+    step softens any (``possible``, the impulse response with resting contact): ``stiffness_rows``'
+    rule, a material with a stiffness or, with ``settings.kinematic_stiffness``, a kinematic body."""
+    soft = world.stiffness > 0
+    kin = world.kind == KINEMATIC
+    return soft[i] | soft[j] | ((kin[i] | kin[j]) & (world.settings.kinematic_stiffness > 0))
+
+
 def possible(world):
     """Whether any contact of ``world`` can be compliant: a material with a stiffness, or
     ``settings.kinematic_stiffness`` with a kinematic body (else the step skips the stiffness rows).

@@ -30,7 +30,7 @@ from .. import quat
 from ..kinds import DYNAMIC
 from ..memo import derived
 from ..shapes import Box, Plane, Sphere
-from . import advancement
+from . import advancement, compliance
 from .bounds import _extent, _extents, _first_quadratic_root  # noqa: F401 (_extent: tests)
 from .swept import swept_toi
 from ..constants import MAX_ADVANCES, MAX_SAMPLES, MAX_SPLIT_ANGLE, MAX_SUBSTEPS, RTOL, TOI_DEEPEN, TOI_TOLERANCE, XTOL
@@ -252,14 +252,16 @@ def _closed_form_tois(world, motion, i, j, T):
     return out
 
 
-def earliest_event(world, motion, T, held, swept=False, only=None):
+def earliest_event(world, motion, T, held, swept=False, only=None, soft=False):
     """``(τ, (i, j))`` of the first event in ``(0, T]`` or ``(inf, None)``: a pair apart touching,
     or a pair in contact (``held``: keys ``min·N + max (H,)``) sinking ``TOI_DEEPEN`` × its thinner
     body's thinnest size deeper than now (``pair_toi``'s ``in_contact``). The contacts of a pair in
     contact hold its touching features; another feature can swing in within the step (a spinning
     sliver wedged against a box turned its far corners 3 cm into it when such pairs were not
     searched). Sphere–plane and sphere–sphere pairs of a closed form have one feature, which their
-    contact holds: in contact, they have no event.
+    contact holds: in contact, they have no event; nor have compliant pairs (with ``soft``, the
+    step's compliant contact: ``compliance.compliant_pairs``), whose depth is their springs'
+    deflection (a finger squeezing a part).
 
     Closed-form pairs are solved together (vectorised); the pairs that need the sampled search
     (``pair_toi``: bracket + Brent, inherently one root at a time) are searched only up to the
@@ -281,6 +283,8 @@ def earliest_event(world, motion, T, held, swept=False, only=None):
         keys = i * len(world) + j
         in_contact = held[np.minimum(np.searchsorted(held, keys), len(held) - 1)] == keys
         tau[in_contact & ~np.isnan(tau)] = np.inf
+        if soft:
+            tau[in_contact & compliance.compliant_pairs(world, i, j)] = np.inf
         # which pairs in contact can sink deeper within T: two convex shapes that only translate
         # cannot (the solve left their contact points at a normal speed and acceleration that do not
         # close, the resting force being in ``motion.acc``, and a translation moves every point as
