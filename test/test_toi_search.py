@@ -298,3 +298,16 @@ def test_a_compliant_squeeze_is_no_event():
         w.step()
         assert w.last_solve["impacts"] == 0
     assert w.last_solve["max_penetration"] > 0.01                  # squeezed: the springs deflect
+
+
+def test_a_spinning_ball_in_contact_costs_no_search():
+    # a sphere's spin moves no point of its surface off it: a ball spinning on a plate (a
+    # sphere–box pair, which has no closed form) keeps its depth, and is not searched
+    w = cs.World(gravity=(0, 0, 0), settings={"toi": "fractional", "dt": 1 / 60})
+    w.add_body("plate", cs.Box([2.0, 2.0, 0.01]), kind="static", position=[0, 0, -0.005])
+    w.add_body("ball", cs.Sphere(0.05), mass=1.0, position=[0, 0, 0.05 - 1e-7], angular_velocity=[0, 0, 100.0])
+    n0 = toi.COUNTS["distance_evaluations"]
+    for _ in range(5):
+        w.step()
+        assert w.last_solve["impacts"] == 0 and len(w.contacts) == 1
+    assert toi.COUNTS["distance_evaluations"] == n0

@@ -166,12 +166,13 @@ def max_spin(k, motion, flags):
 
 
 @njit
-def spin_reach(motion, flags, facts, out):
-    """How fast each body's spin can move a point relative to its centre (m/s, into ``out (N,)``):
-    ``max_spin`` × its extent; 0 for a body that does not spin, ``inf`` for a spinning plane."""
+def spin_reach(motion, flags, code, facts, out):
+    """How fast each body's spin can move its surface relative to its centre (m/s, into ``out
+    (N,)``): ``max_spin`` × its extent; 0 for a body that does not spin and for a sphere (its spin
+    moves no point of its surface off it), ``inf`` for a spinning plane."""
     omega = motion[4]
     for k in range(out.shape[0]):
-        if omega[k, 0] != 0.0 or omega[k, 1] != 0.0 or omega[k, 2] != 0.0:
+        if code[k] != D_SPHERE and (omega[k, 0] != 0.0 or omega[k, 1] != 0.0 or omega[k, 2] != 0.0):
             ext = facts[k, F_EXTENT]
             out[k] = max_spin(k, motion, flags) * ext if ext < np.inf else np.inf
         else:

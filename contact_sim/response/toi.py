@@ -289,12 +289,12 @@ def earliest_event(world, motion, T, held, swept=False, only=None, soft=False):
         # cannot (the solve left their contact points at a normal speed and acceleration that do not
         # close, the resting force being in ``motion.acc``, and a translation moves every point as
         # those: their overlap along the contact normal, which bounds the depth, does not grow); a
-        # spin moves each point at most its reach × the time from where the translation takes it,
-        # so the depth grows by at most the pair's summed reach × T. A concave mesh can meet another
-        # of its own faces by translation alone: always searched
-        facts = _shape_facts(world)[1]
+        # spin moves each point of a surface at most its reach × the time (``spin_reach``) from
+        # where the translation takes it, so the depth grows by at most the pair's summed reach × T.
+        # A concave mesh can meet another of its own faces by translation alone: always searched
+        code, facts = _shape_facts(world)[:2]
         reach = np.empty(len(world))
-        advancement.spin_reach(*motion.arrays(), facts, reach)
+        advancement.spin_reach(*motion.arrays(), code, facts, reach)
         target = TOI_DEEPEN * np.minimum(facts[i, advancement.F_THIN], facts[j, advancement.F_THIN])
         convex = derived(world, "convex", (), lambda: np.array([sh.convex for sh in world.shapes], bool),
                          key=len(world))
