@@ -64,8 +64,11 @@ class Settings(Declared):
                                 "m: penetrations up to this are left to the resting solve (round-off of resting "
                                 "contacts; correcting them costs a whole solve per step), and the position "
                                 "correction's solve stops once a sweep moves no contact by more than this")
-    max_impacts_per_step: int = declare(8, Number(ge=1, le=10_000, integer=True),
-                                        "fractional time of impact: impacts handled per step")
+    max_impacts_per_step: int = declare(128, Number(ge=1, le=10_000, integer=True),
+                                        "exact times of impact (fractional, swept; next_step's fast bodies): "
+                                        "events handled per step, in time order, the rest of the step then "
+                                        "taken without a search (a light body chattering between a wall and "
+                                        "one 1000 times heavier takes about pi*sqrt(1000) = 99)")
     contact_margin: float = declare(1e-4, Number(ge=0, le="max_size", unit="m"),
                                     "m: closer than this counts as touching")
     bounding_volume: str = declare("auto", Choice(BOUNDING_VOLUMES), "sphere | aabb | obb | slabs | hull | auto")

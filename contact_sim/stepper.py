@@ -14,8 +14,8 @@
 4. **time of impact**: ``next_step`` advances by ``T``; ``fractional`` and ``swept`` find the first
    instant in ``(0, T]`` at which a pair that is apart touches (closed form for sphere–plane and
    sphere–sphere, bracket + Brent otherwise; ``swept`` guarantees that nothing passes through a
-   thin body), advance exactly to it and go back to 1 with the rest of the step — at most
-   ``settings.max_impacts_per_step`` times;
+   thin body; a pair in contact: the instant it sinks ``TOI_DEEPEN`` deeper), advance exactly to
+   it and go back to 1 with the rest of the step — at most ``settings.max_impacts_per_step`` times;
 5. positions of penetrating contacts are corrected by split-impulse pseudo-velocities, which move
    bodies and are then discarded (no energy is added; ``response.correction``).
 
