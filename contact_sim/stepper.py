@@ -137,7 +137,7 @@ def flight(world, dt):
     # what a step without contacts leaves (``_finish``): no warm start, no contact, its statistics
     world.contact_cache.warm = None
     world.contacts = Contacts.empty()
-    world.last_detection = DetectionStats(bodies.n, 0, 0, 0, 0, 0, 0, 0, 0, st.bounding_volume, margin,
+    world.last_detection = DetectionStats(bodies.n, 0, 0, 0, 0, None, 0, 0, 0, st.bounding_volume, margin,
                                           {"prepare": 0.0, "broad": seconds, "total": seconds})
     world.last_solve = StepStats(0, 0.0, False, 0.0, 0, 0, m.toi, m.response, 0.0, 0.0, 0.0, 0.0 + drift,
                                  0.0, 0.0)   # 0.0 + drift: the sum the pipeline forms (-0.0 -> 0.0)
@@ -243,10 +243,12 @@ def _impulse_step(world, dt, m):
     ctx = StepContext.start(world, dt, m)
     limit = ctx.settings.max_impacts_per_step
     while True:
+        whole = not (ctx.exact_toi or m.continuous) or ctx.events >= limit
+        if whole and substep.run_detected(ctx):   # detect and the stages below in one compiled call
+            break
         _detect_stage(ctx)               # contacts within the (speculative) margin
         if ctx.first and ctx.any_kinematic and ctx.k and m.response == "impulse":
             ctx.pose_work = pose_work(world, ctx.contacts, m)   # what poses given since stored in springs
-        whole = not (ctx.exact_toi or m.continuous) or ctx.events >= limit
         substep.run(ctx, whole)          # prepare, impacts, correction plan, resting (, store, advance)
         if whole:
             break

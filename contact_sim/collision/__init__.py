@@ -157,7 +157,7 @@ def _bv_keep(bodies, bv, a, b, pos, R, margin):
     """``(K,)`` bool: the pairs' bounding volumes overlap (within margin). ``auto`` = bounding
     sphere then OBB (compiled, one pass); ``aabb`` is the broad phase itself."""
     keep = np.ones(len(a), bool)
-    if bv in ("auto", "sphere", "obb"):
+    if bv in COMPILED_VOLUMES:
         bounding.bv_filter(bv != "obb", bv != "sphere", a, b, bodies.shape_of, bodies.geom.sf, pos, R, margin, keep)
         return keep
     finite = ~bodies.is_plane[b] & ~((bodies.rank[a] == 1) & (bodies.rank[b] == 1))
@@ -197,6 +197,8 @@ def _hull_overlap(bodies, ia, ib, pos, R, margin):
 
 
 _NO_REACH = np.zeros((2, 0))
+#: the bounding volumes whose filter runs compiled with the narrow phase (``pair_kernels.kept_contacts``)
+COMPILED_VOLUMES = ("auto", "sphere", "obb")
 _NO_STAGES = {"bounding": 0.0, "narrow": 0.0}
 
 
@@ -214,13 +216,14 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
     if len(ia) == 0:
         # no candidate pair (fewer than two bodies, or none near another): no kernel to run, and an
         # empty world's geometry table has no rows to type the kernels' arguments by
+        stats.edge_face_hits = 0 if census else None
         stats.seconds = dict(timings, **(_NO_STAGES if timed else {}), total=time.perf_counter() - t0)
         return Contacts.empty(), stats
     ia, ib = np.ascontiguousarray(ia, np.int64), np.ascontiguousarray(ib, np.int64)
     counters = np.zeros(3 if census else 2, np.int64)
     reach = _NO_REACH if reach is None else reach
     plane_margin = margin if plane_margin is None else plane_margin
-    if bv in ("auto", "sphere", "obb"):   # compiled: canonical order (A of the higher rank), filter, narrow phase
+    if bv in COMPILED_VOLUMES:   # compiled: canonical order (A of the higher rank), filter, narrow phase
         seconds = np.zeros(2)
         rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kept = pair_kernels.kept_contacts(
             *bodies.narrow_args(), ia, ib, bv != "obb", bv != "sphere", pos, R, margin, reach, float(floor),
@@ -239,11 +242,7 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
         timings["bounding"], timings["narrow"] = t2 - t1, time.perf_counter() - t2
     stats.rejected_by_bounding_volume = len(ia) - kept
     k = len(body_a)
-    vec, num = np.zeros((2, k, 3)), np.zeros((2, k))   # the response columns, filled by the step
-    # positional, in ``COLUMNS`` order: body_a, body_b, point, normal, depth, impulse, normal_impulse,
-    # friction_impulse, relative_normal_velocity, feature, feature_id
-    c = Contacts(body_a, body_b, rows_f[:, 0:3], normal, rows_f[:, 6], vec[0], num[0], vec[1], num[1], rows_i[:, 1],
-                 rows_i[:, 2])
+    c = contacts_of_rows(rows_i, rows_f, body_a, body_b, normal)
     counts = counters.tolist()
     stats.settled_by_vertex, stats.needed_edge_face = counts[0], counts[1]
     stats.edge_face_hits = counts[2] if census else None
@@ -253,6 +252,18 @@ def _detect(bodies, pos, quat, ia, ib, margin, bv, stats, t0, timings, R=None, r
     timings["total"] = time.perf_counter() - t0
     stats.seconds = timings
     return c, stats
+
+
+def contacts_of_rows(rows_i, rows_f, body_a, body_b, normal):
+    """The narrow phase's rows (``pair_kernels.pair_contacts``' ``rows_i (K,3)``, ``rows_f (K,7)``
+    and columns ``body_a, body_b (K,)``, ``normal (K,3)``) as ``Contacts``, the response's columns
+    zero (the step fills them)."""
+    k = len(body_a)
+    vec, num = np.zeros((2, k, 3)), np.zeros((2, k))
+    # positional, in ``COLUMNS`` order: body_a, body_b, point, normal, depth, impulse, normal_impulse,
+    # friction_impulse, relative_normal_velocity, feature, feature_id
+    return Contacts(body_a, body_b, rows_f[:, 0:3], normal, rows_f[:, 6], vec[0], num[0], vec[1], num[1],
+                    rows_i[:, 1], rows_i[:, 2])
 
 
 def disabled_keys(world):

@@ -22,10 +22,14 @@ with the outputs in a few blocks, is what makes a small step cheap.
 
 Shapes: ``N`` bodies, ``K`` contacts.
 """
+import time
 from operator import is_
 
 import numpy as np
 
+from ..collision import COMPILED_VOLUMES, DetectionStats, _bodies_of, _NO_KEYS, contacts_of_rows, disabled_keys
+from ..collision import broadphase, pair_kernels
+from ..collision.vec3 import rotations
 from ..free_motion import advance
 from ..jit import njit
 from ..kinds import DYNAMIC
@@ -82,12 +86,150 @@ def run(ctx, whole):
         prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials, *old,
         has_old, extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, whole,
         *solve[1:])
+    _take(ctx, whole, f3, f1, flags, wv, aux, idx, out)
+
+
+def run_detected(ctx):
+    """Detection and the whole sub-step's stages in one compiled call (``_detect_substep``): the
+    look-ahead margin (``prepare.speculative_reach``'s), the broad phase's pass on its pair cache
+    (``broadphase.world_pairs``), the bounding volumes and the narrow phase
+    (``pair_kernels.kept_contacts``), then ``_substep``, the same kernels in the same order as
+    ``stepper._detect_stage`` and ``run`` (so the same state to the bit); ``ctx.contacts``,
+    ``world.last_detection`` and what ``run`` leaves are then as theirs. Returns False, with
+    nothing changed, where detection needs Python first: the pair cache not built or a body out of
+    its fat box (the Python detection rebuilds it), a bounding volume filtered in Python, a
+    sweep's hit to mark, or the first sub-step's pose work on compliant contacts with a kinematic
+    body (``energy.pose_work`` reads the contacts before the solve moves the bodies)."""
+    world, m, st = ctx.world, ctx.models, ctx.settings
+    if ctx.swept_pair is not None or st.bounding_volume not in COMPILED_VOLUMES or (
+            ctx.first and ctx.any_kinematic and m.response == "impulse" and may_be_compliant(world)):
+        return False
+    bodies = _bodies_of(world)
+    cache = bodies.pair_cache
+    if bodies.n < 2 or cache.fat_c is None:
+        return False
+    t0 = time.perf_counter()
+    s = world.s
+    R = np.empty((bodies.n, 3, 3))
+    rotations(s.quat, R)
+    old = world.contact_cache.warm
+    has_old = old is not None and len(old[0]) > 0
+    if not has_old:
+        old = _NO_OLD
+    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(ctx)
+    facts = prepare._margin_facts(world)[1:] if ctx.speculative else _NO_FACTS
+    bv = st.bounding_volume
+    counters = np.zeros(2, np.int64)
+    pos0 = s.pos.copy() if any_kinematic else None
+    status, candidates, kept, pairs, unsupported, margin, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, \
+        flags, wv, aux, idx, out = _detect_substep(
+            *facts, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d,
+            cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, world.group, world.mask,
+            disabled_keys(world) if world.disabled_pairs else _NO_KEYS, *bodies.narrow_args(), bv != "obb",
+            bv != "sphere", counters, *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
+            prepare.inv_inertia(world, m, R) if inertia_w is None else inertia_w, R, *materials, *old, has_old,
+            extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, *solve[1:])
+    if status == STALE:
+        return False
+    cache.reuses += 1
+    ctx.R, ctx.pos0 = R, pos0
+    base = solve[1]
+    ctx.look_ahead = (ctx.t_left, base) if look else None
+    ctx.touching = ctx.rest_mask = ctx.dv_rest = None
+    ctx.contacts = c = contacts_of_rows(rows_i, rows_f, body_a, body_b, normal)
+    n_settled, n_edge_face = counters.tolist()
+    # positional, in the field order (``DetectionStats``); the seconds are the call's, the
+    # sub-step's stages included
+    world.last_detection = DetectionStats(len(world.shapes), candidates, candidates - kept, n_settled, n_edge_face,
+                                          None, pairs, len(c), unsupported, bv, margin,
+                                          {"total": time.perf_counter() - t0})
+    if status == NO_CONTACT:
+        run(ctx, True)   # free motion
+    else:
+        _take(ctx, True, f3, f1, flags, wv, aux, idx, out)
+    return True
+
+
+#: ``_detect_substep``'s answers: the sub-step is done; no contact was found (nothing else done:
+#: the sub-step is free motion); a body left its fat box (nothing done: the pair cache must be rebuilt)
+DONE, NO_CONTACT, STALE = 0, 1, 2
+_NO_FACTS = (np.zeros(0, np.bool_), np.zeros(0), np.inf, False)
+
+
+@njit
+def _detect_substep(moving, caps, cap, plane, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
+                    fat_margin, group, mask, disabled, which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh,
+                    shape_of, rank, use_sphere, use_obb, counters, g, kind, pos, vel, quat, omega, principal_q, moments,
+                    inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass,
+                    particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio,
+                    k_kinematic, rule, kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles,
+                    resting, margin, speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed,
+                    split_slop, split_beta, split_max_speed, method, direct_max, max_iterations, tolerance):
+    """``run_detected``'s kernel: detection, then ``_substep`` (its arguments, from ``g`` on, but
+    the contacts and ``whole``: the sub-step is whole). Detection as ``stepper._detect_stage`` runs
+    it: with ``speculative`` the look-ahead margin and each body's reach (``prepare._reach`` over
+    ``t``, with ``moving, caps (N,)``, ``cap`` and ``plane``: ``prepare._margin_facts``; ``margin``
+    the contact margin), the broad phase's pass (``broadphase.world_pairs``: the finite bodies
+    ``fin``, their boxes ``centre, half``, the planes and the pair cache, ``group, mask`` and the
+    ``disabled`` keys), the bounding volumes and the narrow phase (``pair_kernels.kept_contacts``:
+    the narrow phase's fixed arguments ``which … rank``, ``use_sphere, use_obb``; its counts into
+    ``counters (2,)``). Returns ``(status, candidate pairs, pairs kept by the bounding volumes,
+    colliding pairs, unsupported pairs, the detection margin, whether the look-ahead filters the
+    contacts, rows_i, rows_f, body_a, body_b, normal, *_substep's outputs)``; ``status``
+    ``STALE`` (nothing done), ``NO_CONTACT`` (no contact: the state untouched) or ``DONE``."""
+    n = pos.shape[0]
+    det, plane_det, floor = margin, margin, 0.0
+    reach = np.empty((2, n if speculative else 0))
+    if speculative:   # prepare.speculative_reach over t
+        vmax, free = prepare._reach(vel, omega, ext, moving, caps, t, reach)
+        gt = g * t * t
+        floor = margin + gt
+        if vmax >= 0.0:
+            det = max(margin, min(2.0 * vmax * t + gt, cap))
+            plane_det = max(det, floor + free) if plane else det
+    look = det > margin
+    if not look:   # no speculative contact: every pair takes the contact margin
+        reach, plane_det = np.empty((2, 0)), det
+    ok, ia, ib = broadphase.world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
+                                        fat_margin, det, plane_det, kind, group, mask, disabled)
+    f3, f1, flags = np.empty((3, 0, 3)), np.empty((2, 0)), np.empty((3, 0), np.bool_)
+    wv, aux, idx, out = np.empty((0, 4)), np.empty(0), np.empty(0, np.int64), np.empty(12)
+    if not ok or ia.shape[0] == 0:
+        rows_i, rows_f, body_a, body_b, normal = (np.empty((0, 3), np.int64), np.empty((0, 7)),
+                                                  np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3)))
+        return (NO_CONTACT if ok else STALE), ia.shape[0], 0, 0, 0, det, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, flags, wv, aux, idx, out
+    rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kept = pair_kernels.kept_contacts(
+        which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, use_sphere, use_obb, pos,
+        R, det, reach, floor, plane_det, counters, False, np.empty(2))
+    if body_a.shape[0] == 0:
+        return NO_CONTACT, ia.shape[0], kept, pairs, unsupported, det, look, rows_i, rows_f, body_a, body_b, normal, \
+            f3, f1, flags, wv, aux, idx, out
+    point, depth = np.ascontiguousarray(rows_f[:, 0:3]), np.ascontiguousarray(rows_f[:, 6])
+    look_dt, look_base = (t, margin) if look else (0.0, 0.0)
+    f3, f1, flags, wv, aux, idx, out = _substep(
+        body_a, body_b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
+        inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
+        restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule, kinetic, a0,
+        b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, True, margin, speculative,
+        toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, split_max_speed,
+        method, direct_max, max_iterations, tolerance)
+    return DONE, ia.shape[0], kept, pairs, unsupported, det, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, \
+        flags, wv, aux, idx, out
+
+
+def _take(ctx, whole, f3, f1, flags, wv, aux, idx, out):
+    """What the step keeps of ``_substep``'s outputs for ``ctx.contacts`` (``run``, and
+    ``run_detected`` after its detection): the solves' statistics, the correction's
+    pseudo-velocities, the contact cache's warm start; with ``whole`` the sub-step's records, else
+    what the time-of-impact search and ``finish`` read."""
+    world, c = ctx.world, ctx.contacts
+    k = len(c)
     residual, deepest, rest_bound, drift, kick_error, sweeps, kept, rested, n_rest, unconverged, dropped, n_pen = \
         out.tolist()
     if dropped:   # speculative contacts that cannot close are not the step's (idx: the kept ones first)
         k = f1.shape[1]
         c = ctx.contacts = c.select(idx[:k])
-    n = len(s.pos)
+    n = len(world.s.pos)
     ctx.iterations = max(ctx.iterations, int(sweeps))
     ctx.residual = max(ctx.residual, residual)
     ctx.unconverged = ctx.unconverged or bool(unconverged)
