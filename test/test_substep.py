@@ -59,10 +59,11 @@ def _same_step(wa, wb):
 
 
 def _both_ways(make, steps, monkeypatch, dt=None):
-    """Step two copies of a scene, one through the whole sub-step and one through the split exit
-    (``run(ctx, False)`` then ``finish(ctx, t_left, 1)``: what the stepper does when no time of
-    impact shortens the sub-step), comparing each step; returns the first world and, per step, its
-    ``last_solve`` and the fastest approach among its contacts (m/s, 0 without)."""
+    """Step two copies of a scene, one through the whole sub-step (with detection in the same call
+    where ``run_detected`` takes it, as a step does) and one detected in Python then through the
+    split exit (``run(ctx, False)`` then ``finish(ctx, t_left, 1)``: what the stepper does when no
+    time of impact shortens the sub-step), comparing each step; returns the first world and, per
+    step, its ``last_solve`` and the fastest approach among its contacts (m/s, 0 without)."""
     wa, wb = make(), make()
     real = substep.run
 
@@ -71,17 +72,21 @@ def _both_ways(make, steps, monkeypatch, dt=None):
         if whole:
             substep.finish(ctx, ctx.t_left, 1.0)
 
+    real_detected = substep.run_detected
     solves = []
     for i in range(steps):
         monkeypatch.setattr(substep, "run", real)
+        monkeypatch.setattr(substep, "run_detected", real_detected)
         wa.step(dt)
         monkeypatch.setattr(substep, "run", split)
+        monkeypatch.setattr(substep, "run_detected", lambda ctx: False)
         wb.step(dt)
         diff = _same_step(wa, wb)
         assert not diff, f"step {i}: {diff}"
         vn = wa.contacts.relative_normal_velocity
         solves.append((wa.last_solve, float(max(-vn.min(), 0.0)) if len(vn) else 0.0))
     monkeypatch.setattr(substep, "run", real)
+    monkeypatch.setattr(substep, "run_detected", real_detected)
     return wa, solves
 
 

@@ -57,6 +57,28 @@ def pose_work(world, c, m):
                       cc(c.normal, dtype=float), cc(c.depth, dtype=float), k, world.kind, s.pos, s.quat, s.stepped)
 
 
+def posed(world):
+    """Whether a kinematic body is not where the last step left it (``s.stepped``): a pose given
+    since. Where none is, ``pose_work`` is exactly 0 (no move, no separation made)."""
+    s = world.s
+    return _posed(world.kind, s.pos, s.quat, s.stepped)
+
+
+@njit(_nrt=False)
+def _posed(kind, pos, quat, stepped):
+    """``posed``'s loop over the bodies ``kind (N,)``, ``pos (N,3)``, ``quat (N,4)``, ``stepped (N,7)``."""
+    for i in range(kind.shape[0]):
+        if kind[i] != KINEMATIC:
+            continue
+        for x in range(3):
+            if pos[i, x] != stepped[i, x]:
+                return True
+        for x in range(4):
+            if quat[i, x] != stepped[i, 3 + x]:
+                return True
+    return False
+
+
 @njit(cache=True)
 def _pose_work(a, b, point, normal, depth, stiffness, kind, pos, quat, stepped):
     """``pose_work``'s loop: contacts ``a, b (K,)``, ``point, normal (K,3)``, ``depth, stiffness

@@ -41,7 +41,7 @@ from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANG
                          PGS_TOLERANCE, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
 from .cache import local_points
 from .compliance import possible as may_be_compliant, stiffness_rows
-from .energy import kinematic_work
+from .energy import kinematic_work, posed
 from .impact import impact_stage
 from .penalty import penalty_stage
 from .pgs import build_rows
@@ -98,11 +98,13 @@ def run_detected(ctx):
     ``world.last_detection`` and what ``run`` leaves are then as theirs. Returns False, with
     nothing changed, where detection needs Python first: the pair cache not built or a body out of
     its fat box (the Python detection rebuilds it), a bounding volume filtered in Python, a
-    sweep's hit to mark, or the first sub-step's pose work on compliant contacts with a kinematic
-    body (``energy.pose_work`` reads the contacts before the solve moves the bodies)."""
+    sweep's hit to mark, or the first sub-step's pose work on compliant contacts when a kinematic
+    body was posed since the last step (``energy.pose_work`` reads the contacts before the solve
+    moves the bodies; with no pose given it is exactly 0, ``energy.posed``)."""
     world, m, st = ctx.world, ctx.models, ctx.settings
     if ctx.swept_pair is not None or st.bounding_volume not in COMPILED_VOLUMES or (
-            ctx.first and ctx.any_kinematic and m.response == "impulse" and may_be_compliant(world)):
+            ctx.first and ctx.any_kinematic and m.response == "impulse" and may_be_compliant(world)
+            and posed(world)):
         return False
     bodies = _bodies_of(world)
     cache = bodies.pair_cache
