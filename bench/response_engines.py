@@ -146,7 +146,7 @@ class ContactSimEngine(Engine):
             "materials": {"m": {"restitution": scene.restitution, "friction": scene.friction}},
             "bodies": bodies})
         self.dyn = np.array([self.world.index(b.name) for b in scene.dynamic], int)
-        self.contacts, self.iterations, self.detect_s = [], [], []
+        self.contacts, self.iterations = [], []
 
     def step(self):
         self.world.step()
@@ -163,8 +163,6 @@ class ContactSimEngine(Engine):
         get = st.get
         self.contacts.append(get("contacts", np.nan))
         self.iterations.append(get("iterations", np.nan))
-        det = self.world.last_detection
-        self.detect_s.append(det.seconds.get("total", np.nan) if det is not None else np.nan)
 
     def poses(self):
         p, q = self.world.poses()

@@ -22,7 +22,11 @@
 ``_impulse_step`` reads as this list: detection, then one compiled call per sub-step for the
 stages after it (``response.substep``: 1's preparation, 2, 3, 5's plan, and the advance), whatever
 the models; the time-of-impact search (4) runs between its solves and its advance when the models
-ask for exact times of impact. Each stage's kernel lives in its stage's module (``prepare``,
+ask for exact times of impact. A sub-step that no time of impact can shorten (every step of
+``next_step`` without fast bodies) runs detection in that same call (``substep.run_detected``)
+wherever the broad phase's pair cache holds; detection runs in Python first where it does not
+(the first step, a body out of its fat box), and where Python must read the contacts before the
+solve (a pose's work on compliant contacts, a sweep's hit). Each stage's kernel lives in its stage's module (``prepare``,
 ``impact``, ``resting``, ``correction``, ``free_motion``), every solve is ``solver.solve_rows``.
 
 Penalty response replaces 2–5 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
@@ -236,7 +240,8 @@ def _detect(world, margin, dt, R=None, reach=None, floor=0.0, plane_margin=None)
 def _impulse_step(world, dt, m):
     """One step of the impulse (or kinematic) response, as named stages around a ``StepContext``
     (Box2D's step context): per sub-step (the step splits at times of impact) detect, then the
-    stages after detection in one compiled call (``response.substep``: prepare the contacts, solve
+    stages after detection in one compiled call (a whole sub-step: detection too, in the same call,
+    where ``substep.run_detected`` takes it) (``response.substep``: prepare the contacts, solve
     impacts and resting contact, plan position correction on the first sub-step, store the
     impulses and advance; with exact times of impact the time of impact is found between the
     solves and the advance); then apply the position correction and keep what the next step reuses."""

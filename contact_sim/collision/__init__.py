@@ -66,9 +66,13 @@ class DetectionStats:
     in a step's detection, ``World.last_detection``, which skips the test where it only counts:
     the polyhedra's separating-axis test decides their contacts);
     ``colliding_pairs``, ``contacts``: what was reported; ``unsupported_pairs``: pairs no
-    kernel handles (none since mesh–mesh has one); ``seconds``: per stage (``broad``, ``bounding``, ``narrow``, ``total``;
-    a step's detection, ``World.last_detection``, has ``broad`` and ``total``: its bounding volumes and narrow
-    phase run as one compiled call, untimed inside).
+    kernel handles (none since mesh–mesh has one); ``seconds``: per stage (``broad``, ``bounding``,
+    ``narrow``, ``total``). A step's detection (``World.last_detection``) is timed less: detected
+    in Python (the first step, a pair cache rebuilt, a sub-step a time of impact may shorten) it
+    has ``broad`` and ``total``, its bounding volumes and narrow phase run as one compiled call,
+    untimed inside; run in the same compiled call as the sub-step's stages
+    (``response.substep.run_detected``, most steps) only ``total``, that call's: detection and
+    the stages together.
     """
 
     bodies: int = 0

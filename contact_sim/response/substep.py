@@ -14,7 +14,10 @@ With exact times of impact (``fractional``, ``swept``, or ``next_step`` with fas
 sub-step's length is known only after the solves: ``run`` then stops before storing, the stepper
 finds the time of impact from the velocities the impacts left, and ``finish`` stores and advances
 over the fraction of the rest of the step that the sub-step lasted. Otherwise (every step of a
-world of more than a few bodies) ``run`` is the whole sub-step.
+world of more than a few bodies) ``run`` is the whole sub-step, and ``run_detected`` runs
+detection in the same call before it (``_detect_substep``: the look-ahead margin, the broad
+phase's pass on its pair cache, the bounding volumes and the narrow phase, each stage's kernel
+from its module) wherever that cache holds and Python need not read the contacts first.
 
 Run from Python stage by stage, these stages cost more in array calls and argument passing than in
 arithmetic (in a 10-body resting step the kernels were about a quarter of the time): one call,
