@@ -26,8 +26,9 @@ ask for exact times of impact. A sub-step that no time of impact can shorten (ev
 ``next_step`` without fast bodies) runs detection in that same call (``substep.run_detected``)
 wherever the broad phase's pair cache holds; detection runs in Python first where it does not
 (the first step, a body out of its fat box), and where Python must read the contacts before the
-solve (a pose's work on compliant contacts, a sweep's hit). Each stage's kernel lives in its stage's module (``prepare``,
-``impact``, ``resting``, ``correction``, ``free_motion``), every solve is ``solver.solve_rows``.
+solve (a pose's work on compliant contacts, a sweep's hit). Each stage's kernel lives in its
+stage's module (``prepare``, ``impact``, ``resting``, ``correction``, ``free_motion``), every
+solve is ``solver.solve_rows``.
 
 Penalty response replaces 2–5 by a spring ``k·depth`` and damper ``−c·v_n`` along the normal, and
 (friction on) regularised Coulomb friction (``response.penalty``), in one compiled call too

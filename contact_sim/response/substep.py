@@ -202,7 +202,8 @@ def _detect_substep(moving, caps, cap, plane, fin, centre, half, planes, plane_n
     if not ok or ia.shape[0] == 0:
         rows_i, rows_f, body_a, body_b, normal = (np.empty((0, 3), np.int64), np.empty((0, 7)),
                                                   np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3)))
-        return (NO_CONTACT if ok else STALE), ia.shape[0], 0, 0, 0, det, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, flags, wv, aux, idx, out
+        return (NO_CONTACT if ok else STALE), ia.shape[0], 0, 0, 0, det, look, rows_i, rows_f, body_a, body_b, \
+            normal, f3, f1, flags, wv, aux, idx, out
     rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kept = pair_kernels.kept_contacts(
         which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, use_sphere, use_obb, pos,
         R, det, reach, floor, plane_det, counters, False, np.empty(2))
@@ -212,12 +213,12 @@ def _detect_substep(moving, caps, cap, plane, fin, centre, half, planes, plane_n
     point, depth = np.ascontiguousarray(rows_f[:, 0:3]), np.ascontiguousarray(rows_f[:, 6])
     look_dt, look_base = (t, margin) if look else (0.0, 0.0)
     f3, f1, flags, wv, aux, idx, out = _substep(
-        body_a, body_b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
-        inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle,
-        restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule, kinetic, a0,
-        b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, True, margin, speculative,
-        toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta, split_max_speed,
-        method, direct_max, max_iterations, tolerance)
+        body_a, body_b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q,
+        moments, inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass,
+        particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule,
+        kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, True, margin,
+        speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta,
+        split_max_speed, method, direct_max, max_iterations, tolerance)
     return DONE, ia.shape[0], kept, pairs, unsupported, det, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, \
         flags, wv, aux, idx, out
 
