@@ -61,7 +61,8 @@ def scenes(cs):
             "resting_10": engine(lambda: br.resting_scene(10)), "resting_100": engine(lambda: br.resting_scene(100)),
             "stack_10": engine(br.stack_scene), "rod": engine(lambda: br.rotation_scene((1.0, 0.05, 0.05))),
             "default_scene": cs.load_scene(os.path.join(ROOT, "config", "scenes", "default.yaml")),
-            "pile_fractional": bv.tumbling_pile(cs, "fractional"), "sweeper_30": sweeper(cs)}
+            "pile_fractional": bv.tumbling_pile(cs, "fractional"), "sweeper_30": sweeper(cs),
+            "pile_1000": engine(br.pile_scene)}
 
 
 def sweeper(cs, n=30):

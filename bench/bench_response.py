@@ -72,10 +72,10 @@ The scenes, exactly:
 5. ``resting_10`` and ``resting_100``: 10 (100) bodies on the plane z = 0, alternately spheres
    (r 0.1 m) and boxes (0.2 m cubes), 1 kg each, on a square grid 0.5 m apart (4×4 and 10×10
    cells, row-major), resting at z = 0.1; μ 0.5, e 0, dt 0.01. Settled for 1 s (untimed), then
-   60 rounds of one block of 100 steps per engine. For contact_sim also the split: detection
-   (the block's last state detected once more, untimed inside the block: ``detect_seconds``,
-   median; a step runs its detection in the same compiled call as the sub-step's stages, which
-   time only together) and the rest of the step (``step_ms`` − detection).
+   60 rounds of one block of 100 steps per engine. For contact_sim also its detection run alone
+   (``detect_ms``: the block's last state detected once more after the block, ``detect_seconds``,
+   median). It is no share of the step: a step runs its detection inside the sub-step's compiled
+   call, without the Python a detection alone pays (``bench/step_anatomy.py`` splits the step).
 6. ``rotation``: a 1 × 0.05 × 0.05 m rod of 1 kg spinning end over end (ω = 7 rad/s about the
    world y axis, a transverse principal axis) in free flight, no gravity, dt 1/60; and a 0.2 m
    cube of 1 kg with the same spin. contact_sim only, the two taking turns: 40 rounds of blocks
@@ -127,7 +127,7 @@ def detect_seconds(world):
 
 
 FIELDS = ["scene", "engine", "bodies", "dt", "steps", "repeats", "block", "wall_s_per_sim_s", "step_ms", "detect_ms",
-          "rest_ms", "ratio", "ratio_meaning", "ratio_of_medians", "ratio_of_totals", "target", "max_penetration_mm",
+          "ratio", "ratio_meaning", "ratio_of_medians", "ratio_of_totals", "target", "max_penetration_mm",
           "escaped", "top_drift_mm", "apex_m", "contacts_per_step", "solver_iterations", "load_1min", "settings"]
 # the step-time targets: contact_sim's p50 step time ÷ the peer's, at most
 TARGETS = {("ball_1", "pybullet"): 3.0, ("spheres_10", "pybullet"): 2.0, ("resting_10", "pybullet"): 2.0,
@@ -281,7 +281,7 @@ def cs_stats(e, row):
 
 def timing(turns, name, row, sim_seconds=None):
     """The row's times from its blocks: ``step_ms`` the median block's time per step (p50),
-    ``wall_s_per_sim_s`` the whole run's (runs only), contact_sim's detection split."""
+    ``wall_s_per_sim_s`` the whole run's (runs only), contact_sim's detection run alone."""
     t = np.array(turns.per_step[name])
     row["step_ms"] = 1e3 * float(np.median(t))
     if sim_seconds:
@@ -289,7 +289,6 @@ def timing(turns, name, row, sim_seconds=None):
     d = np.array(turns.detect[name])
     if d.size and np.isfinite(d).any():
         row["detect_ms"] = 1e3 * float(np.nanmedian(d))
-        row["rest_ms"] = row["step_ms"] - row["detect_ms"]
 
 
 def add_ratios(rows, turns):
@@ -439,14 +438,14 @@ def fmt(x, spec):
 
 def print_table(rows):
     head = (f"{'scene':<18} {'engine':<12} {'s/sim s':>8} {'step ms':>8} {'ratio':>8}  {'meaning':<22} "
-            f"{'pen mm':>9} {'escaped':>7} {'drift mm':>9} {'detect ms':>9} {'rest ms':>8} {'contacts':>8} {'iters':>6}")
+            f"{'pen mm':>9} {'escaped':>7} {'drift mm':>9} {'detect ms':>9} {'contacts':>8} {'iters':>6}")
     print("\n" + head + "\n" + "-" * len(head))
     for r in rows:
         print(f"{r['scene']:<18} {r['engine']:<12} {fmt(r.get('wall_s_per_sim_s'), '8.3f'):>8} "
               f"{fmt(r.get('step_ms'), '8.3f'):>8} {fmt(r.get('ratio'), '8.2f'):>8}  {r.get('ratio_meaning', ''):<22} "
               f"{fmt(r.get('max_penetration_mm'), '9.3g'):>9} {fmt(r.get('escaped'), 'd'):>7} "
               f"{fmt(r.get('top_drift_mm'), '9.3g'):>9} {fmt(r.get('detect_ms'), '9.3f'):>9} "
-              f"{fmt(r.get('rest_ms'), '8.3f'):>8} {fmt(r.get('contacts_per_step'), '8.0f'):>8} "
+              f"{fmt(r.get('contacts_per_step'), '8.0f'):>8} "
               f"{fmt(r.get('solver_iterations'), '6.1f'):>6}")
     print("\nsettings:")
     scenes = {}
