@@ -25,7 +25,9 @@ calls (step, set_pose, set_state, reset, detect, collide). Invariants:
 * a body resting on a static plane is not below it by more than the contact margin;
 * a block on a slope with friction above the slope's tangent stays put;
 * e = 1 keeps the energy under every time-of-impact option (next_step, fractional, swept, auto);
-* the same inputs give bit-identical results.
+* the same inputs give bit-identical results;
+* detection in the sub-step's compiled call (``substep.run_detected``) gives bit-identical results
+  to detection in Python.
 
 The quick profile runs in ``make test``; ``-m fuzz`` runs the long profile (CI runs it too, with
 the same examples every time). ``make fuzz-random N=…`` runs it with fresh draws and saves every
@@ -33,6 +35,7 @@ failing example as a case (``test/fuzz_random.py``); the cases in ``test/cases/`
 in every run (``test_saved_case``), each with what it found in its ``found`` line.
 """
 import contextlib
+import dataclasses
 import glob
 import hashlib
 import os
@@ -48,7 +51,7 @@ from hypothesis import strategies as st
 import contact_sim as cs
 from contact_sim import quat
 from contact_sim.collision import detect_world
-from contact_sim.response import ContactModelWarning, MassRatioWarning, choose, prepare
+from contact_sim.response import ContactModelWarning, MassRatioWarning, choose, prepare, substep
 from scenegen import REPO, calls, scenes
 
 # derandomized: CI sees the same examples every run (a red CI is a regression, not a new draw);
@@ -456,6 +459,44 @@ def check_deterministic(world, case):
         np.testing.assert_array_equal(getattr(runs[0], name), getattr(runs[1], name))
 
 
+def draw_one_call_detection(data):
+    """Scenes stepped without exact times of impact (``next_step``), whose sub-steps can run their
+    detection in the sub-step's compiled call, with API calls between the steps."""
+    world, info = data.draw(scenes(max_bodies=8, responses=("impulse", "kinematic"), tois=("next_step",)))
+    seq = data.draw(calls(world.body_names, info["kinematic"], n=8, joints=info["joints"]))
+    return world, _case("one_call_detection", info, seq)
+
+
+def check_one_call_detection(world, case):
+    """Detection in the sub-step's compiled call (``substep.run_detected``) leaves exactly what
+    detection in Python then the sub-step's call leave: the state and the last step's contacts,
+    to the bit."""
+    runs = []
+    for in_call in (True, False):
+        world.reset()
+        world._derived = {}
+        with _detection_in_python(not in_call):
+            run_calls(world, case["info"], case["calls"])
+        runs.append((world.s.copy(), world.contacts))
+    (sa, ca), (sb, cb) = runs
+    for name in sa.NAMES:
+        np.testing.assert_array_equal(getattr(sa, name), getattr(sb, name), err_msg=name)
+    for f in dataclasses.fields(ca):
+        np.testing.assert_array_equal(getattr(ca, f.name), getattr(cb, f.name), err_msg="contacts." + f.name)
+
+
+@contextlib.contextmanager
+def _detection_in_python(on):
+    """With ``on``, every sub-step detects in Python (``substep.run_detected`` declines)."""
+    real = substep.run_detected
+    if on:
+        substep.run_detected = lambda ctx: False
+    try:
+        yield
+    finally:
+        substep.run_detected = real
+
+
 def _case(prop, info, seq=None):
     """The case of a drawn scene: the property, the scene mapping, what the invariants read of
     ``info`` and the call sequence (lists, as YAML keeps them)."""
@@ -472,7 +513,8 @@ PROPERTIES = {"call_sequences": (draw_call_sequences, check_call_sequences),
               "resting_on_planes": (draw_resting_on_planes, check_resting_on_planes),
               "friction_holds_on_slopes": (draw_friction_holds_on_slopes, check_friction_holds_on_slopes),
               "elastic_keeps_energy": (draw_elastic_keeps_energy, check_elastic_keeps_energy),
-              "deterministic": (draw_deterministic, check_deterministic)}
+              "deterministic": (draw_deterministic, check_deterministic),
+              "one_call_detection": (draw_one_call_detection, check_one_call_detection)}
 
 
 # ---------------------------------------------------------------------------- saved cases
