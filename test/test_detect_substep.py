@@ -3,8 +3,6 @@ broad phase's pair cache holds, the look-ahead, broad phase, bounding volumes, n
 sub-step's stages run as one call. It must leave exactly what detection in Python followed by
 ``substep.run`` leaves (state, contacts, statistics, contact cache, time), and decline, with the
 world unchanged, what it does not cover."""
-import dataclasses
-
 import numpy as np
 import pytest
 import trimesh
@@ -14,8 +12,8 @@ from contact_sim.response import substep
 from contact_sim.response.context import StepContext
 from contact_sim.response import models
 
-from test_flight import _tumbling
-from test_substep import _pile, _same_step
+from test_flight import _tumbling, step_diff
+from test_substep import _pile
 
 
 def _resting(speculative=True, bounding_volume="auto"):
@@ -57,12 +55,6 @@ def _squeeze():
     return w
 
 
-def _detection(w):
-    d = dataclasses.asdict(w.last_detection)
-    d.pop("seconds")
-    return d
-
-
 def _both_ways(make, steps, monkeypatch):
     """Step a scene as a step does and a copy with detection always in Python, comparing every
     step; returns the first world and how many of its sub-steps ``run_detected`` took."""
@@ -73,10 +65,7 @@ def _both_ways(make, steps, monkeypatch):
         taken += _calls(wa, real, monkeypatch)
         monkeypatch.setattr(substep, "run_detected", lambda ctx: False)
         wb.step()
-        diff = _same_step(wa, wb)
-        diff += ["stepped"] if not np.array_equal(wa.s.stepped, wb.s.stepped) else []
-        diff += ["time"] if wa.time != wb.time else []
-        diff += ["last_detection"] if _detection(wa) != _detection(wb) else []
+        diff = step_diff(wa, wb)
         assert not diff, f"step {i}: {diff}"
     monkeypatch.setattr(substep, "run_detected", real)
     return wa, taken
@@ -144,7 +133,7 @@ def test_jaws_posed_every_other_step_squeeze_a_cube_bit_for_bit(monkeypatch):
         monkeypatch.setattr(substep, "run_detected", lambda ctx: False)
         wb.step()
         work.append(wa.last_solve.pose_work)
-        diff = _same_step(wa, wb) + (["last_detection"] if _detection(wa) != _detection(wb) else [])
+        diff = step_diff(wa, wb)
         assert not diff, f"step {i}: {diff}"
     monkeypatch.setattr(substep, "run_detected", real)
     assert 25 <= taken <= 30   # the steps without a pose, but those that rebuilt the pair cache

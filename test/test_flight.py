@@ -52,6 +52,17 @@ def _detection(w):
     return d
 
 
+def step_diff(wa, wb):
+    """What differs between two worlds after a step: ``_same_step``'s (state, contacts, statistics,
+    contact cache), where the step left the bodies, the time, the detection's statistics (all but
+    their seconds)."""
+    diff = _same_step(wa, wb)
+    diff += ["stepped"] if not np.array_equal(wa.s.stepped, wb.s.stepped) else []
+    diff += ["time"] if wa.time != wb.time else []
+    diff += ["last_detection"] if _detection(wa) != _detection(wb) else []
+    return diff
+
+
 def _both_ways(make, steps, monkeypatch):
     """Step a scene with the flight and a copy through the whole pipeline only, comparing every
     step; returns how many steps the flight took."""
@@ -70,10 +81,7 @@ def _both_ways(make, steps, monkeypatch):
         wa.step()
         monkeypatch.setattr(stepper, "flight", lambda w, dt: models.choose(w, dt))
         wb.step()
-        diff = _same_step(wa, wb)
-        diff += ["stepped"] if not np.array_equal(wa.s.stepped, wb.s.stepped) else []
-        diff += ["time"] if wa.time != wb.time else []
-        diff += ["last_detection"] if _detection(wa) != _detection(wb) else []
+        diff = step_diff(wa, wb)
         assert not diff, f"step {i}: {diff}"
     return wa, flown
 
