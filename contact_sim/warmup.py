@@ -1,8 +1,9 @@
 """Compile (or load from the cache) every compiled kernel once: ``python -m contact_sim.warmup``.
 
 numba compiles a kernel the first time it runs and caches the machine code beside the source, so
-the first run after an install pays the compile time (about 40 s for the detection kernels on a
-2-core machine) and every later process loads them in about a second. ``make venv`` and a colcon
+the first run after an install pays the compile time (about ten minutes for all of them on this
+project's 2-core machine, two of them for the one-call sub-step, ``response.substep.run_detected``)
+and every later process loads them in seconds. ``make venv`` and a colcon
 build run this once, so neither a user's first scene nor the node's first ticks stall on it.
 Without numba (or with ``NUMBA_DISABLE_JIT=1``) it only runs the queries.
 """
