@@ -199,3 +199,18 @@ def test_the_step_detection_statistics_say_the_call_timed_detection_and_stages_t
     assert set(d.seconds) == {"total"} and d.seconds["total"] > 0
     assert d.candidate_pairs >= d.colliding_pairs > 0 and d.contacts >= d.colliding_pairs
     assert d.edge_face_hits is None   # a step's detection takes no edge–face census
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("make", [_resting, _on_a_mesh, _squeeze, lambda: _pile(0)])
+def test_the_call_takes_the_same_array_layouts_in_every_world(make):
+    """The per-body columns the call reads from the shape table are C-ordered copies in every world
+    (as column views their layout followed the table's width and row count, and each new layout
+    cost the call a compile of about two minutes: a test with a 20 s budget timed out on one)."""
+    from contact_sim.collision import _bodies_of
+
+    w = make()
+    w.step()
+    b = _bodies_of(w)
+    for name in ("aabb_c", "aabb_h", "plane_n", "plane_d", "finite", "planes", "shape_of", "rank"):
+        assert getattr(b, name).flags.c_contiguous, name

@@ -102,9 +102,11 @@ class _Bodies:
         self.is_plane = self.rank == 0
         self.planes = np.flatnonzero(self.is_plane)
         self.finite = np.flatnonzero(~self.is_plane)
-        self.aabb_c = sf[:, SF_BOX:SF_BOX + 3]
-        self.aabb_h = sf[:, SF_BOX + 3:SF_BOX + 6]
-        self.plane_n, self.plane_d = sf[:, SF_PLANE:SF_PLANE + 3], sf[:, SF_PLANE + 3]
+        # contiguous copies of the table's columns: the kernels that read them take C-ordered
+        # arrays whatever the table's width (one compiled signature, not one per layout)
+        cc = np.ascontiguousarray
+        self.aabb_c, self.aabb_h = cc(sf[:, SF_BOX:SF_BOX + 3]), cc(sf[:, SF_BOX + 3:SF_BOX + 6])
+        self.plane_n, self.plane_d = cc(sf[:, SF_PLANE:SF_PLANE + 3]), cc(sf[:, SF_PLANE + 3])
         self.pair_cache = broadphase.PairCache()   # broad-phase pairs carried across steps
         self.shapes = shapes
         self._narrow_args = None   # the narrow phase's fixed leading arguments (narrow_args)
