@@ -57,7 +57,7 @@ def run(ctx, whole):
     ``ctx`` holds what the step's end reads. Otherwise the bodies have their velocities after the
     impacts, ``ctx.touching``, ``ctx.rest_mask``, ``ctx.dv_rest`` say what the time-of-impact
     search needs, and ``finish`` completes the sub-step."""
-    world, m = ctx.world, ctx.models
+    world = ctx.world
     c = ctx.contacts
     k = len(c)
     if not k:   # free flight: the stages have nothing to do, the advance is free motion
@@ -68,28 +68,37 @@ def run(ctx, whole):
         else:
             ctx.touching = np.zeros(0, bool)
         return
-    s = world.s
     cc = np.ascontiguousarray
+    look = ctx.look_ahead
+    head, tail, ctx.pos0 = _stage_args(ctx, ctx.R)
+    f3, f1, flags, wv, aux, idx, out = _substep(
+        cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+        cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
+        *(look if look is not None else _NO_LOOK), *head, whole, *tail)
+    _take(ctx, whole, f3, f1, flags, wv, aux, idx, out)
+
+
+def _stage_args(ctx, R):
+    """The arguments of ``_substep`` (and of ``_detect_substep`` after detection's) for the
+    sub-step of ``ctx`` with the rotation matrices ``R (N,3,3)``: ``head`` (``g`` to ``resting``)
+    and ``tail`` (``margin`` on), on either side of ``whole``; and the bodies' centres at the
+    sub-step's start when a body is kinematic, else None."""
+    world, m = ctx.world, ctx.models
+    s = world.s
     # the warm-start cache's columns are of the kernel's types (int64, float64, C order) as it
-    # stores them (this function, ``ContactCache.remap``): handed as they are
+    # stores them (``_take``, ``ContactCache.remap``): handed as they are
     old = world.contact_cache.warm
     has_old = old is not None and len(old[0]) > 0
     if not has_old:
         old = _NO_OLD
-    look = ctx.look_ahead
     lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(ctx)
+    head = (*lead, s.pos, s.vel, s.quat, s.omega, *inertia,
+            prepare.inv_inertia(world, m, R) if inertia_w is None else inertia_w, R, *materials, *old, has_old,
+            extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting)
     # the kinematic bodies' work is taken where the contact points are, at the sub-step's start:
     # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
     # missed at the end)
-    ctx.pos0 = s.pos.copy() if any_kinematic else None
-    f3, f1, flags, wv, aux, idx, out = _substep(
-        cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
-        cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
-        *(look if look is not None else _NO_LOOK), *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
-        prepare.inv_inertia(world, m, ctx.R) if inertia_w is None else inertia_w, ctx.R, *materials, *old,
-        has_old, extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, whole,
-        *solve[1:])
-    _take(ctx, whole, f3, f1, flags, wv, aux, idx, out)
+    return head, solve[1:], (s.pos.copy() if any_kinematic else None)
 
 
 def run_detected(ctx):
@@ -117,29 +126,21 @@ def run_detected(ctx):
     s = world.s
     R = np.empty((bodies.n, 3, 3))
     rotations(s.quat, R)
-    old = world.contact_cache.warm
-    has_old = old is not None and len(old[0]) > 0
-    if not has_old:
-        old = _NO_OLD
-    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(ctx)
+    head, tail, pos0 = _stage_args(ctx, R)
     facts = prepare._margin_facts(world)[1:] if ctx.speculative else _NO_FACTS
     bv = st.bounding_volume
     counters = np.zeros(2, np.int64)
-    pos0 = s.pos.copy() if any_kinematic else None
     status, candidates, kept, pairs, unsupported, margin, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, \
         flags, wv, aux, idx, out = _detect_substep(
             *facts, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d,
             cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, world.group, world.mask,
             disabled_keys(world) if world.disabled_pairs else _NO_KEYS, *bodies.narrow_args(), bv != "obb",
-            bv != "sphere", counters, *lead, s.pos, s.vel, s.quat, s.omega, *inertia,
-            prepare.inv_inertia(world, m, R) if inertia_w is None else inertia_w, R, *materials, *old, has_old,
-            extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting, *solve[1:])
+            bv != "sphere", counters, *head, *tail)
     if status == STALE:
         return False
     cache.reuses += 1
     ctx.R, ctx.pos0 = R, pos0
-    base = solve[1]
-    ctx.look_ahead = (ctx.t_left, base) if look else None
+    ctx.look_ahead = (ctx.t_left, tail[0]) if look else None   # tail[0]: the contact margin
     ctx.touching = ctx.rest_mask = ctx.dv_rest = None
     ctx.contacts = c = contacts_of_rows(rows_i, rows_f, body_a, body_b, normal)
     n_settled, n_edge_face = counters.tolist()
