@@ -66,3 +66,40 @@ def test_detection_keeps_no_reference_to_discarded_worlds():
     del w
     gc.collect()
     assert all(r() is None for r in refs)  # the cached shape arrays went with the world
+
+
+
+ID = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("tb", ["sphere", "box", "convex"])
+@pytest.mark.parametrize("offset", [1.79e-162, 1e-200, 5e-324])
+def test_unit_normals_when_the_centres_differ_below_the_square_roots_range(tb, offset):
+    """A sphere whose centre is ``offset`` (m) from another body's centre, so small that its square
+    underflows: 1.79e-162² is below the smallest double, and ``d / sqrt(d · d)`` was 0.806 long
+    (fresh draws, seed 20261220, sphere–sphere). The normal is of unit length, and between two
+    spheres along the offset, with the coincident pose's depth."""
+    for axis in range(3):
+        pa = np.zeros(3)
+        pa[axis] = offset
+        c = cs.collide(cs.Sphere(0.0188), (pa, ID), SHAPES[tb], (np.zeros(3), ID))
+        assert len(c)
+        np.testing.assert_allclose(np.linalg.norm(c.normal, axis=1), 1.0, rtol=0, atol=1e-15)
+        if tb == "sphere":
+            np.testing.assert_array_equal(c.normal[0], np.eye(3)[axis])   # B → A: along A's offset
+            np.testing.assert_allclose(c.depth[0], 0.0188 + 0.3, rtol=1e-15)
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("offset", [1.79e-162, 1e-200, 5e-324])
+def test_unit_normal_of_a_sphere_outside_a_face_through_the_origin_by_less_than_the_square_roots_range(offset):
+    """A convex block whose face lies on x = 0 in world coordinates, and a sphere whose centre is
+    outside that face by ``offset``: the centre-to-surface difference is ``offset`` itself, its
+    square underflows, and the normal is the face's, of unit length."""
+    block = cs.Convex(np.array([[x, y, z] for x in (-0.6, 0.0) for y in (-0.2, 0.2) for z in (-0.15, 0.15)]))
+    c = cs.collide(block, (np.zeros(3), ID), cs.Sphere(0.05), (np.array([offset, 0.01, 0.02]), ID))
+    assert len(c) == 1
+    np.testing.assert_allclose(np.linalg.norm(c.normal, axis=1), 1.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(c.normal[0], [-1.0, 0.0, 0.0], atol=1e-15)   # B → A
+    np.testing.assert_allclose(c.depth[0], 0.05, rtol=0, atol=1e-15)   # the closest point to round-off of 0.6 m

@@ -9,12 +9,13 @@ two surfaces along the normal (so swapping A and B keeps it).
 """
 import numpy as np
 
+from ..constants import TOUCH_TOLERANCE
 from ..contacts import FID_PLANE, FID_POINT, fid
 from ..jit import njit
-from .geometry import SF_HALF, SF_PLANE, SF_RADIUS, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
+from .geometry import SF_HALF, SF_PLANE, SF_RADIUS, SF_SCALE, SI_NP, SI_NT, SI_NV, SI_P0, SI_T0, \
     SI_V0
 from .manifold import F_PLANE, F_SPHERE, put, put3, reduce4
-from .vec3 import col_max, closest_on_triangle, dot, mtv, mv, transform_rows
+from .vec3 import col_max, closest_on_triangle, dot, mtv, mv, transform_rows, unit3
 
 
 @njit
@@ -80,8 +81,9 @@ def sphere_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a,
         margin = margins[i]   # the pair's own margin (its bodies' speeds: prepare.speculative_reach)
         ra, rb = sf[shape_of[a[i]], SF_RADIUS], sf[shape_of[b[i]], SF_RADIUS]
         dx, dy, dz = pos[a[i], 0] - pos[b[i], 0], pos[a[i], 1] - pos[b[i], 1], pos[a[i], 2] - pos[b[i], 2]
-        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
-        nx, ny, nz = (dx / dist, dy / dist, dz / dist) if dist > 1e-300 else (0.0, 0.0, 1.0)
+        nx, ny, nz, dist = unit3(dx, dy, dz)
+        if dist == 0.0:
+            nx, ny, nz = 0.0, 0.0, 1.0
         k = sphere_row3(out_i, out_f, k, i, dist - ra - rb, nx, ny, nz, pos[b[i]], rb, margin)
     return k
 
@@ -204,6 +206,8 @@ def poly_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, a, b
         fn = mv(Ra, planes[p0 + fp, :3])
         inside = m <= 0
         sep = (m if inside else dist) - rb
-        normal = -fn if (inside or dist <= 1e-300) else (qb - cb) / dist
+        # touching (outside by round-off): the difference's direction is noise, the face's is not
+        touching = dist <= TOUCH_TOLERANCE * min(sf[sa, SF_SCALE], rb)
+        normal = -fn if (inside or touching) else (qb - cb) / dist
         k = sphere_row(out_i, out_f, k, i, sep, normal, cb, rb, margin)
     return k

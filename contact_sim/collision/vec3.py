@@ -51,6 +51,30 @@ def norm(a):
     return np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
+# the smallest square the plain ``sqrt(x² + y² + z²)`` keeps to full precision: below the
+# normal doubles (2.2e-308) a square loses bits, and below 4.9e-324 it is 0
+_NORMAL_SQUARE = 1e-290
+
+
+@njit
+def unit3(x, y, z):
+    """``(x, y, z) / |(x, y, z)|`` and the length, of unit length for every non-zero vector:
+    components below ~1e-154 square to less than the normal doubles (1.79e-162 squares to 0, or
+    to a denormal), so such a vector is first divided by its largest component. The zero vector
+    gives ``(0, 0, 0, 0)``; a caller picks its own direction then. Above that range this is
+    the plain formula, to the bit."""
+    d2 = x * x + y * y + z * z
+    if d2 >= _NORMAL_SQUARE:
+        length = np.sqrt(d2)
+        return x / length, y / length, z / length, length
+    m = max(abs(x), abs(y), abs(z))
+    if m == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    x, y, z = x / m, y / m, z / m
+    length = np.sqrt(x * x + y * y + z * z)
+    return x / length, y / length, z / length, m * length
+
+
 @njit
 def closest_on_triangle(px, py, pz, V, ia, ib, ic):
     """Closest point ``(x, y, z)`` on the triangle of rows ``ia, ib, ic`` of ``V (n, 3)`` to ``p``
