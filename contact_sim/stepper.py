@@ -187,12 +187,9 @@ def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, 
     boxes = work[24 * n:24 * n + 6 * m].reshape((2, m, 3))
     margin, plane_margin = base, base
     if speculative:
-        vmax, free = prepare._reach(vel, omega, ext, moving, caps, dt, reach)
-        if vmax >= 0.0:
-            look = max(base, min(2.0 * vmax * dt + g, cap))
-            if look > base:   # else no speculative contact: every pair takes the contact margin
-                margin = look
-                plane_margin = max(look, (base + g) + free) if plane else look
+        look, plane_look, _ = prepare.look_ahead(vel, omega, ext, moving, caps, cap, plane, base, g, dt, reach)
+        if look > base:   # else no speculative contact: every pair takes the contact margin
+            margin, plane_margin = look, plane_look
     if pairs:
         rotations(quat, R)
         count = broadphase.cached_keys(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,

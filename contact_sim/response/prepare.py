@@ -216,16 +216,25 @@ def speculative_reach(world, dt):
     body, at least ``settings.contact_margin``; ``plane_margin`` the planes': at least ``floor``
     plus the farthest a finite body's points move (``margin`` in a world without a plane)."""
     s = world.s
-    base = world.settings.contact_margin
     ext, moving, caps, cap, plane = _margin_facts(world)
     reach = np.empty((2, len(s.vel)))
-    vmax, free = _reach(s.vel, s.omega, ext, moving, caps, dt, reach)
-    g = world.gravity_norm() * dt * dt
+    margin, plane_margin, floor = look_ahead(s.vel, s.omega, ext, moving, caps, cap, plane,
+                                             world.settings.contact_margin, world.gravity_norm() * dt * dt, dt, reach)
+    return margin, reach, floor, plane_margin
+
+
+@njit(_nrt=False)
+def look_ahead(vel, omega, ext, moving, caps, cap, plane, base, g, dt, reach):
+    """``speculative_reach``'s rule, for it and for the compiled steps that detect in their own
+    call (``stepper._flight``, ``substep._detect_substep``): with ``_margin_facts``' ``ext, moving,
+    caps (N,), cap, plane``, the contact margin ``base`` (m) and ``g = |g| dt²`` (m), each body's
+    reach into ``reach (2,N)`` (``_reach``); returns ``(margin, plane_margin, floor)`` (m)."""
+    vmax, free = _reach(vel, omega, ext, moving, caps, dt, reach)
     floor = base + g
     if vmax < 0:   # nothing moves
-        return base, reach, floor, base
+        return base, base, floor
     margin = max(base, min(2.0 * vmax * dt + g, cap))
-    return margin, reach, floor, (max(margin, floor + free) if plane else margin)
+    return margin, (max(margin, floor + free) if plane else margin), floor
 
 
 @njit(_nrt=False)

@@ -187,12 +187,8 @@ def _detect_substep(moving, caps, cap, plane, fin, centre, half, planes, plane_n
     det, plane_det, floor = margin, margin, 0.0
     reach = np.empty((2, n if speculative else 0))
     if speculative:   # prepare.speculative_reach over t
-        vmax, free = prepare._reach(vel, omega, ext, moving, caps, t, reach)
-        gt = g * t * t
-        floor = margin + gt
-        if vmax >= 0.0:
-            det = max(margin, min(2.0 * vmax * t + gt, cap))
-            plane_det = max(det, floor + free) if plane else det
+        det, plane_det, floor = prepare.look_ahead(vel, omega, ext, moving, caps, cap, plane, margin, g * t * t, t,
+                                                   reach)
     look = det > margin
     if not look:   # no speculative contact: every pair takes the contact margin
         reach, plane_det = np.empty((2, 0)), det
