@@ -233,3 +233,19 @@ def test_cylinder_kernels_are_there_whatever_kernel_module_was_imported_first(re
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=repo, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split()[-1] == "4"
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("offset", [1.79e-162, 1e-200, 5e-324])
+def test_sphere_centre_off_the_axis_below_the_square_roots_range_leaves_by_the_side_along_the_offset(offset):
+    """A sphere's centre inside a long cylinder, ``offset`` (m) off its axis: ``x² + y²``
+    underflows (1.79e-162 squares below the smallest double), and the radial direction was
+    ``x / sqrt(x²)`` = 0.806 long. It is the unit offset direction, and the depth the side's."""
+    for axis in range(2):
+        p = np.zeros(3)
+        p[axis] = offset
+        c = cs.collide(cs.Cylinder(0.1, 2.0), (np.zeros(3), (0.0, 0.0, 0.0, 1.0)), cs.Sphere(0.02),
+                       (p, (0.0, 0.0, 0.0, 1.0)))
+        assert len(c) == 1
+        np.testing.assert_array_equal(c.normal[0], -np.eye(3)[axis])   # B → A: into the cylinder
+        np.testing.assert_allclose(c.depth[0], 0.1 + 0.02, rtol=1e-15)

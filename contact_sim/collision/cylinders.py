@@ -12,7 +12,7 @@ from ..jit import njit
 from .geometry import SF_HALF, SF_RADIUS
 from ..constants import TOUCH_TOLERANCE
 from .primitives import plane_contacts, plane_world, sphere_row
-from .vec3 import mv
+from .vec3 import mv, unit3
 
 
 @njit
@@ -68,8 +68,9 @@ def cylinder_sphere(sf, si, verts, planes, faces, loops, edges, tris, shape_of, 
         x = Ra[0, 0] * d[0] + Ra[1, 0] * d[1] + Ra[2, 0] * d[2]   # the centre in the cylinder's frame
         y = Ra[0, 1] * d[0] + Ra[1, 1] * d[1] + Ra[2, 1] * d[2]
         z = Ra[0, 2] * d[0] + Ra[1, 2] * d[1] + Ra[2, 2] * d[2]
-        rho = np.sqrt(x * x + y * y)
-        ex, ey = (x / rho, y / rho) if rho > 1e-300 else (1.0, 0.0)
+        ex, ey, _, rho = unit3(x, y, 0.0)   # the radial direction, of unit length however close to the axis
+        if rho == 0.0:
+            ex, ey = 1.0, 0.0
         if rho <= r and abs(z) <= hh:   # inside: leave by the nearest surface
             side, cap = r - rho, hh - abs(z)
             if side < cap:
