@@ -103,3 +103,43 @@ def test_unit_normal_of_a_sphere_outside_a_face_through_the_origin_by_less_than_
     np.testing.assert_allclose(np.linalg.norm(c.normal, axis=1), 1.0, rtol=0, atol=1e-15)
     np.testing.assert_allclose(c.normal[0], [-1.0, 0.0, 0.0], atol=1e-15)   # B → A
     np.testing.assert_allclose(c.depth[0], 0.05, rtol=0, atol=1e-15)   # the closest point to round-off of 0.6 m
+
+
+def _every_shape():
+    import trimesh
+
+    box = trimesh.creation.box((0.6, 0.4, 0.3))
+    return dict(SHAPES, plane=cs.Plane(), cylinder=cs.Cylinder(0.2, 0.5), mesh=cs.TriMesh(box.vertices, box.faces))
+
+
+@pytest.mark.exact
+def test_every_pair_gives_unit_normals_for_offsets_whose_squares_underflow():
+    """Every pair of shape types with A's centre ``offset`` from B's (along the axes and a diagonal,
+    offsets down to the smallest double), and a sphere just outside a face that lies on a world
+    coordinate plane: every contact finite, its normal of unit length. Squares of such offsets are
+    below the normal doubles, so a normal formed as ``d / sqrt(d · d)`` comes out of any length."""
+    shapes = _every_shape()
+    dirs = [np.eye(3)[0], np.eye(3)[1], np.eye(3)[2], np.array([1.0, -1.0, 1.0])]
+    checked = 0
+    for ta, a in shapes.items():
+        for tb, b in shapes.items():
+            if ta == tb == "plane":
+                continue
+            for offset in (1.79e-162, 1e-200, 5e-324, 0.0):
+                for d in dirs:
+                    c = cs.collide(a, (d * offset, ID), b, (np.zeros(3), ID))
+                    checked += len(c)
+                    assert np.isfinite(c.point).all() and np.isfinite(c.depth).all(), (ta, tb, offset, d)
+                    np.testing.assert_allclose(np.linalg.norm(c.normal, axis=1), 1.0, rtol=0, atol=1e-12,
+                                               err_msg=f"{ta} against {tb}, offset {offset} along {d}")
+    # a sphere outside B's +x face (on x = 0) by the offset: the centre-to-surface difference is it
+    block = cs.Convex(np.array([[x, y, z] for x in (-0.6, 0.0) for y in (-0.2, 0.2) for z in (-0.15, 0.15)]))
+    for tb, b, at in (("box", shapes["box"], -0.3), ("convex", block, 0.0), ("cylinder", shapes["cylinder"], -0.2),
+                      ("mesh", shapes["mesh"], -0.3)):
+        for offset in (1.79e-162, 1e-200, 5e-324):
+            c = cs.collide(cs.Sphere(0.05), (np.array([offset, 0.0, 0.02]), ID), b, (np.array([at, 0.0, 0.0]), ID))
+            assert len(c)
+            checked += len(c)
+            np.testing.assert_allclose(np.linalg.norm(c.normal, axis=1), 1.0, rtol=0, atol=1e-12, err_msg=tb)
+            np.testing.assert_allclose(c.normal[np.argmax(c.depth)], [1.0, 0.0, 0.0], atol=1e-9, err_msg=tb)
+    assert checked > 500
