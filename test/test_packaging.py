@@ -80,8 +80,8 @@ def test_ci_runs_the_readme_test_command(repo):
 def test_colcon_build_and_test_in_a_workspace(repo, tmp_path):
     """A colcon build, test and install run as a ROS user runs them, without the JIT: the install's
     hook (setup.py ``InstallAndCompile``) runs ``contact_sim.warmup`` and the node's on the
-    installed copy, and with numba compiling they took ~12 of the suite's 18 minutes on this 2-core
-    machine, compiling again what the rest of the suite runs compiled. Here the hook, the
+    installed copy, which with numba compiles every kernel again into the install's own cache
+    (~12 minutes on a 2-core machine) for code the rest of the suite runs compiled. Here the hook, the
     package's own test and the installed node run the same source interpreted
     (``NUMBA_DISABLE_JIT=1``, a supported mode: CI reruns the exact tests that way)."""
     colcon = shutil.which("colcon", path=os.path.dirname(sys.executable))
