@@ -214,3 +214,38 @@ def test_the_call_takes_the_same_array_layouts_in_every_world(make):
     b = _bodies_of(w)
     for name in ("aabb_c", "aabb_h", "plane_n", "plane_d", "finite", "planes", "shape_of", "rank"):
         assert getattr(b, name).flags.c_contiguous, name
+
+
+@pytest.mark.exact
+def test_the_step_model_is_built_once_and_rebuilt_for_what_the_scene_changes(monkeypatch):
+    """``StepModel`` (what the scene fixes, one compiled argument) is the same object from step to
+    step while nothing changes, and a new one after each change of what it holds (a setting, gravity,
+    the contact margin, friction off); the disabled pairs are the call's own argument, not the
+    model's. The steps after each change still match detection in Python bit for bit, so the call
+    read the new values."""
+    wa, wb = _resting(), _resting()
+    real = substep.run_detected
+    changes = {10: lambda w: setattr(w.settings, "solver_method", "gs"),
+               20: lambda w: setattr(w, "gravity", (0.5, 0.0, -3.0)),
+               30: lambda w: setattr(w, "disabled_pairs", [*w.disabled_pairs, ("box0", "box1")]),
+               40: lambda w: setattr(w.settings, "contact_margin", 3e-3),
+               50: lambda w: setattr(w.settings, "friction", False)}
+    seen = {}   # step -> the StepModel the call read
+    for i in range(60):
+        if i in changes:
+            changes[i](wa)
+            changes[i](wb)
+        if _calls(wa, real, monkeypatch):
+            seen[i] = wa._derived["step_model"][-1]
+        monkeypatch.setattr(substep, "run_detected", lambda ctx: False)
+        wb.step()
+        diff = step_diff(wa, wb)
+        assert not diff, f"step {i}: {diff}"
+    monkeypatch.setattr(substep, "run_detected", real)
+    bounds = [0, *changes, 60]
+    spans = [[m for i, m in seen.items() if lo <= i < hi] for lo, hi in zip(bounds, bounds[1:])]
+    assert all(len(span) >= 5 for span in spans)   # the call took most steps of every span
+    assert all(m is span[0] for span in spans for m in span)   # one model a span
+    firsts = [span[0] for span in spans]
+    rebuilt = [firsts[k] is not firsts[k - 1] for k in range(1, len(firsts))]
+    assert rebuilt == [step != 30 for step in changes]   # a new one after each change but the pairs'

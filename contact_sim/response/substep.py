@@ -38,7 +38,7 @@ from ..jit import njit
 from ..kinds import DYNAMIC
 from ..settings import COMBINE_RULES, SOLVER_METHODS
 from .. import validate
-from . import correction, prepare
+from . import correction, prepare, step_model
 from . import toi as toi_mod
 from ..constants import (DIRECT_MAX_CONTACTS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS,
                          PGS_TOLERANCE, REST_REBOUND_FRACTION, SIMULTANEOUS_FRACTION, TOI_TOLERANCE)
@@ -79,26 +79,35 @@ def run(ctx, whole):
 
 
 def _stage_args(ctx, R):
-    """The arguments of ``_substep`` (and of ``_detect_substep`` after detection's) for the
-    sub-step of ``ctx`` with the rotation matrices ``R (N,3,3)``: ``head`` (``g`` to ``resting``)
-    and ``tail`` (``margin`` on), on either side of ``whole``; and the bodies' centres at the
-    sub-step's start when a body is kinematic, else None."""
+    """The arguments of ``_substep`` for the sub-step of ``ctx`` with the rotation matrices ``R
+    (N,3,3)``: ``head`` (``g`` to ``resting``) and ``tail`` (``margin`` on), on either side of
+    ``whole``; and the bodies' centres at the sub-step's start when a body is kinematic, else None."""
     world, m = ctx.world, ctx.models
     s = world.s
-    # the warm-start cache's columns are of the kernel's types (int64, float64, C order) as it
-    # stores them (``_take``, ``ContactCache.remap``): handed as they are
-    old = world.contact_cache.warm
-    has_old = old is not None and len(old[0]) > 0
-    if not has_old:
-        old = _NO_OLD
+    old, has_old = _warm_start(world)
     lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(ctx)
     head = (*lead, s.pos, s.vel, s.quat, s.omega, *inertia,
             prepare.inv_inertia(world, m, R) if inertia_w is None else inertia_w, R, *materials, *old, has_old,
             extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting)
-    # the kinematic bodies' work is taken where the contact points are, at the sub-step's start:
-    # their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
-    # missed at the end)
-    return head, solve[1:], (s.pos.copy() if any_kinematic else None)
+    return head, solve[1:], _start_centres(world, any_kinematic)
+
+
+def _warm_start(world):
+    """``((a0, b0, p0, values), has_old)``: the contact cache's warm start, as ``_substep`` reads it.
+    Its columns are of the kernel's types (int64, float64, C order) as it stores them (``_take``,
+    ``ContactCache.remap``): handed as they are."""
+    old = world.contact_cache.warm
+    if old is not None and len(old[0]) > 0:
+        return old, True
+    return _NO_OLD, False
+
+
+def _start_centres(world, any_kinematic):
+    """The bodies' centres at the sub-step's start ``(N,3)`` when a body is kinematic, else None:
+    the kinematic bodies' work is taken where the contact points are, at the sub-step's start, with
+    their centres before the step moves them (a robot arm turning at 90 rad/s: 20 % of the work
+    missed at the end)."""
+    return world.s.pos.copy() if any_kinematic else None
 
 
 def run_detected(ctx):
@@ -126,28 +135,28 @@ def run_detected(ctx):
     s = world.s
     R = np.empty((bodies.n, 3, 3))
     rotations(s.quat, R)
-    head, tail, pos0 = _stage_args(ctx, R)
-    facts = prepare._margin_facts(world)[1:] if ctx.speculative else _NO_FACTS
-    bv = st.bounding_volume
+    model, (_, _, _, _, solve, any_kinematic, _, inertia_w) = _step_model(ctx, bodies)
+    old, has_old = _warm_start(world)
+    pos0 = _start_centres(world, any_kinematic)   # before the call moves the bodies
     counters = np.zeros(2, np.int64)
     status, candidates, kept, pairs, unsupported, margin, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, \
         flags, wv, aux, idx, out = _detect_substep(
-            *facts, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d,
-            cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, world.group, world.mask,
-            disabled_keys(world) if world.disabled_pairs else _NO_KEYS, *bodies.narrow_args(), bv != "obb",
-            bv != "sphere", counters, *head, *tail)
+            model, cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin,
+            disabled_keys(world) if world.disabled_pairs else _NO_KEYS, counters, s.pos, s.vel, s.quat, s.omega,
+            prepare.inv_inertia(world, m, R) if inertia_w is None else inertia_w, R, *old, has_old,
+            float(ctx.t_left), ctx.first)
     if status == STALE:
         return False
     cache.reuses += 1
     ctx.R, ctx.pos0 = R, pos0
-    ctx.look_ahead = (ctx.t_left, tail[0]) if look else None   # tail[0]: the contact margin
+    ctx.look_ahead = (ctx.t_left, solve[1]) if look else None   # solve[1]: the contact margin
     ctx.touching = ctx.rest_mask = ctx.dv_rest = None
     ctx.contacts = c = contacts_of_rows(rows_i, rows_f, body_a, body_b, normal)
     n_settled, n_edge_face = counters.tolist()
     # positional, in the field order (``DetectionStats``); the seconds are the call's, the
     # sub-step's stages included
     world.last_detection = DetectionStats(len(world.shapes), candidates, candidates - kept, n_settled, n_edge_face,
-                                          None, pairs, len(c), unsupported, bv, margin,
+                                          None, pairs, len(c), unsupported, st.bounding_volume, margin,
                                           {"total": time.perf_counter() - t0})
     if status == NO_CONTACT:
         run(ctx, True)   # free motion
@@ -163,26 +172,45 @@ _NO_FACTS = (np.zeros(0, np.bool_), np.zeros(0), np.inf, False)
 
 
 @njit
-def _detect_substep(moving, caps, cap, plane, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
-                    fat_margin, group, mask, disabled, which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh,
-                    shape_of, rank, use_sphere, use_obb, counters, g, kind, pos, vel, quat, omega, principal_q, moments,
-                    inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass,
-                    particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio,
-                    k_kinematic, rule, kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles,
-                    resting, margin, speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed,
-                    split_slop, split_beta, split_max_speed, method, direct_max, max_iterations, tolerance):
-    """``run_detected``'s kernel: detection, then ``_substep`` (its arguments, from ``g`` on, but
-    the contacts and ``whole``: the sub-step is whole). Detection as ``stepper._detect_stage`` runs
-    it: with ``speculative`` the look-ahead margin and each body's reach (``prepare._reach`` over
-    ``t``, with ``moving, caps (N,)``, ``cap`` and ``plane``: ``prepare._margin_facts``; ``margin``
-    the contact margin), the broad phase's pass (``broadphase.world_pairs``: the finite bodies
-    ``fin``, their boxes ``centre, half``, the planes and the pair cache, ``group, mask`` and the
-    ``disabled`` keys), the bounding volumes and the narrow phase (``pair_kernels.kept_contacts``:
-    the narrow phase's fixed arguments ``which … rank``, ``use_sphere, use_obb``; its counts into
-    ``counters (2,)``). Returns ``(status, candidate pairs, pairs kept by the bounding volumes,
-    colliding pairs, unsupported pairs, the detection margin, whether the look-ahead filters the
-    contacts, rows_i, rows_f, body_a, body_b, normal, *_substep's outputs)``; ``status``
-    ``STALE`` (nothing done), ``NO_CONTACT`` (no contact: the state untouched) or ``DONE``."""
+def _detect_substep(model, fat_c, fat_h, ci, cj, fat_margin, disabled, counters, pos, vel, quat, omega, inv_inertia, R,
+                    a0, b0, p0, values, has_old, t, first):
+    """``run_detected``'s kernel: detection, then ``_substep`` for the whole sub-step. ``model``:
+    what the scene fixes (``step_model.StepModel``: the look-ahead's facts, the broad phase's
+    bodies and masks, the narrow phase's tables, ``_substep``'s fixed arguments); the others are
+    what stepping changes: the broad phase's pair cache ``fat_c, fat_h (M,3), ci, cj (C,)`` and its
+    margin, the ``disabled`` pairs' keys, the counts of the narrow phase into ``counters (2,)``, the
+    motion ``pos, vel, quat, omega``, the world inverse inertia and rotations ``(N,3,3)``, the
+    contact cache's warm start ``a0, b0, p0, values, has_old``, the time left ``t`` (s) and whether
+    this is the step's first sub-step. Detection as ``stepper._detect_stage`` runs it: with
+    ``speculative`` the look-ahead margin and each body's reach (``prepare._reach`` over ``t``;
+    ``margin`` the contact margin), the broad phase's pass (``broadphase.world_pairs``), the
+    bounding volumes and the narrow phase (``pair_kernels.kept_contacts``). Returns ``(status,
+    candidate pairs, pairs kept by the bounding volumes, colliding pairs, unsupported pairs, the
+    detection margin, whether the look-ahead filters the contacts, rows_i, rows_f, body_a, body_b,
+    normal, *_substep's outputs)``; ``status`` ``STALE`` (nothing done), ``NO_CONTACT`` (no
+    contact: the state untouched) or ``DONE``."""
+    moving, caps, cap, plane = model.moving, model.caps, model.cap, model.plane
+    fin, centre, half, planes, plane_n, plane_d = (model.fin, model.centre, model.half, model.planes, model.plane_n,
+                                                   model.plane_d)
+    group, mask = model.group, model.mask
+    which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh, shape_of, rank = (
+        model.which, model.sf, model.si, model.verts, model.gplanes, model.faces, model.loops, model.edges, model.tris,
+        model.bvh, model.shape_of, model.rank)
+    use_sphere, use_obb = model.use_sphere, model.use_obb
+    g, kind, principal_q, moments, inertia_body, inv_mass = (model.g, model.kind, model.principal_q, model.moments,
+                                                             model.inertia_body, model.inv_mass)
+    gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle = (
+        model.gravity, model.gravity_rows, model.dynamic, model.rotating, model.kinematic, model.mass, model.particle)
+    restitution, friction, static_friction, may_soften, stiffness, damping_ratio = (
+        model.restitution, model.friction, model.static_friction, model.may_soften, model.stiffness,
+        model.damping_ratio)
+    k_kinematic, rule, kinetic, ext, dt = model.k_kinematic, model.rule, model.kinetic, model.ext, model.dt
+    exact_toi, particles, resting = model.exact_toi, model.particles, model.resting
+    margin, speculative, toi_tolerance, simultaneous, gdt = (model.margin, model.speculative, model.toi_tolerance,
+                                                             model.simultaneous, model.gdt)
+    rebound_speed, impact_speed, split_slop, split_beta, split_max_speed = (
+        model.rebound_speed, model.impact_speed, model.split_slop, model.split_beta, model.split_max_speed)
+    method, direct_max, max_iterations, tolerance = model.method, model.direct_max, model.max_iterations, model.tolerance
     n = pos.shape[0]
     det, plane_det, floor = margin, margin, 0.0
     reach = np.empty((2, n if speculative else 0))
@@ -370,6 +398,31 @@ def _fixed_args(ctx):
         bm.any_kinematic, particles, prepare.inv_inertia(world, m, None) if prepare.frame_free(world, m) else None)
     world._derived["substep_args"] = (bodies, st, edits, m, dt, gravity, ib, fixed)
     return fixed
+
+
+def _step_model(ctx, bodies):
+    """``(model, fixed)``: the ``StepModel`` of the step ``ctx`` (``step_model``: what
+    ``_detect_substep`` reads that the scene fixes) for the world's shape arrays ``bodies``
+    (``collision._bodies_of``), and the ``_fixed_args`` it was built from. Kept on the
+    world while ``_fixed_args`` gives the very same tuple (it is rebuilt when an array it holds is
+    replaced, a setting assigned, the models, ``dt`` or gravity change), and the look-ahead's facts,
+    the shape arrays and the collision masks are the same objects."""
+    world = ctx.world
+    fixed = _fixed_args(ctx)
+    facts = prepare._margin_facts(world) if ctx.speculative else None
+    group, mask = world.group, world.mask
+    hit = world._derived.get("step_model")
+    if (hit is not None and hit[0] is fixed and hit[1] is facts and hit[2] is bodies and hit[3] is group
+            and hit[4] is mask):
+        return hit[5], fixed
+    lead, inertia, materials, extents, solve, _, particles, _ = fixed
+    bv = ctx.settings.bounding_volume
+    model = step_model.make(
+        (*(facts[1:] if facts is not None else _NO_FACTS), bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes,
+         bodies.plane_n, bodies.plane_d, group, mask, *bodies.narrow_args(), bv != "obb", bv != "sphere", *lead,
+         *inertia, *materials, extents, solve[0], ctx.exact_toi, particles, ctx.models.resting, *solve[1:]))
+    world._derived["step_model"] = (fixed, facts, bodies, group, mask, model)
+    return model, fixed
 
 
 _NO_OLD = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
