@@ -10,6 +10,7 @@ import trimesh
 import contact_sim as cs
 from contact_sim.response import substep
 from contact_sim.response.context import StepContext
+from contact_sim.jit import COMPILED
 from contact_sim.response import models
 
 from test_flight import _tumbling, step_diff
@@ -249,3 +250,33 @@ def test_the_step_model_is_built_once_and_rebuilt_for_what_the_scene_changes(mon
     firsts = [span[0] for span in spans]
     rebuilt = [firsts[k] is not firsts[k - 1] for k in range(1, len(firsts))]
     assert rebuilt == [step != 30 for step in changes]   # a new one after each change but the pairs'
+
+
+@pytest.mark.exact
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_a_copied_world_makes_its_own_step_model_and_steps_as_the_original(how, monkeypatch):
+    """A world's copy does not carry the original's compiled ``StepModel`` (made before the copy's
+    gravity is read-only again, it would be another type to numba): its first step makes one from
+    its own arrays, takes the one-call sub-step and stays bit-identical to the original."""
+    import copy
+    import pickle
+
+    w = _resting()
+    for _ in range(5):
+        w.step()
+    twin = copy.deepcopy(w) if how == "deepcopy" else pickle.loads(pickle.dumps(w))
+    # compiled, the copy holds None in its place; without numba the record is a named tuple, copied
+    assert (twin._derived["step_model"][-1] is None) == COMPILED
+    real = substep.run_detected
+    versions = len(getattr(substep._detect_substep, "signatures", ()))
+    taken = 0
+    for i in range(20):
+        took = _calls(w, real, monkeypatch)
+        assert _calls(twin, real, monkeypatch) == took, f"step {i}"
+        taken += took
+        diff = step_diff(w, twin)
+        assert not diff, f"step {i}: {diff}"
+    assert taken >= 15
+    assert len(getattr(substep._detect_substep, "signatures", ())) == versions   # no second compile
+    model = twin._derived["step_model"][-1]
+    assert model is not None and model is not w._derived["step_model"][-1]

@@ -1,13 +1,15 @@
 """What the scene fixes for a step, as one object the compiled step reads (MuJoCo's ``mjModel``).
 
-``substep._detect_substep``, the one compiled call of a step with contacts, reads ~65 values that
-stay the same from step to step: the shapes' geometry and the narrow phase's tables, the bodies'
-masses, inertias, materials and masks, the look-ahead's facts and the settings' numbers. Handed
-one by one, each array costs the call its own wrapping for numba's reference counts (~0.1 µs an
-array, ~6 µs a call for the ~50 of them, whatever the scene's size). A ``StepModel`` holds them
-in one compiled record (numba's ``StructRef``): built once per model (``make``, ~10 µs) and handed
-as a single argument. The call's other arguments are what stepping changes: the bodies' motion,
-the rotation matrices, the broad phase's pair cache, the contact cache's warm start, the time left.
+The compiled calls of a step with contacts (``substep._detect_substep``, detection and the
+sub-step in one call, and ``substep._substep``, the sub-step after detection in Python) read ~65
+values that stay the same from step to step: the shapes' geometry and the narrow phase's tables,
+the bodies' masses, inertias, materials and masks, the look-ahead's facts and the settings'
+numbers. Handed one by one, each array costs the call its own wrapping for numba's reference
+counts (~0.1 µs an array, ~6 µs a call for the ~50 of them, whatever the scene's size). A
+``StepModel`` holds them in one compiled record (numba's ``StructRef``): built once per model
+(``make``, ~10 µs) and handed as a single argument. The calls' other arguments are what stepping
+changes: the bodies' motion, the rotation matrices, the broad phase's pair cache, the contact
+cache's warm start, the time left, the contacts.
 
 A ``StepModel`` holds the arrays themselves, not copies, so an edit in place (a material's
 friction set into ``World.friction``) reaches the next step as it reached the kernels before;
@@ -53,6 +55,13 @@ if COMPILED:
     class StepModel(structref.StructRefProxy):
         """What the scene fixes for a step (module docstring), as one compiled record."""
 
+        def __reduce__(self):
+            # a world's copy (``copy.deepcopy``) or pickle takes its derived tables along, but not
+            # this record: made from the copied arrays before the copy's ``__setstate__`` makes
+            # gravity read-only again, it would be another type to numba (a second compile of the
+            # step, ~2 min). None in its place: the copy's first step makes its own
+            return _absent, ()
+
     structref.define_proxy(StepModel, StepModelType, list(FIELDS))
 else:
     StepModel = namedtuple("StepModel", FIELDS)
@@ -67,3 +76,8 @@ def _make(*values):
 def make(values):
     """A ``StepModel`` of ``values`` (a tuple in ``FIELDS`` order)."""
     return _make(*values)
+
+
+def _absent():
+    """What a copied or unpickled world holds in place of its ``StepModel``."""
+    return None

@@ -70,26 +70,17 @@ def run(ctx, whole):
         return
     cc = np.ascontiguousarray
     look = ctx.look_ahead
-    head, tail, ctx.pos0 = _stage_args(ctx, ctx.R)
-    f3, f1, flags, wv, aux, idx, out = _substep(
-        cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
-        cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
-        *(look if look is not None else _NO_LOOK), *head, whole, *tail)
-    _take(ctx, whole, f3, f1, flags, wv, aux, idx, out)
-
-
-def _stage_args(ctx, R):
-    """The arguments of ``_substep`` for the sub-step of ``ctx`` with the rotation matrices ``R
-    (N,3,3)``: ``head`` (``g`` to ``resting``) and ``tail`` (``margin`` on), on either side of
-    ``whole``; and the bodies' centres at the sub-step's start when a body is kinematic, else None."""
-    world, m = ctx.world, ctx.models
-    s = world.s
+    s, R = world.s, ctx.R
+    model, (_, _, _, _, _, any_kinematic, _, inertia_w) = _step_model(ctx, _bodies_of(world))
     old, has_old = _warm_start(world)
-    lead, inertia, materials, extents, solve, any_kinematic, particles, inertia_w = _fixed_args(ctx)
-    head = (*lead, s.pos, s.vel, s.quat, s.omega, *inertia,
-            prepare.inv_inertia(world, m, R) if inertia_w is None else inertia_w, R, *materials, *old, has_old,
-            extents, float(ctx.t_left), solve[0], ctx.first, ctx.exact_toi, particles, m.resting)
-    return head, solve[1:], _start_centres(world, any_kinematic)
+    ctx.pos0 = _start_centres(world, any_kinematic)
+    f3, f1, flags, wv, aux, idx, out = _substep(
+        model, cc(c.body_a, dtype=np.int64), cc(c.body_b, dtype=np.int64), cc(c.point, dtype=float),
+        cc(c.normal, dtype=float), cc(c.depth, dtype=float), look is not None,
+        *(look if look is not None else _NO_LOOK), s.pos, s.vel, s.quat, s.omega,
+        prepare.inv_inertia(world, ctx.models, R) if inertia_w is None else inertia_w, R, *old, has_old,
+        float(ctx.t_left), ctx.first, whole)
+    _take(ctx, whole, f3, f1, flags, wv, aux, idx, out)
 
 
 def _warm_start(world):
@@ -192,25 +183,10 @@ def _detect_substep(model, fat_c, fat_h, ci, cj, fat_margin, disabled, counters,
     moving, caps, cap, plane = model.moving, model.caps, model.cap, model.plane
     fin, centre, half, planes, plane_n, plane_d = (model.fin, model.centre, model.half, model.planes, model.plane_n,
                                                    model.plane_d)
-    group, mask = model.group, model.mask
     which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh, shape_of, rank = (
         model.which, model.sf, model.si, model.verts, model.gplanes, model.faces, model.loops, model.edges, model.tris,
         model.bvh, model.shape_of, model.rank)
-    use_sphere, use_obb = model.use_sphere, model.use_obb
-    g, kind, principal_q, moments, inertia_body, inv_mass = (model.g, model.kind, model.principal_q, model.moments,
-                                                             model.inertia_body, model.inv_mass)
-    gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle = (
-        model.gravity, model.gravity_rows, model.dynamic, model.rotating, model.kinematic, model.mass, model.particle)
-    restitution, friction, static_friction, may_soften, stiffness, damping_ratio = (
-        model.restitution, model.friction, model.static_friction, model.may_soften, model.stiffness,
-        model.damping_ratio)
-    k_kinematic, rule, kinetic, ext, dt = model.k_kinematic, model.rule, model.kinetic, model.ext, model.dt
-    exact_toi, particles, resting = model.exact_toi, model.particles, model.resting
-    margin, speculative, toi_tolerance, simultaneous, gdt = (model.margin, model.speculative, model.toi_tolerance,
-                                                             model.simultaneous, model.gdt)
-    rebound_speed, impact_speed, split_slop, split_beta, split_max_speed = (
-        model.rebound_speed, model.impact_speed, model.split_slop, model.split_beta, model.split_max_speed)
-    method, direct_max, max_iterations, tolerance = model.method, model.direct_max, model.max_iterations, model.tolerance
+    g, kind, ext, margin, speculative = model.g, model.kind, model.ext, model.margin, model.speculative
     n = pos.shape[0]
     det, plane_det, floor = margin, margin, 0.0
     reach = np.empty((2, n if speculative else 0))
@@ -221,7 +197,7 @@ def _detect_substep(model, fat_c, fat_h, ci, cj, fat_margin, disabled, counters,
     if not look:   # no speculative contact: every pair takes the contact margin
         reach, plane_det = np.empty((2, 0)), det
     ok, ia, ib = broadphase.world_pairs(pos, R, fin, centre, half, planes, plane_n, plane_d, fat_c, fat_h, ci, cj,
-                                        fat_margin, det, plane_det, kind, group, mask, disabled)
+                                        fat_margin, det, plane_det, kind, model.group, model.mask, disabled)
     f3, f1, flags = np.empty((3, 0, 3)), np.empty((2, 0)), np.empty((3, 0), np.bool_)
     wv, aux, idx, out = np.empty((0, 4)), np.empty(0), np.empty(0, np.int64), np.empty(12)
     if not ok or ia.shape[0] == 0:
@@ -230,20 +206,16 @@ def _detect_substep(model, fat_c, fat_h, ci, cj, fat_margin, disabled, counters,
         return (NO_CONTACT if ok else STALE), ia.shape[0], 0, 0, 0, det, look, rows_i, rows_f, body_a, body_b, \
             normal, f3, f1, flags, wv, aux, idx, out
     rows_i, rows_f, body_a, body_b, normal, pairs, unsupported, kept = pair_kernels.kept_contacts(
-        which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, use_sphere, use_obb, pos,
-        R, det, reach, floor, plane_det, counters, False, np.empty(2))
+        which, sf, si, verts, gplanes, faces, loops, edges, tris, bvh, shape_of, rank, ia, ib, model.use_sphere,
+        model.use_obb, pos, R, det, reach, floor, plane_det, counters, False, np.empty(2))
     if body_a.shape[0] == 0:
         return NO_CONTACT, ia.shape[0], kept, pairs, unsupported, det, look, rows_i, rows_f, body_a, body_b, normal, \
             f3, f1, flags, wv, aux, idx, out
     point, depth = np.ascontiguousarray(rows_f[:, 0:3]), np.ascontiguousarray(rows_f[:, 6])
     look_dt, look_base = (t, margin) if look else (0.0, 0.0)
-    f3, f1, flags, wv, aux, idx, out = _substep(
-        body_a, body_b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q,
-        moments, inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass,
-        particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule,
-        kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, True, margin,
-        speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta,
-        split_max_speed, method, direct_max, max_iterations, tolerance)
+    f3, f1, flags, wv, aux, idx, out = _substep(model, body_a, body_b, point, normal, depth, look, look_dt, look_base,
+                                                pos, vel, quat, omega, inv_inertia, R, a0, b0, p0, values, has_old, t,
+                                                first, True)
     return DONE, ia.shape[0], kept, pairs, unsupported, det, look, rows_i, rows_f, body_a, body_b, normal, f3, f1, \
         flags, wv, aux, idx, out
 
@@ -351,12 +323,13 @@ def _body_arrays(world):
 
 
 def _fixed_args(ctx):
-    """The arguments of ``_substep`` that stay the same from step to step for the step ``ctx``
-    (``StepContext``: its world, models ``m``, ``dt`` and the products it holds), in blocks of its
-    argument order: ``(lead, inertia, materials, extents, solve, any_kinematic, particles)`` with
-    ``lead = (g, kind)``, ``inertia = (principal_q, principal_moments, inertia_body, inv_mass)``,
-    ``materials = (gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle, restitution,
-    friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule, kinetic)``,
+    """The values of ``_substep`` that stay the same from step to step for the step ``ctx``
+    (``StepContext``: its world, models ``m``, ``dt`` and the products it holds), the ``StepModel``'s
+    (``_step_model``) in blocks of its field order: ``(lead, inertia, materials, extents, solve,
+    any_kinematic, particles, inertia_w)`` with ``lead = (g, kind)``, ``inertia = (principal_q,
+    principal_moments, inertia_body, inv_mass)``, ``materials = (gravity, gravity_rows, dynamic,
+    rotating, kinematic, mass, particle, restitution, friction, static_friction, may_soften,
+    stiffness, damping_ratio, k_kinematic, rule, kinetic)``,
     ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance, simultaneous, gdt,
     rebound_speed, impact_speed, split_slop, split_beta, split_max_speed, method, direct_max,
     max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
@@ -413,7 +386,7 @@ def _step_model(ctx, bodies):
     group, mask = world.group, world.mask
     hit = world._derived.get("step_model")
     if (hit is not None and hit[0] is fixed and hit[1] is facts and hit[2] is bodies and hit[3] is group
-            and hit[4] is mask):
+            and hit[4] is mask and hit[5] is not None):   # None: a copied world's (step_model.StepModel)
         return hit[5], fixed
     lead, inertia, materials, extents, solve, _, particles, _ = fixed
     bv = ctx.settings.bounding_volume
@@ -430,22 +403,18 @@ _NO_LOOK = (0.0, 0.0)
 
 
 @njit
-def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos, vel, quat, omega, principal_q, moments,
-             inertia_body, inv_mass, inv_inertia, R, gravity, gravity_rows, dynamic, rotating, kinematic, mass,
-             particle, restitution, friction, static_friction, may_soften, stiffness, damping_ratio, k_kinematic, rule,
-             kinetic, a0, b0, p0, values, has_old, ext, t, dt, first, exact_toi, particles, resting, whole, margin,
-             speculative, toi_tolerance, simultaneous, gdt, rebound_speed, impact_speed, split_slop, split_beta,
-             split_max_speed, method, direct_max, max_iterations, tolerance):
-    """``run``'s kernel, a sub-step of ``t`` (s) left of a step of ``dt``. Contacts ``a, b (K,)``,
+def _substep(model, a, b, point, normal, depth, look, look_dt, look_base, pos, vel, quat, omega, inv_inertia, R, a0, b0,
+             p0, values, has_old, t, first, whole):
+    """``run``'s kernel, a sub-step of ``t`` (s) left of a step of ``model.dt``. ``model``: what
+    the scene fixes (``step_model.StepModel``: the bodies' kinds, inertia, gravity, materials
+    combined by ``rule`` (``prepare.coefficient_rows``), stiffnesses (``compliance.stiffness_rows``,
+    read when ``may_soften``), the solve's settings, ``method`` an index of
+    ``settings.SOLVER_METHODS``, ``particles`` the kinematic response). Contacts ``a, b (K,)``,
     ``point, normal (K,3)``, ``depth (K,)``; with ``look`` only the speculative ones whose gap can
-    close within ``look_dt`` are kept (``look_base`` the contact margin, ``g`` gravity's magnitude);
-    bodies ``kind (N,)``, as ``free_motion.advance`` and ``pgs.build_rows`` take them, ``R
-    (N,3,3)``, ``gravity (3,)``, ``gravity_rows (N,3)``, ``mass (N,)``, ``particle (N,) bool``,
-    their materials ``restitution, friction, static_friction (N,)`` combined by ``rule``
-    (``prepare.coefficient_rows``), their ``stiffness, damping_ratio (N,)`` and ``k_kinematic``
-    (``compliance.stiffness_rows``, read when ``may_soften``); the contact cache ``a0, b0 (K0,)``,
-    ``p0 (K0,3)``, ``values (K0,4)``; ``particles`` the kinematic response; ``method`` an index of
-    ``settings.SOLVER_METHODS``.
+    close within ``look_dt`` are kept (``look_base`` the contact margin); the motion ``pos, vel,
+    quat, omega``, the world inverse inertia and rotations ``inv_inertia, R (N,3,3)``; the contact
+    cache ``a0, b0 (K0,)``, ``p0 (K0,3)``, ``values (K0,4)`` when ``has_old``; ``first`` the step's
+    first sub-step; ``whole`` no time of impact can shorten it.
 
     Returns ``(f3, f1, flags, wv, aux, idx, out)`` (the outputs are of the contacts the filter kept); ``f3
     (3,K,3)`` the points in A's frame, the friction impulses and the impulses; ``f1 (2,K)`` the
@@ -461,6 +430,21 @@ def _substep(a, b, point, normal, depth, look, look_dt, look_base, g, kind, pos,
     pushes]``. The outputs are allocated here, in blocks, and the rarely read ones share one:
     from Python each allocation and argument, and here each array handed back (~0.3 µs), costs
     more than the arithmetic."""
+    g, kind, principal_q, moments, inertia_body, inv_mass = (model.g, model.kind, model.principal_q, model.moments,
+                                                             model.inertia_body, model.inv_mass)
+    gravity, gravity_rows, dynamic, rotating, kinematic, mass, particle = (
+        model.gravity, model.gravity_rows, model.dynamic, model.rotating, model.kinematic, model.mass, model.particle)
+    restitution, friction, static_friction, may_soften, stiffness, damping_ratio = (
+        model.restitution, model.friction, model.static_friction, model.may_soften, model.stiffness,
+        model.damping_ratio)
+    k_kinematic, rule, kinetic, ext, dt = model.k_kinematic, model.rule, model.kinetic, model.ext, model.dt
+    exact_toi, particles, resting = model.exact_toi, model.particles, model.resting
+    margin, speculative, toi_tolerance, simultaneous, gdt = (model.margin, model.speculative, model.toi_tolerance,
+                                                             model.simultaneous, model.gdt)
+    rebound_speed, impact_speed, split_slop, split_beta, split_max_speed = (
+        model.rebound_speed, model.impact_speed, model.split_slop, model.split_beta, model.split_max_speed)
+    method, direct_max, max_iterations, tolerance = (model.method, model.direct_max, model.max_iterations,
+                                                     model.tolerance)
     k, n = a.shape[0], pos.shape[0]
     # ---- velocity stage: the points' relative velocities, the look-ahead's filter
     rel_vel = np.empty((k, 3))
