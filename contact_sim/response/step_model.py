@@ -14,7 +14,7 @@ cache's warm start, the time left, the contacts.
 A ``StepModel`` holds the arrays themselves, not copies, so an edit in place (a material's
 friction set into ``World.friction``) reaches the next step as it reached the kernels before;
 ``substep._step_model`` builds a new one whenever an array is replaced, a setting is assigned or
-the models change (the same checks as ``substep._fixed_args``).
+the models change.
 
 Without numba (or with ``NUMBA_DISABLE_JIT=1``) ``StepModel`` is a named tuple with the same
 fields, so the kernels read ``model.sf`` either way. Fields, in ``FIELDS`` order (``N`` bodies,
@@ -22,9 +22,9 @@ fields, so the kernels read ``model.sf`` either way. Fields, in ``FIELDS`` order
 (``prepare._margin_facts``); the finite bodies and planes of the broad phase ``fin (M,), centre,
 half (M,3), planes (P,), plane_n (P,3), plane_d (P,)``; the collision masks ``group, mask (N,)``;
 the narrow phase's tables ``which … rank`` (``_Bodies.narrow_args``) and bounding volumes
-``use_sphere, use_obb``; then ``_substep``'s fixed arguments in its order (``substep._fixed_args``:
-``g`` (m/s²) and ``kind``, the inertia, the materials, ``ext``, ``dt`` (s), ``exact_toi, particles,
-resting``, and the solve's settings from ``margin`` to ``tolerance``).
+``use_sphere, use_obb``; then what ``_substep`` reads (``substep._step_model``): ``g`` (m/s²) and
+``kind``, the inertia, gravity, the materials, ``ext``, ``dt`` (s), ``exact_toi, particles,
+resting``, and the solve's settings from ``margin`` to ``tolerance``.
 """
 from collections import namedtuple
 

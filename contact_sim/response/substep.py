@@ -71,7 +71,7 @@ def run(ctx, whole):
     cc = np.ascontiguousarray
     look = ctx.look_ahead
     s, R = world.s, ctx.R
-    model, (_, _, _, _, _, any_kinematic, _, inertia_w) = _step_model(ctx, _bodies_of(world))
+    model, any_kinematic, inertia_w = _step_model(ctx, _bodies_of(world))
     old, has_old = _warm_start(world)
     ctx.pos0 = _start_centres(world, any_kinematic)
     f3, f1, flags, wv, aux, idx, out = _substep(
@@ -126,7 +126,7 @@ def run_detected(ctx):
     s = world.s
     R = np.empty((bodies.n, 3, 3))
     rotations(s.quat, R)
-    model, (_, _, _, _, solve, any_kinematic, _, inertia_w) = _step_model(ctx, bodies)
+    model, any_kinematic, inertia_w = _step_model(ctx, bodies)
     old, has_old = _warm_start(world)
     pos0 = _start_centres(world, any_kinematic)   # before the call moves the bodies
     counters = np.zeros(2, np.int64)
@@ -140,7 +140,7 @@ def run_detected(ctx):
         return False
     cache.reuses += 1
     ctx.R, ctx.pos0 = R, pos0
-    ctx.look_ahead = (ctx.t_left, solve[1]) if look else None   # solve[1]: the contact margin
+    ctx.look_ahead = (ctx.t_left, float(st.contact_margin)) if look else None
     ctx.touching = ctx.rest_mask = ctx.dv_rest = None
     ctx.contacts = c = contacts_of_rows(rows_i, rows_f, body_a, body_b, normal)
     n_settled, n_edge_face = counters.tolist()
@@ -322,80 +322,52 @@ def _body_arrays(world):
     return arrays
 
 
-def _fixed_args(ctx):
-    """The values of ``_substep`` that stay the same from step to step for the step ``ctx``
-    (``StepContext``: its world, models ``m``, ``dt`` and the products it holds), the ``StepModel``'s
-    (``_step_model``) in blocks of its field order: ``(lead, inertia, materials, extents, solve,
-    any_kinematic, particles, inertia_w)`` with ``lead = (g, kind)``, ``inertia = (principal_q,
-    principal_moments, inertia_body, inv_mass)``, ``materials = (gravity, gravity_rows, dynamic,
-    rotating, kinematic, mass, particle, restitution, friction, static_friction, may_soften,
-    stiffness, damping_ratio, k_kinematic, rule, kinetic)``,
-    ``extents (N,)``, ``solve = (dt, margin, speculative, toi_tolerance, simultaneous, gdt,
-    rebound_speed, impact_speed, split_slop, split_beta, split_max_speed, method, direct_max,
-    max_iterations, tolerance)`` (``dt`` goes before the others: ``solve[0]``), whether a body is
-    kinematic, whether the response is kinematic, and the world inverse inertia ``(N,3,3)`` when it
-    is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only read), else
-    None.
+def _step_model(ctx, shapes):
+    """``(model, any_kinematic, inertia_w)`` for the step ``ctx`` (``StepContext``: its world, models
+    ``m``, ``dt`` and the products it holds) and the world's shape arrays ``shapes``
+    (``collision._bodies_of``): the ``StepModel`` (``step_model``: what the compiled sub-step reads
+    that the scene fixes), whether a body is kinematic, and the world inverse inertia ``(N,3,3)``
+    when it is the same in every frame (``prepare.inv_inertia``'s answer, which the kernels only
+    read), else None.
 
     They follow from the body arrays (``_body_arrays``: the very same tuple while no array is
-    replaced), gravity, the models ``m``, the step ``dt`` (s) and the settings (``ctx.gdt``,
-    ``ctx.impact_speed`` and ``ctx.speculative`` follow from them too); kept on the world
-    while those are the same objects and no settings field was assigned since
-    (``validate.edits``), so a change is seen at the next step with one check instead of a
-    dozen reads and conversions."""
+    replaced), gravity, the models ``m``, the step ``dt`` (s), the settings (``ctx.gdt``,
+    ``ctx.impact_speed`` and ``ctx.speculative`` follow from them too), the look-ahead's facts
+    (``prepare._margin_facts``), the shape arrays and the collision masks; kept on the world while
+    those are the same objects and no settings field was assigned since (``validate.edits``), so a
+    change is seen at the next step with one check instead of a model built again."""
     world, m, dt = ctx.world, ctx.models, ctx.dt
-    bodies = _body_arrays(world)
+    arrays = _body_arrays(world)
     st = world.settings
-    gravity, ib = world._gravity, world.inv_inertia_body
-    hit = world._derived.get("substep_args")
-    if (hit is not None and hit[0] is bodies and hit[1] is st and hit[2] == validate.edits and hit[3] is m
-            and hit[4] == dt and hit[5] is gravity and hit[6] is ib):
-        return hit[7]
+    gravity, ib, group, mask = world._gravity, world.inv_inertia_body, world.group, world.mask
+    facts = prepare._margin_facts(world) if ctx.speculative else None
+    hit = world._derived.get("step_model")
+    if (hit is not None and hit[0] is arrays and hit[1] is st and hit[2] == validate.edits and hit[3] is m
+            and hit[4] == dt and hit[5] is gravity and hit[6] is ib and hit[7] is facts and hit[8] is shapes
+            and hit[9] is group and hit[10] is mask and hit[-1] is not None):   # None: a copied world's
+        return hit[-1], hit[-3], hit[-2]
     edits = validate.edits
     bm = world.body_masks()
     particles = m.response == "kinematic"
-    gdt = ctx.gdt
-    fixed = (
-        (world.gravity_norm(), world.kind),
-        bodies[:4],
-        (gravity, bm.gravity, bm.dynamic, bm.rotating, bm.kinematic, *bodies[4:9],
-         m.response == "impulse" and m.resting and may_be_compliant(world), *bodies[10:12],
-         float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and not particles),
-        bodies[9],
-        (float(dt), float(st.contact_margin), ctx.speculative, TOI_TOLERANCE,
-         SIMULTANEOUS_FRACTION * dt, gdt, REST_REBOUND_FRACTION * gdt, ctx.impact_speed,
-         float(st.split_slop), float(st.split_beta), float(st.split_max_speed),
-         SOLVER_METHODS.index(st.solver_method),
-         DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
-         int(st.solver_iterations), float(st.solver_tolerance)),
-        bm.any_kinematic, particles, prepare.inv_inertia(world, m, None) if prepare.frame_free(world, m) else None)
-    world._derived["substep_args"] = (bodies, st, edits, m, dt, gravity, ib, fixed)
-    return fixed
-
-
-def _step_model(ctx, bodies):
-    """``(model, fixed)``: the ``StepModel`` of the step ``ctx`` (``step_model``: what
-    ``_detect_substep`` reads that the scene fixes) for the world's shape arrays ``bodies``
-    (``collision._bodies_of``), and the ``_fixed_args`` it was built from. Kept on the
-    world while ``_fixed_args`` gives the very same tuple (it is rebuilt when an array it holds is
-    replaced, a setting assigned, the models, ``dt`` or gravity change), and the look-ahead's facts,
-    the shape arrays and the collision masks are the same objects."""
-    world = ctx.world
-    fixed = _fixed_args(ctx)
-    facts = prepare._margin_facts(world) if ctx.speculative else None
-    group, mask = world.group, world.mask
-    hit = world._derived.get("step_model")
-    if (hit is not None and hit[0] is fixed and hit[1] is facts and hit[2] is bodies and hit[3] is group
-            and hit[4] is mask and hit[5] is not None):   # None: a copied world's (step_model.StepModel)
-        return hit[5], fixed
-    lead, inertia, materials, extents, solve, _, particles, _ = fixed
-    bv = ctx.settings.bounding_volume
-    model = step_model.make(
-        (*(facts[1:] if facts is not None else _NO_FACTS), bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes,
-         bodies.plane_n, bodies.plane_d, group, mask, *bodies.narrow_args(), bv != "obb", bv != "sphere", *lead,
-         *inertia, *materials, extents, solve[0], ctx.exact_toi, particles, ctx.models.resting, *solve[1:]))
-    world._derived["step_model"] = (fixed, facts, bodies, group, mask, model)
-    return model, fixed
+    gdt, bv = ctx.gdt, st.bounding_volume
+    model = step_model.make((
+        # detection: the look-ahead's facts, the broad phase's bodies and masks, the narrow phase's tables
+        *(facts[1:] if facts is not None else _NO_FACTS), shapes.finite, shapes.aabb_c, shapes.aabb_h, shapes.planes,
+        shapes.plane_n, shapes.plane_d, group, mask, *shapes.narrow_args(), bv != "obb", bv != "sphere",
+        # the bodies: kinds, inertia, gravity, materials, stiffnesses, extents
+        world.gravity_norm(), world.kind, *arrays[:4], gravity, bm.gravity, bm.dynamic, bm.rotating, bm.kinematic,
+        *arrays[4:9], m.response == "impulse" and m.resting and may_be_compliant(world), *arrays[10:12],
+        float(st.kinematic_stiffness), COMBINE_RULES.index(st.combine), m.friction and not particles, arrays[9],
+        # the step and the solve
+        float(dt), ctx.exact_toi, particles, m.resting, float(st.contact_margin), ctx.speculative, TOI_TOLERANCE,
+        SIMULTANEOUS_FRACTION * dt, gdt, REST_REBOUND_FRACTION * gdt, ctx.impact_speed, float(st.split_slop),
+        float(st.split_beta), float(st.split_max_speed), SOLVER_METHODS.index(st.solver_method),
+        DIRECT_MAX_CONTACTS if st.direct_max_contacts is None else int(st.direct_max_contacts),
+        int(st.solver_iterations), float(st.solver_tolerance)))
+    inertia_w = prepare.inv_inertia(world, m, None) if prepare.frame_free(world, m) else None
+    world._derived["step_model"] = (arrays, st, edits, m, dt, gravity, ib, facts, shapes, group, mask,
+                                    bm.any_kinematic, inertia_w, model)
+    return model, bm.any_kinematic, inertia_w
 
 
 _NO_OLD = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
