@@ -40,12 +40,14 @@ maximum penetration at the start of the step, contact and impact counts, the mod
 energy terms the step declares.
 """
 import time
+from operator import is_
 
 import numpy as np
 
 from .constants import FAT_STEPS, ISOTROPIC_TOLERANCE, MAX_SPLIT_ANGLE, MAX_SUBSTEPS
 from .contacts import Contacts
 from .free_motion import advance, all_finite
+from . import validate
 from .jit import njit
 from .stats import StepStats
 from .response import models as _models
@@ -104,45 +106,35 @@ def flight(world, dt):
     the same state, contacts and statistics to the bit (``test/test_flight.py``); only the pair
     cache's counters can differ, where a cache rebuilt here finds a pair: the pipeline's pass on it
     then counts a reuse that a rebuild inside the pipeline would not."""
-    m = _models.choose(world, dt)
+    plan = _plan(world, dt)
+    m = plan[0]
+    if plan[1] is not None and _models._any_too_fast(world.s.vel, world.kind, plan[1], world.gravity_norm(),
+                                                     float(dt)):
+        return _models.choose(world, dt)   # a thin body is fast this step: its own models (swept), declined
     det = world.last_detection
-    if (det is None or det.candidate_pairs or world.contact_cache.preflight_dt != dt or m.response == "penalty"
-            or m.toi in _EXACT or m.continuous):
+    if plan[2] is None or det is None or det.candidate_pairs or world.contact_cache.preflight_dt != dt:
         return m
     t0 = time.perf_counter()
-    s, st, bm = world.s, world.settings, world.body_masks()
-    bodies = _bodies_of(world)
-    cache = bodies.pair_cache
-    pairs = bodies.n >= 2
-    if pairs and cache.fat_c is None:
-        return m
-    ext, moving, caps, cap, plane = prepare._margin_facts(world)
-    disabled = disabled_keys(world) if world.disabled_pairs else _NO_KEYS
+    s = world.s
     for attempt in range(2):
-        work, keys = _workspace(world, len(s.pos), len(bodies.finite),
-                                (len(cache.i) + len(bodies.planes) * len(bodies.finite)) if pairs else 0)
-        status, drift, margin = _flight(
-            s.pos, s.vel, s.quat, s.omega, s.stepped, s.principal_q, s.principal_moments, world.inertia_body,
-            world._gravity, bm.dynamic, bm.rotating, bm.kinematic, st.speculative, ext, moving, caps, cap, plane,
-            float(st.contact_margin), world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c,
-            bodies.aabb_h, bodies.planes, bodies.plane_n, bodies.plane_d, cache.fat_c if pairs else _NO_BOX,
-            cache.fat_h if pairs else _NO_BOX, cache.i if pairs else _NO_KEYS, cache.j if pairs else _NO_KEYS,
-            cache.margin, world.kind, world.group, world.mask, disabled, _NO_BOX, float(dt), work, keys)
+        status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2])
         if status != STALE or attempt:
             break
         # a body left its fat box: the cache rebuilt as detection rebuilds it, then the pass again
         R = np.empty((len(s.pos), 3, 3))
         rotations(s.quat, R)
-        rebuild_pair_cache(world, bodies, s.pos, R, margin, FAT_STEPS * dt)
+        rebuild_pair_cache(world, plan[3], s.pos, R, margin, FAT_STEPS * dt)
+        plan = _plan(world, dt)
     if status != FLOWN:
         return m
-    if pairs and not attempt:
+    cache = plan[3].pair_cache
+    if plan[3].n >= 2 and not attempt:
         cache.reuses += 1
     seconds = time.perf_counter() - t0
     # what a step without contacts leaves (``_finish``): no warm start, no contact, its statistics
     world.contact_cache.warm = None
     world.contacts = Contacts.empty()
-    world.last_detection = DetectionStats(bodies.n, 0, 0, 0, 0, None, 0, 0, 0, st.bounding_volume, margin,
+    world.last_detection = DetectionStats(plan[3].n, 0, 0, 0, 0, None, 0, 0, 0, plan[4], margin,
                                           {"prepare": 0.0, "broad": seconds, "total": seconds})
     world.last_solve = StepStats(0, 0.0, False, 0.0, 0, 0, m.toi, m.response, 0.0, 0.0, 0.0, 0.0 + drift,
                                  0.0, 0.0)   # 0.0 + drift: the sum the pipeline forms (-0.0 -> 0.0)
@@ -154,15 +146,44 @@ _EXACT = ("fractional", "swept")
 _NO_BOX = np.zeros((0, 3))
 
 
-def _workspace(world, n, m, n_keys):
-    """``_flight``'s workspace for ``n`` bodies, ``m`` of them finite, and ``n_keys`` candidate keys:
-    ``(work (24n + 6m,), keys (≥ n_keys,) int64)``, kept on the world while the sizes fit (the
-    kernel writes every entry it reads)."""
-    hit = world._derived.get("flight_work")
-    size = 24 * n + 6 * m
-    if hit is None or hit[0].shape[0] != size or hit[1].shape[0] < n_keys:
-        hit = world._derived["flight_work"] = (np.empty(size), np.empty(max(n_keys, 64), np.int64))
-    return hit
+def _plan(world, dt):
+    """What ``flight`` reads that the scene fixes, for a step of ``dt`` (s): ``(models, limit,
+    args, shapes, bounding_volume)``: the models when no body is thin-and-fast (``models.choose``'s
+    kept answer) and, for an ``auto`` time of impact, the limits ``(N,)`` its velocity test reads
+    (else None); ``_flight``'s arguments after the state arrays, or None where the flight declines
+    whatever the motion (the penalty response, exact or continuous times of impact, a pair cache
+    never built); the world's shape arrays (``collision._bodies_of``). Kept on the world while the
+    settings object, its edits (``validate.edits``), ``dt``, the body and material arrays, gravity,
+    the masks, the disabled pairs and the pair cache are the same (the cache's arrays are replaced
+    when it is rebuilt), so a step in flight checks once what it would otherwise gather anew."""
+    st, s, shapes = world.settings, world.s, world.shapes
+    key = (st, shapes[-1] if shapes else None, world.kind, world.particle, world.friction, world.restitution,
+           world.stiffness, world.damping_ratio, world._gravity, world.group, world.mask, world.disabled_pairs,
+           s.principal_q, s.principal_moments, world.inertia_body)
+    hit = world._derived.get("flight_plan")
+    if (hit is not None and hit[1] == validate.edits and hit[2] == dt and all(map(is_, hit[0], key))
+            and hit[3] is hit[4][3].pair_cache.fat_c and hit[5] == world.kind.tobytes()):
+        return hit[4]
+    edits = validate.edits
+    m, limit = _models._kept_models(world, st, dt)
+    bodies = _bodies_of(world)
+    cache = bodies.pair_cache
+    pairs = bodies.n >= 2
+    args = None
+    if not (m.response == "penalty" or m.toi in _EXACT or m.continuous or (pairs and cache.fat_c is None)):
+        bm = world.body_masks()
+        n_keys = (len(cache.i) + len(bodies.planes) * len(bodies.finite)) if pairs else 0
+        work, keys = np.empty(24 * len(s.pos) + 6 * len(bodies.finite)), np.empty(max(n_keys, 64), np.int64)
+        args = (s.principal_q, s.principal_moments, world.inertia_body, world._gravity, bm.dynamic, bm.rotating,
+                bm.kinematic, st.speculative, *prepare._margin_facts(world), float(st.contact_margin),
+                world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes,
+                bodies.plane_n, bodies.plane_d, cache.fat_c if pairs else _NO_BOX, cache.fat_h if pairs else _NO_BOX,
+                cache.i if pairs else _NO_KEYS, cache.j if pairs else _NO_KEYS, cache.margin, world.kind, world.group,
+                world.mask, disabled_keys(world) if world.disabled_pairs else _NO_KEYS, _NO_BOX, float(dt), work,
+                keys)
+    plan = (m, limit if st.toi == "auto" else None, args, bodies, st.bounding_volume)
+    world._derived["flight_plan"] = (key, edits, dt, cache.fat_c, plan, world.kind.tobytes())
+    return plan
 
 
 @njit(_nrt=False)

@@ -7,8 +7,6 @@ import numpy as np
 from ..jit import njit
 from ..constants import BRUTE_MAX, SAP_BUDGET, FAT_FRACTION, FAT_STRETCH_MAX
 
-_TRIU = {}          # n -> cached np.triu_indices(n, 1)
-
 
 def _filter(c, h, i, j, margin):
     """The pairs ``i, j (K,)`` whose boxes overlap within ``margin`` (compiled ``overlap_filter``)."""
@@ -74,8 +72,10 @@ class PairCache:
         # of the coordinates so that the superset argument holds in floating point
         self.margin = 2.0 * margin + 1e-9 * (1.0 + scale)
         i, j = candidate_pairs(self.fat_c, self.fat_h, self.margin)
-        order = np.lexsort((j, i))
-        self.i, self.j = np.ascontiguousarray(i[order]), np.ascontiguousarray(j[order])
+        if len(c) > BRUTE_MAX:   # all pairs come in (i, j) order already
+            order = np.lexsort((j, i))
+            i, j = np.ascontiguousarray(i[order]), np.ascontiguousarray(j[order])
+        self.i, self.j = i, j
         self.rebuilds += 1
 
 
@@ -106,12 +106,25 @@ def fat_boxes(c, h, vel, horizon, fat_c, fat_h):
 
 
 def all_pairs(c, h, margin):
-    """Same contract as ``sweep_and_prune``, by testing every pair (for a few boxes)."""
+    """Same contract as ``sweep_and_prune``, by testing every pair (for a few boxes); the pairs in
+    ``(i, j)`` order, contiguous."""
     n = len(c)
-    tri = _TRIU.get(n)
-    if tri is None:
-        tri = _TRIU[n] = np.triu_indices(n, 1)
-    return _filter(c, h, tri[0], tri[1], margin)
+    oi, oj = np.empty(n * (n - 1) // 2, np.int64), np.empty(n * (n - 1) // 2, np.int64)
+    k = _all_overlapping(c, h, margin, oi, oj)
+    return oi[:k], oj[:k]
+
+
+@njit(_nrt=False)
+def _all_overlapping(c, h, margin, oi, oj):
+    """Every pair ``a < b`` of the boxes ``c, h (N, 3)`` that overlaps within ``margin`` into
+    ``oi, oj (≥ N(N-1)/2,)``, in ``(a, b)`` order; returns their count."""
+    k = 0
+    for a in range(c.shape[0]):
+        for b in range(a + 1, c.shape[0]):
+            if _overlap(c, h, a, b, margin):
+                oi[k], oj[k] = a, b
+                k += 1
+    return k
 
 
 def world_aabbs(pos, R, centre_local, half_local):
