@@ -116,6 +116,38 @@ def test_a_lone_body_flies_bit_for_bit_and_its_drift_is_reported(monkeypatch):
 
 
 @pytest.mark.exact
+def test_what_the_flight_keeps_is_renewed_when_the_scene_changes_between_steps(monkeypatch):
+    """The flight keeps what the scene fixes (``stepper._plan``): gravity, a settings field, a
+    step of another ``dt``, a body added, a pair disabled and a kind changed between steps are each
+    seen at the next step, which stays bit for bit the pipeline's."""
+    edits = {20: lambda w: setattr(w, "gravity", (0.5, 0.0, -3.0)),
+             40: lambda w: setattr(w.settings, "contact_margin", 0.01),
+             60: lambda w: w.step(1 / 500),
+             80: lambda w: w.add_body("late", cs.Sphere(0.05), mass=0.5, position=(2.0, 0, 2.0), velocity=(0, 0, 1.0)),
+             100: lambda w: w.disable_collisions([("late", "ball")]),
+             120: lambda w: setattr(w.settings, "speculative", False)}
+    wa, wb = _ball(), _ball()
+    real = stepper.flight
+    flown = 0
+
+    def counted(w, dt):
+        nonlocal flown
+        m = real(w, dt)
+        flown += m is None
+        return m
+
+    for i in range(140):
+        for w, flight in ((wa, counted), (wb, lambda w, dt: models.choose(w, dt))):
+            monkeypatch.setattr(stepper, "flight", flight)
+            if i in edits:
+                edits[i](w)
+            w.step()
+        diff = step_diff(wa, wb)
+        assert not diff, f"step {i}: {diff}"
+    assert flown > 100 and len(wa) == 3 and wa.s.vel[1, 0] > 0.0   # flights under the new gravity too
+
+
+@pytest.mark.exact
 @pytest.mark.parametrize("settings", [{"toi": "fractional"}, {"toi": "swept"}, {"response": "penalty", "dt": 1e-3}])
 def test_the_flight_declines_what_it_does_not_cover_and_leaves_the_world_unchanged(settings):
     w = _ball(**settings)
