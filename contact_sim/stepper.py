@@ -51,7 +51,7 @@ from . import validate
 from .jit import njit
 from .stats import StepStats
 from .response import models as _models
-from .collision import (DetectionStats, _bodies_of, _NO_KEYS, broadphase, detect_world, disabled_keys,
+from .collision import (_bodies_of, _NO_KEYS, broadphase, detect_world, disabled_keys,
                         rebuild_pair_cache)
 from .collision.vec3 import rotations
 from .response import toi as toi_mod
@@ -111,8 +111,9 @@ def flight(world, dt):
     if plan[1] is not None and _models._any_too_fast(world.s.vel, world.kind, plan[1], world.gravity_norm(),
                                                      float(dt)):
         return _models.choose(world, dt)   # a thin body is fast this step: its own models (swept), declined
-    det = world.last_detection
-    if plan[2] is None or det is None or det.candidate_pairs or world.contact_cache.preflight_dt != dt:
+    det = world._last_detection   # a tuple: a flight's, which found no pair
+    if (plan[2] is None or det is None or (det.__class__ is not tuple and det.candidate_pairs)
+            or world.contact_cache.preflight_dt != dt):
         return m
     t0 = time.perf_counter()
     s = world.s
@@ -124,7 +125,7 @@ def flight(world, dt):
         R = np.empty((len(s.pos), 3, 3))
         rotations(s.quat, R)
         rebuild_pair_cache(world, plan[3], s.pos, R, margin, FAT_STEPS * dt)
-        plan = _plan(world, dt)
+        plan = _recached(world, plan)
     if status != FLOWN:
         return m
     cache = plan[3].pair_cache
@@ -132,18 +133,20 @@ def flight(world, dt):
         cache.reuses += 1
     seconds = time.perf_counter() - t0
     # what a step without contacts leaves (``_finish``): no warm start, no contact, its statistics
+    # (the statistics as their fields, made into their classes when read: ``World.last_solve``)
     world.contact_cache.warm = None
-    world.contacts = Contacts.empty()
-    world.last_detection = DetectionStats(plan[3].n, 0, 0, 0, 0, None, 0, 0, 0, plan[4], margin,
-                                          {"prepare": 0.0, "broad": seconds, "total": seconds})
-    world.last_solve = StepStats(0, 0.0, False, 0.0, 0, 0, m.toi, m.response, 0.0, 0.0, 0.0, 0.0 + drift,
-                                 0.0, 0.0)   # 0.0 + drift: the sum the pipeline forms (-0.0 -> 0.0)
+    if world.contacts.depth.shape[0]:   # an empty one stays: it says the same
+        world.contacts = Contacts.empty()
+    world._last_detection = (plan[3].n, plan[4], margin, seconds)
+    world._last_solve = (0, 0.0, False, 0.0, 0, 0, m.toi, m.response, 0.0, 0.0, 0.0, 0.0 + drift,
+                         0.0, 0.0)   # 0.0 + drift: the sum the pipeline forms (-0.0 -> 0.0)
     world.time += dt
     return None
 
 
 _EXACT = ("fractional", "swept")
 _NO_BOX = np.zeros((0, 3))
+_NO_KEYS_64 = np.empty(64, np.int64)   # the keys' workspace where there is no pair (never read)
 
 
 def _plan(world, dt):
@@ -172,17 +175,45 @@ def _plan(world, dt):
     args = None
     if not (m.response == "penalty" or m.toi in _EXACT or m.continuous or (pairs and cache.fat_c is None)):
         bm = world.body_masks()
-        n_keys = (len(cache.i) + len(bodies.planes) * len(bodies.finite)) if pairs else 0
-        work, keys = np.empty(24 * len(s.pos) + 6 * len(bodies.finite)), np.empty(max(n_keys, 64), np.int64)
+        fat_c, fat_h, ci, cj, fat_margin, keys = _cache_args(bodies, None)
         args = (s.principal_q, s.principal_moments, world.inertia_body, world._gravity, bm.dynamic, bm.rotating,
                 bm.kinematic, st.speculative, *prepare._margin_facts(world), float(st.contact_margin),
                 world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes,
-                bodies.plane_n, bodies.plane_d, cache.fat_c if pairs else _NO_BOX, cache.fat_h if pairs else _NO_BOX,
-                cache.i if pairs else _NO_KEYS, cache.j if pairs else _NO_KEYS, cache.margin, world.kind, world.group,
-                world.mask, disabled_keys(world) if world.disabled_pairs else _NO_KEYS, _NO_BOX, float(dt), work,
-                keys)
+                bodies.plane_n, bodies.plane_d, fat_c, fat_h, ci, cj, fat_margin, world.kind, world.group, world.mask,
+                disabled_keys(world) if world.disabled_pairs else _NO_KEYS, _NO_BOX, float(dt),
+                np.empty(24 * len(s.pos) + 6 * len(bodies.finite)), keys)
+        assert args[_CACHE_AT] is fat_c
     plan = (m, limit if st.toi == "auto" else None, args, bodies, st.bounding_volume)
     world._derived["flight_plan"] = (key, edits, dt, cache.fat_c, plan, world.kind.tobytes())
+    return plan
+
+
+#: where the pair cache's arguments start in a plan's ``_flight`` arguments (``fat_c``)
+_CACHE_AT = 22
+
+
+def _cache_args(bodies, keys):
+    """``_flight``'s arguments from the pair cache of the shape arrays ``bodies`` (for one body or
+    none, empty ones), and the keys' workspace ``(≥ C + P·M,) int64``: ``keys`` when it is large
+    enough (``world_pairs``' sizes), else a new one. In a plan's arguments: ``fat_c, fat_h, ci, cj,
+    fat_margin`` at ``_CACHE_AT``, the keys last."""
+    cache = bodies.pair_cache
+    if bodies.n < 2:
+        return _NO_BOX, _NO_BOX, _NO_KEYS, _NO_KEYS, cache.margin, _NO_KEYS_64
+    n_keys = len(cache.i) + len(bodies.planes) * len(bodies.finite)
+    if keys is None or len(keys) < n_keys:
+        keys = np.empty(max(n_keys, 64), np.int64)
+    return cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, keys
+
+
+def _recached(world, plan):
+    """``plan`` with the pair cache's arguments of its rebuilt cache (the rest stays: a rebuild
+    changes nothing else it holds), kept on the world in its place."""
+    args, at = plan[2], _CACHE_AT
+    fat_c, fat_h, ci, cj, fat_margin, keys = _cache_args(plan[3], args[-1])
+    plan = (plan[0], plan[1], (*args[:at], fat_c, fat_h, ci, cj, fat_margin, *args[at + 5:-1], keys), *plan[3:])
+    hit = world._derived["flight_plan"]
+    world._derived["flight_plan"] = (*hit[:3], fat_c, plan, hit[5])
     return plan
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import dynamics, free_motion, quat, stepper
+from . import collision, dynamics, free_motion, quat, stepper
 from .contacts import Contacts
 from .errors import ContactSimError, EngineError
 from .kinds import DYNAMIC, KINDS, body_masks
@@ -165,8 +165,8 @@ class World(BodyInput):
         self.group = np.zeros(0, np.uint32)
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
-        self.last_detection = None   # statistics of the last detection (collision.DetectionStats)
-        self.last_solve = StepStats()  # statistics of the last step (zeros before the first)
+        self._last_detection = None   # last_detection's value, or a flight's fields for it
+        self._last_solve = StepStats()  # last_solve's value, or a flight's fields for it
         # tables derived from the model, rebuilt when what they derive from is replaced (``memo``)
         self._derived = {}
         self._body_masks = None
@@ -206,6 +206,32 @@ class World(BodyInput):
         leaves it."""
         self.__dict__.update(state)
         self._gravity.flags.writeable = False
+
+    @property
+    def last_solve(self):
+        """Statistics of the last step (``StepStats``; zeros before the first step)."""
+        v = self._last_solve
+        if v.__class__ is tuple:   # a flight's fields (``stepper.flight``): made a StepStats when first read
+            v = self._last_solve = StepStats(*v)
+        return v
+
+    @last_solve.setter
+    def last_solve(self, value):
+        self._last_solve = value
+
+    @property
+    def last_detection(self):
+        """Statistics of the last detection (``collision.DetectionStats``; None before the first)."""
+        v = self._last_detection
+        if v.__class__ is tuple:   # a flight's ``(bodies, bounding_volume, margin, seconds)``: no pair found
+            n, bv, margin, seconds = v
+            v = self._last_detection = collision.DetectionStats(n, 0, 0, 0, 0, None, 0, 0, 0, bv, margin, {
+                "prepare": 0.0, "broad": seconds, "total": seconds})
+        return v
+
+    @last_detection.setter
+    def last_detection(self, value):
+        self._last_detection = value
 
     def gravity_norm(self):
         """``|gravity|`` (m/s²; ``np.linalg.norm``'s value, kept from the last assignment)."""
@@ -609,11 +635,11 @@ class World(BodyInput):
         s, cache = self.s, self.contact_cache
         # in ``_State.MOTION``'s order, named one by one (a loop over the names costs a third of it)
         return (s, (s.pos.copy(), s.vel.copy(), s.quat.copy(), s.omega.copy(), s.stepped.copy()), self.time,
-                cache.warm, cache.preflight_dt, self.contacts, self.last_solve, self.last_detection)
+                cache.warm, cache.preflight_dt, self.contacts, self._last_solve, self._last_detection)
 
     def _undo_step(self, saved):
         """Put back what ``_step_snapshot`` saved (the world as it was before the step)."""
-        s, motion, self.time, warm, preflight_dt, self.contacts, self.last_solve, self.last_detection = saved
+        s, motion, self.time, warm, preflight_dt, self.contacts, self._last_solve, self._last_detection = saved
         for n, a in zip(_State.MOTION, motion):
             setattr(s, n, a)
         self.s = s
@@ -633,8 +659,6 @@ class World(BodyInput):
     def detect(self):
         """All contacts of the current state, without stepping (``Contacts``); the statistics of
         this detection are in ``last_detection``."""
-        from . import collision
-
         contacts, self.last_detection = collision.detect_world(self)
         return contacts
 
