@@ -30,7 +30,7 @@ BRUTE_MAX = 32      # up to this many boxes, testing all N(N-1)/2 pairs at once 
 SAP_BUDGET = 16     # SAP while its sweep-axis candidates are ≤ this × N (+64), else the grid (measured
                     # crossover: ~20 candidates per box)
 FAT_FRACTION = 0.2  # a fat box is the tight AABB grown by this × its largest half size
-FAT_STEPS = 8       # and stretched along the body's displacement over this many steps at its velocity
+FAT_STEPS = 16      # and stretched along the body's displacement over this many steps at its velocity
                     # (Box2D v2's aabbMultiplier: a falling body keeps the cache for several steps)
 FAT_STRETCH_MAX = 4.0  # each component of that stretch at most this × the box's largest half size
 
