@@ -175,28 +175,48 @@ def _plan(world, dt):
     args = None
     if not (m.response == "penalty" or m.toi in _EXACT or m.continuous or (pairs and cache.fat_c is None)):
         bm = world.body_masks()
-        fat_c, fat_h, ci, cj, fat_margin, keys = _cache_args(bodies, None)
-        args = (s.principal_q, s.principal_moments, world.inertia_body, world._gravity, bm.dynamic, bm.rotating,
-                bm.kinematic, st.speculative, *prepare._margin_facts(world), float(st.contact_margin),
-                world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c, bodies.aabb_h, bodies.planes,
-                bodies.plane_n, bodies.plane_d, fat_c, fat_h, ci, cj, fat_margin, world.kind, world.group, world.mask,
-                disabled_keys(world) if world.disabled_pairs else _NO_KEYS, _NO_BOX, float(dt),
-                np.empty(24 * len(s.pos) + 6 * len(bodies.finite)), keys)
-        assert args[_CACHE_AT] is fat_c
+        args = (*pack(s.principal_q, s.principal_moments, world.inertia_body, world._gravity, bm.dynamic, bm.rotating,
+                      bm.kinematic, st.speculative, *prepare._margin_facts(world), float(st.contact_margin),
+                      world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c, bodies.aabb_h,
+                      bodies.planes, bodies.plane_n, bodies.plane_d, world.group, world.mask,
+                      disabled_keys(world) if world.disabled_pairs else _NO_KEYS, float(dt)),
+                world.kind, *_cache_args(bodies, None))
     plan = (m, limit if st.toi == "auto" else None, args, bodies, st.bounding_volume)
     world._derived["flight_plan"] = (key, edits, dt, cache.fat_c, plan, world.kind.tobytes())
     return plan
 
 
+def pack(principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic, speculative, ext, moving, caps, cap,
+         plane, base, g, pairs, fin, centre, half, planes, plane_n, plane_d, group, mask, disabled, dt):
+    """What ``_flight`` reads that the scene fixes, in four blocks by type, so that the call takes
+    four arguments for ~30 (numba wraps each argument at every call, ~30 ns each): ``(F, B, I,
+    U)``, copies. ``F`` float64: ``principal_q (N,4), moments (N,3), inertia_body (N,3,3),
+    gravity (3,), ext, caps (N,), centre, half, plane_n (N,3), plane_d (N,)``, then ``cap, base,
+    g, dt`` and the workspace ``(24N + 6M,)``; ``B`` bool: ``dynamic, rotating, kinematic, moving
+    (N,)``, then ``speculative, plane, pairs``; ``I`` int64: ``M, P, E``, then ``fin (M,), planes
+    (P,), disabled (E,)``; ``U`` uint32: ``group, mask (N,)``. Arguments as ``_flight``'s before
+    (``prepare._margin_facts``' ``ext, moving, caps, cap, plane``; ``base`` the contact margin (m),
+    ``g = |g| dt²`` (m), ``dt`` (s); ``collision._bodies_of``' shape arrays; ``world_pairs``'
+    masks and disabled keys). The World replaces these arrays when it changes them, never edits
+    them in place, so a plan's copies hold while the plan's key does."""
+    n, m = len(principal_q), len(fin)
+    F = np.concatenate((principal_q.ravel(), moments.ravel(), inertia_body.ravel(), gravity, ext, caps, centre.ravel(),
+                        half.ravel(), plane_n.ravel(), plane_d, (cap, base, g, dt), np.zeros(24 * n + 6 * m)))
+    B = np.concatenate((dynamic, rotating, kinematic, moving, (speculative, plane, pairs))).astype(np.bool_)
+    I = np.concatenate(((m, len(planes), len(disabled)), fin, planes, disabled)).astype(np.int64)
+    U = np.concatenate((group, mask)).astype(np.uint32)
+    return F, B, I, U
+
+
 #: where the pair cache's arguments start in a plan's ``_flight`` arguments (``fat_c``)
-_CACHE_AT = 22
+_CACHE_AT = 5
 
 
 def _cache_args(bodies, keys):
     """``_flight``'s arguments from the pair cache of the shape arrays ``bodies`` (for one body or
     none, empty ones), and the keys' workspace ``(≥ C + P·M,) int64``: ``keys`` when it is large
-    enough (``world_pairs``' sizes), else a new one. In a plan's arguments: ``fat_c, fat_h, ci, cj,
-    fat_margin`` at ``_CACHE_AT``, the keys last."""
+    enough (``world_pairs``' sizes), else a new one: ``(fat_c, fat_h, ci, cj, fat_margin, keys)``,
+    a plan's arguments from ``_CACHE_AT``."""
     cache = bodies.pair_cache
     if bodies.n < 2:
         return _NO_BOX, _NO_BOX, _NO_KEYS, _NO_KEYS, cache.margin, _NO_KEYS_64
@@ -209,34 +229,52 @@ def _cache_args(bodies, keys):
 def _recached(world, plan):
     """``plan`` with the pair cache's arguments of its rebuilt cache (the rest stays: a rebuild
     changes nothing else it holds), kept on the world in its place."""
-    args, at = plan[2], _CACHE_AT
-    fat_c, fat_h, ci, cj, fat_margin, keys = _cache_args(plan[3], args[-1])
-    plan = (plan[0], plan[1], (*args[:at], fat_c, fat_h, ci, cj, fat_margin, *args[at + 5:-1], keys), *plan[3:])
+    args = plan[2]
+    cached = _cache_args(plan[3], args[-1])
+    plan = (plan[0], plan[1], args[:_CACHE_AT] + cached, *plan[3:])
     hit = world._derived["flight_plan"]
-    world._derived["flight_plan"] = (*hit[:3], fat_c, plan, hit[5])
+    world._derived["flight_plan"] = (*hit[:3], cached[0], plan, hit[5])
     return plan
 
 
 @njit(_nrt=False)
-def _flight(pos, vel, quat, omega, stepped, principal_q, moments, inertia_body, gravity, dynamic, rotating, kinematic,
-            speculative, ext, moving, caps, cap, plane, base, g, pairs, fin, centre, half, planes, plane_n, plane_d,
-            fat_c, fat_h, ci, cj, fat_margin, kind, group, mask, disabled, no_kick, dt, work, keys):
+def _flight(pos, vel, quat, omega, stepped, F, B, I, U, kind, fat_c, fat_h, ci, cj, fat_margin, keys):
     """``flight``'s compiled step: the detection margin as ``prepare.speculative_reach`` and
     ``_detect_stage`` make it (``base`` the contact margin, ``g = |g| dt²``; with ``speculative``
     the look-ahead of ``ext, moving, caps (N,)``, ``cap``, ``plane``: ``prepare._margin_facts``),
-    then with ``pairs`` (two bodies or more) the broad phase's pass on the pair cache
-    (``broadphase.cached_keys`` and ``may_touch``, arguments as ``world_pairs``'); when it finds no
-    pair, the advance (``free_motion.advance``, no kicks: ``no_kick (0,3)``) in place, with where the
-    step left the bodies into ``stepped (N,7)`` when all is finite, else the state put back.
-    Workspace: ``work (≥ 24N + 6M,)``, ``keys (≥ C + P·M,) int64`` (``world_pairs``' sizes). It
-    allocates nothing, so it is compiled without reference counts: its ~30 arrays would otherwise
-    each be wrapped for numba's counting at every call (~3 µs of a 14 µs step). Returns ``(FLOWN,
-    STALE or DECLINED, drift (J), margin (m))``, the state unchanged unless ``FLOWN``."""
-    n, m = pos.shape[0], fin.shape[0]
-    reach = work[:2 * n].reshape((2, n))
-    R = work[2 * n:11 * n].reshape((n, 3, 3))
-    kept = work[11 * n:24 * n].reshape((n, 13))
-    boxes = work[24 * n:24 * n + 6 * m].reshape((2, m, 3))
+    then with ``pairs`` (two bodies or more) the broad phase's pass on the pair cache ``fat_c,
+    fat_h (M,3), ci, cj (C,)``, ``fat_margin`` (``broadphase.cached_keys`` and ``may_touch``,
+    arguments as ``world_pairs``'); when it finds no pair, the advance (``free_motion.advance``,
+    no kicks) in place, with where the step left the bodies into ``stepped (N,7)`` when all is
+    finite, else the state put back. What the scene fixes comes in the blocks ``F, B, I, U``
+    (``pack``: F's tail is the workspace) and ``kind (N,) int8``; ``keys (≥ C + P·M,) int64`` is
+    a workspace (``world_pairs``' sizes). It allocates nothing, so it is compiled without
+    reference counts: its arrays would otherwise each be wrapped for numba's counting at every
+    call. Returns ``(FLOWN, STALE or DECLINED, drift (J), margin (m))``, the state unchanged
+    unless ``FLOWN``."""
+    n, m, p, e = pos.shape[0], I[0], I[1], I[2]
+    fin, planes, disabled = I[3:3 + m], I[3 + m:3 + m + p], I[3 + m + p:3 + m + p + e]
+    group, mask = U[:n], U[n:2 * n]
+    dynamic, rotating, kinematic, moving = B[:n], B[n:2 * n], B[2 * n:3 * n], B[3 * n:4 * n]
+    speculative, plane, pairs = B[4 * n], B[4 * n + 1], B[4 * n + 2]
+    principal_q = F[:4 * n].reshape((n, 4))
+    moments = F[4 * n:7 * n].reshape((n, 3))
+    inertia_body = F[7 * n:16 * n].reshape((n, 3, 3))
+    gravity = F[16 * n:16 * n + 3]
+    o = 16 * n + 3
+    ext, caps = F[o:o + n], F[o + n:o + 2 * n]
+    centre = F[o + 2 * n:o + 5 * n].reshape((n, 3))
+    half = F[o + 5 * n:o + 8 * n].reshape((n, 3))
+    plane_n = F[o + 8 * n:o + 11 * n].reshape((n, 3))
+    plane_d = F[o + 11 * n:o + 12 * n]
+    o += 12 * n
+    cap, base, g, dt = F[o], F[o + 1], F[o + 2], F[o + 3]
+    o += 4
+    no_kick = F[o:o].reshape((0, 3))
+    reach = F[o:o + 2 * n].reshape((2, n))
+    R = F[o + 2 * n:o + 11 * n].reshape((n, 3, 3))
+    kept = F[o + 11 * n:o + 24 * n].reshape((n, 13))
+    boxes = F[o + 24 * n:o + 24 * n + 6 * m].reshape((2, m, 3))
     margin, plane_margin = base, base
     if speculative:
         look, plane_look, _ = prepare.look_ahead(vel, omega, ext, moving, caps, cap, plane, base, g, dt, reach)

@@ -171,13 +171,14 @@ def test_a_motion_that_would_not_be_finite_is_declined_with_the_state_untouched(
     state = [a.copy() for a in (pos, vel, quat, omega, stepped)]
     yes = np.ones(1, bool)
     with np.errstate(over="ignore", invalid="ignore"):   # numpy's scalars warn where the kernel runs as Python
-        status, _, _ = stepper._flight(
-            pos, vel, quat, omega, stepped, quat.copy(), np.ones((1, 3)), np.eye(3)[None], np.array([0.0, 0.0, -9.81]),
-            yes, yes, ~yes, False, np.ones(1), yes, np.ones(1), 1.0, False, 0.0, 0.0, False, np.zeros(0, np.int64),
-            np.zeros((1, 3)), np.ones((1, 3)), np.zeros(0, np.int64), np.zeros((1, 3)), np.zeros(1), np.zeros((0, 3)),
-            np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), 0.0, np.full(1, 2, np.int8),
-            np.ones(1, np.uint32), np.ones(1, np.uint32), np.zeros(0, np.int64), np.zeros((0, 3)), 10.0,
-            np.empty(30), np.empty(1, np.int64))
+        fixed = stepper.pack(quat.copy(), np.ones((1, 3)), np.eye(3)[None], np.array([0.0, 0.0, -9.81]), yes, yes,
+                             ~yes, False, np.ones(1), yes, np.ones(1), 1.0, False, 0.0, 0.0, False,
+                             np.zeros(0, np.int64), np.zeros((1, 3)), np.ones((1, 3)), np.zeros(0, np.int64),
+                             np.zeros((1, 3)), np.zeros(1), np.ones(1, np.uint32), np.ones(1, np.uint32),
+                             np.zeros(0, np.int64), 10.0)
+        status, _, _ = stepper._flight(pos, vel, quat, omega, stepped, *fixed, np.full(1, 2, np.int8), np.zeros((0, 3)),
+                                       np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), 0.0,
+                                       np.empty(1, np.int64))
     assert status == stepper.DECLINED
     for a, b in zip(state, (pos, vel, quat, omega, stepped)):
         assert np.array_equal(a, b)
