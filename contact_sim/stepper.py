@@ -117,20 +117,19 @@ def flight(world, dt):
         return m
     t0 = time.perf_counter()
     s = world.s
-    for attempt in range(2):
-        status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2])
-        if status != STALE or attempt:
-            break
+    status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2])
+    rebuilt = status == STALE
+    if rebuilt:
         # a body left its fat box: the cache rebuilt as detection rebuilds it, then the pass again
         R = np.empty((len(s.pos), 3, 3))
         rotations(s.quat, R)
         rebuild_pair_cache(world, plan[3], s.pos, R, margin, FAT_STEPS * dt)
         plan = _recached(world, plan)
+        status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2])
     if status != FLOWN:
         return m
-    cache = plan[3].pair_cache
-    if plan[3].n >= 2 and not attempt:
-        cache.reuses += 1
+    if not rebuilt and plan[3].n >= 2:
+        plan[3].pair_cache.reuses += 1
     seconds = time.perf_counter() - t0
     # what a step without contacts leaves (``_finish``): no warm start, no contact, its statistics
     # (the statistics as their fields, made into their classes when read: ``World.last_solve``)
