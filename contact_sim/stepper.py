@@ -49,7 +49,6 @@ from .contacts import Contacts
 from .free_motion import advance, all_finite
 from . import validate
 from .jit import njit
-from .stats import StepStats
 from .response import models as _models
 from .collision import (_bodies_of, _NO_KEYS, broadphase, detect_world, disabled_keys,
                         rebuild_pair_cache)
@@ -79,8 +78,19 @@ def step(world, dt, m):
     s = world.s
     # where this step left the bodies (centre, then orientation): a pose given before the next moves
     # a kinematic one at once (energy.pose_work)
-    np.concatenate((s.pos, s.quat), axis=1, out=s.stepped)
+    _stepped(s.pos, s.quat, s.stepped)
     world.time += dt
+
+
+@njit(_nrt=False)
+def _stepped(pos, quat, stepped):
+    """``stepped (N,7)`` = ``pos (N,3)``, then ``quat (N,4)``, per row (``np.concatenate``'s values at a
+    quarter of its call's cost)."""
+    for i in range(pos.shape[0]):
+        for x in range(3):
+            stepped[i, x] = pos[i, x]
+        for x in range(4):
+            stepped[i, 3 + x] = quat[i, x]
 
 
 # ---------------------------------------------------------------------------- free flight
@@ -111,8 +121,8 @@ def flight(world, dt):
     if plan[1] is not None and _models._any_too_fast(world.s.vel, world.kind, plan[1], world.gravity_norm(),
                                                      float(dt)):
         return _models.choose(world, dt)   # a thin body is fast this step: its own models (swept), declined
-    det = world._last_detection   # a tuple: a flight's, which found no pair
-    if (plan[2] is None or det is None or (det.__class__ is not tuple and det.candidate_pairs)
+    det = world._last_detection   # a DetectionStats, or its fields (``World.last_detection``)
+    if (plan[2] is None or det is None or (det[1] if det.__class__ is tuple else det.candidate_pairs)
             or world.contact_cache.preflight_dt != dt):
         return m
     t0 = time.perf_counter()
@@ -136,7 +146,8 @@ def flight(world, dt):
     world.contact_cache.warm = None
     if world.contacts.depth.shape[0]:   # an empty one stays: it says the same
         world.contacts = Contacts.empty()
-    world._last_detection = (plan[3].n, plan[4], margin, seconds)
+    world._last_detection = (plan[3].n, 0, 0, 0, 0, None, 0, 0, 0, plan[4], margin,
+                             {"prepare": 0.0, "broad": seconds, "total": seconds})
     world._last_solve = (0, 0.0, False, 0.0, 0, 0, m.toi, m.response, 0.0, 0.0, 0.0, 0.0 + drift,
                          0.0, 0.0)   # 0.0 + drift: the sum the pipeline forms (-0.0 -> 0.0)
     world.time += dt
@@ -408,12 +419,12 @@ def _finish(ctx, correction_energy):
     world, m = ctx.world, ctx.models
     world.contact_cache.warm = ctx.warm_out
     world.contacts = merge_records(world, ctx.records)
-    # positional, in the field order: iterations, residual, unconverged, max_penetration, contacts,
+    # StepStats' fields in their order (iterations, residual, unconverged, max_penetration, contacts,
     # impacts, toi, response, correction_energy, kinematic_work, pose_work, rotation_drift,
-    # kick_error_bound, rest_work_bound (a third of the keyword call's cost, every step)
-    world.last_solve = StepStats(ctx.iterations, ctx.residual, ctx.unconverged, ctx.max_penetration,
-                                 len(world.contacts), ctx.events, m.toi, m.response, correction_energy,
-                                 ctx.kinematic_work, ctx.pose_work, ctx.drift, ctx.kick_error, ctx.rest_bound)
+    # kick_error_bound, rest_work_bound), made into it when read (``World.last_solve``)
+    world._last_solve = (ctx.iterations, ctx.residual, ctx.unconverged, ctx.max_penetration, len(world.contacts),
+                         ctx.events, m.toi, m.response, correction_energy, ctx.kinematic_work, ctx.pose_work,
+                         ctx.drift, ctx.kick_error, ctx.rest_bound)
 
 
 # ---------------------------------------------------------------------------- penalty

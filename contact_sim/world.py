@@ -165,8 +165,8 @@ class World(BodyInput):
         self.group = np.zeros(0, np.uint32)
         self.mask = np.zeros(0, np.uint32)
         self._initial = None
-        self._last_detection = None   # last_detection's value, or a flight's fields for it
-        self._last_solve = StepStats()  # last_solve's value, or a flight's fields for it
+        self._last_detection = None   # last_detection's value, or a step's fields for it
+        self._last_solve = StepStats()  # last_solve's value, or a step's fields for it
         # tables derived from the model, rebuilt when what they derive from is replaced (``memo``)
         self._derived = {}
         self._body_masks = None
@@ -211,7 +211,7 @@ class World(BodyInput):
     def last_solve(self):
         """Statistics of the last step (``StepStats``; zeros before the first step)."""
         v = self._last_solve
-        if v.__class__ is tuple:   # a flight's fields (``stepper.flight``): made a StepStats when first read
+        if v.__class__ is tuple:   # a step's fields (``stepper``): made a StepStats when first read
             v = self._last_solve = StepStats(*v)
         return v
 
@@ -223,10 +223,8 @@ class World(BodyInput):
     def last_detection(self):
         """Statistics of the last detection (``collision.DetectionStats``; None before the first)."""
         v = self._last_detection
-        if v.__class__ is tuple:   # a flight's ``(bodies, bounding_volume, margin, seconds)``: no pair found
-            n, bv, margin, seconds = v
-            v = self._last_detection = collision.DetectionStats(n, 0, 0, 0, 0, None, 0, 0, 0, bv, margin, {
-                "prepare": 0.0, "broad": seconds, "total": seconds})
+        if v.__class__ is tuple:   # a step's fields: made a DetectionStats when first read
+            v = self._last_detection = collision.DetectionStats(*v)
         return v
 
     @last_detection.setter

@@ -30,7 +30,7 @@ from operator import is_
 
 import numpy as np
 
-from ..collision import COMPILED_VOLUMES, DetectionStats, _bodies_of, _NO_KEYS, contacts_of_rows, disabled_keys
+from ..collision import COMPILED_VOLUMES, _bodies_of, _NO_KEYS, contacts_of_rows, disabled_keys
 from ..collision import broadphase, pair_kernels
 from ..collision.vec3 import rotations
 from ..free_motion import advance
@@ -144,11 +144,10 @@ def run_detected(ctx):
     ctx.touching = ctx.rest_mask = ctx.dv_rest = None
     ctx.contacts = c = contacts_of_rows(rows_i, rows_f, body_a, body_b, normal)
     n_settled, n_edge_face = counters.tolist()
-    # positional, in the field order (``DetectionStats``); the seconds are the call's, the
-    # sub-step's stages included
-    world.last_detection = DetectionStats(len(world.shapes), candidates, candidates - kept, n_settled, n_edge_face,
-                                          None, pairs, len(c), unsupported, st.bounding_volume, margin,
-                                          {"total": time.perf_counter() - t0})
+    # ``DetectionStats``' fields in their order, made into it when read (``World.last_detection``); the
+    # seconds are the call's, the sub-step's stages included
+    world._last_detection = (len(world.shapes), candidates, candidates - kept, n_settled, n_edge_face, None, pairs,
+                             len(c), unsupported, st.bounding_volume, margin, {"total": time.perf_counter() - t0})
     if status == NO_CONTACT:
         run(ctx, True)   # free motion
     else:
