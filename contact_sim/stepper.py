@@ -122,24 +122,26 @@ def flight(world, dt):
                                                      float(dt)):
         return _models.choose(world, dt)   # a thin body is fast this step: its own models (swept), declined
     det = world._last_detection   # a DetectionStats, or its fields (``World.last_detection``)
-    if (plan[2] is None or det is None or (det[1] if det.__class__ is tuple else det.candidate_pairs)
-            or world.contact_cache.preflight_dt != dt):
+    bodies = plan[3]
+    cache = bodies.pair_cache
+    cached = cache.args if bodies.n >= 2 else _NO_PAIRS
+    if (plan[2] is None or cached is None or det is None
+            or (det[1] if det.__class__ is tuple else det.candidate_pairs) or world.contact_cache.preflight_dt != dt):
         return m
     t0 = time.perf_counter()
     s = world.s
-    status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2])
+    status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2], *cached)
     rebuilt = status == STALE
     if rebuilt:
         # a body left its fat box: the cache rebuilt as detection rebuilds it, then the pass again
         R = np.empty((len(s.pos), 3, 3))
         rotations(s.quat, R)
-        rebuild_pair_cache(world, plan[3], s.pos, R, margin, FAT_STEPS * dt)
-        plan = _recached(world, plan)
-        status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2])
+        rebuild_pair_cache(world, bodies, s.pos, R, margin, FAT_STEPS * dt)
+        status, drift, margin = _flight(s.pos, s.vel, s.quat, s.omega, s.stepped, *plan[2], *cache.args)
     if status != FLOWN:
         return m
-    if not rebuilt and plan[3].n >= 2:
-        plan[3].pair_cache.reuses += 1
+    if not rebuilt and bodies.n >= 2:
+        cache.reuses += 1
     seconds = time.perf_counter() - t0
     # what a step without contacts leaves (``_finish``): no warm start, no contact, its statistics
     # (the statistics as their fields, made into their classes when read: ``World.last_solve``)
@@ -156,43 +158,42 @@ def flight(world, dt):
 
 _EXACT = ("fractional", "swept")
 _NO_BOX = np.zeros((0, 3))
-_NO_KEYS_64 = np.empty(64, np.int64)   # the keys' workspace where there is no pair (never read)
+#: the pair cache's arguments of ``_flight`` for one body or none (no pair: never read)
+_NO_PAIRS = (_NO_BOX, _NO_BOX, _NO_KEYS, _NO_KEYS, -1.0, np.empty(64, np.int64))
 
 
 def _plan(world, dt):
     """What ``flight`` reads that the scene fixes, for a step of ``dt`` (s): ``(models, limit,
     args, shapes, bounding_volume)``: the models when no body is thin-and-fast (``models.choose``'s
     kept answer) and, for an ``auto`` time of impact, the limits ``(N,)`` its velocity test reads
-    (else None); ``_flight``'s arguments after the state arrays, or None where the flight declines
-    whatever the motion (the penalty response, exact or continuous times of impact, a pair cache
-    never built); the world's shape arrays (``collision._bodies_of``). Kept on the world while the
-    settings object, its edits (``validate.edits``), ``dt``, the body and material arrays, gravity,
-    the masks, the disabled pairs and the pair cache are the same (the cache's arrays are replaced
-    when it is rebuilt), so a step in flight checks once what it would otherwise gather anew."""
+    (else None); ``_flight``'s arguments after the state arrays and before the pair cache's
+    (``pack``'s blocks and the kind array), or None where the flight declines whatever the motion
+    (the penalty response, exact or continuous times of impact); the world's shape arrays
+    (``collision._bodies_of``). Kept on the world while the settings object, its edits
+    (``validate.edits``), ``dt``, the body and material arrays, gravity, the masks and the disabled
+    pairs are the same, so a step in flight checks once what it would otherwise gather anew."""
     st, s, shapes = world.settings, world.s, world.shapes
     key = (st, shapes[-1] if shapes else None, world.kind, world.particle, world.friction, world.restitution,
            world.stiffness, world.damping_ratio, world._gravity, world.group, world.mask, world.disabled_pairs,
            s.principal_q, s.principal_moments, world.inertia_body)
     hit = world._derived.get("flight_plan")
     if (hit is not None and hit[1] == validate.edits and hit[2] == dt and all(map(is_, hit[0], key))
-            and hit[3] is hit[4][3].pair_cache.fat_c and hit[5] == world.kind.tobytes()):
+            and hit[3] == world.kind.tobytes()):
         return hit[4]
     edits = validate.edits
     m, limit = _models._kept_models(world, st, dt)
     bodies = _bodies_of(world)
-    cache = bodies.pair_cache
-    pairs = bodies.n >= 2
     args = None
-    if not (m.response == "penalty" or m.toi in _EXACT or m.continuous or (pairs and cache.fat_c is None)):
+    if not (m.response == "penalty" or m.toi in _EXACT or m.continuous):
         bm = world.body_masks()
         args = (*pack(s.principal_q, s.principal_moments, world.inertia_body, world._gravity, bm.dynamic, bm.rotating,
                       bm.kinematic, st.speculative, *prepare._margin_facts(world), float(st.contact_margin),
-                      world.gravity_norm() * dt * dt, pairs, bodies.finite, bodies.aabb_c, bodies.aabb_h,
+                      world.gravity_norm() * dt * dt, bodies.n >= 2, bodies.finite, bodies.aabb_c, bodies.aabb_h,
                       bodies.planes, bodies.plane_n, bodies.plane_d, world.group, world.mask,
                       disabled_keys(world) if world.disabled_pairs else _NO_KEYS, float(dt)),
-                world.kind, *_cache_args(bodies, None))
+                world.kind)
     plan = (m, limit if st.toi == "auto" else None, args, bodies, st.bounding_volume)
-    world._derived["flight_plan"] = (key, edits, dt, cache.fat_c, plan, world.kind.tobytes())
+    world._derived["flight_plan"] = (key, edits, dt, world.kind.tobytes(), plan)
     return plan
 
 
@@ -216,35 +217,6 @@ def pack(principal_q, moments, inertia_body, gravity, dynamic, rotating, kinemat
     I = np.concatenate(((m, len(planes), len(disabled)), fin, planes, disabled)).astype(np.int64)
     U = np.concatenate((group, mask)).astype(np.uint32)
     return F, B, I, U
-
-
-#: where the pair cache's arguments start in a plan's ``_flight`` arguments (``fat_c``)
-_CACHE_AT = 5
-
-
-def _cache_args(bodies, keys):
-    """``_flight``'s arguments from the pair cache of the shape arrays ``bodies`` (for one body or
-    none, empty ones), and the keys' workspace ``(≥ C + P·M,) int64``: ``keys`` when it is large
-    enough (``world_pairs``' sizes), else a new one: ``(fat_c, fat_h, ci, cj, fat_margin, keys)``,
-    a plan's arguments from ``_CACHE_AT``."""
-    cache = bodies.pair_cache
-    if bodies.n < 2:
-        return _NO_BOX, _NO_BOX, _NO_KEYS, _NO_KEYS, cache.margin, _NO_KEYS_64
-    n_keys = len(cache.i) + len(bodies.planes) * len(bodies.finite)
-    if keys is None or len(keys) < n_keys:
-        keys = np.empty(max(n_keys, 64), np.int64)
-    return cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, keys
-
-
-def _recached(world, plan):
-    """``plan`` with the pair cache's arguments of its rebuilt cache (the rest stays: a rebuild
-    changes nothing else it holds), kept on the world in its place."""
-    args = plan[2]
-    cached = _cache_args(plan[3], args[-1])
-    plan = (plan[0], plan[1], args[:_CACHE_AT] + cached, *plan[3:])
-    hit = world._derived["flight_plan"]
-    world._derived["flight_plan"] = (*hit[:3], cached[0], plan, hit[5])
-    return plan
 
 
 @njit(_nrt=False)

@@ -353,11 +353,15 @@ def _world_pairs(world, bodies, pos, R, margin, horizon=0.0, plane_margin=None):
 def rebuild_pair_cache(world, bodies, pos, R, margin, horizon):
     """The broad phase's pair cache built anew from the finite bodies' world boxes at ``pos (N,3)``,
     ``R (N,3,3)`` for pairs within ``margin`` (m), the fat boxes stretched by each body's velocity ×
-    ``horizon`` (s; none at 0)."""
+    ``horizon`` (s; none at 0); with ``args``, the cache as the flight's kernel takes it
+    (``PairCache``)."""
     fin = bodies.finite
     c, h = np.empty((len(fin), 3)), np.empty((len(fin), 3))
     broadphase.world_boxes(pos, R, fin, bodies.aabb_c, bodies.aabb_h, c, h)
-    bodies.pair_cache.rebuild(c, h, margin, world.s.vel[fin] if horizon else None, horizon)
+    cache = bodies.pair_cache
+    cache.rebuild(c, h, margin, world.s.vel[fin] if horizon else None, horizon)
+    n_keys = len(cache.i) + len(bodies.planes) * len(fin)
+    cache.args = (cache.fat_c, cache.fat_h, cache.i, cache.j, cache.margin, np.empty(max(n_keys, 64), np.int64))
 
 
 def _cached_pairs(world, bodies, pos, R, margin, plane_margin, disabled):

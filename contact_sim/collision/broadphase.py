@@ -38,12 +38,16 @@ class PairCache:
     grow past the cached one, the cached pairs are a superset of the overlapping pairs, and one
     exact test on the tight boxes gives exactly what ``candidate_pairs`` would (a resting or slowly
     moving scene skips the sort/grid work); otherwise the cache is rebuilt from the current boxes.
-    ``rebuilds``/``reuses`` count what happened."""
+    ``rebuilds``/``reuses`` count what happened. A world's cache (``collision.rebuild_pair_cache``)
+    also holds ``args = (fat_c, fat_h, i, j, margin, keys)``: itself as a one-call kernel takes it
+    (``stepper._flight``), with a keys workspace sized for it (``world_pairs``' sizes); None until
+    it is built."""
 
     def __init__(self):
         self.fat_c = self.fat_h = None
         self.margin = -1.0
         self.i = self.j = None
+        self.args = None
         self.rebuilds = 0
         self.reuses = 0
 
