@@ -63,9 +63,10 @@ def step_diff(wa, wb):
     return diff
 
 
-def _both_ways(make, steps, monkeypatch):
+def _both_ways(make, steps, monkeypatch, edits=None):
     """Step a scene with the flight and a copy through the whole pipeline only, comparing every
-    step; returns how many steps the flight took."""
+    step (``edits``: step → a change made to both worlds before it); returns the flown world and
+    how many steps the flight took."""
     wa, wb = make(), make()
     real = stepper.flight
     flown = 0
@@ -77,10 +78,11 @@ def _both_ways(make, steps, monkeypatch):
         return m
 
     for i in range(steps):
-        monkeypatch.setattr(stepper, "flight", counted)
-        wa.step()
-        monkeypatch.setattr(stepper, "flight", lambda w, dt: models.choose(w, dt))
-        wb.step()
+        for w, flight in ((wa, counted), (wb, lambda w, dt: models.choose(w, dt))):
+            monkeypatch.setattr(stepper, "flight", flight)
+            if edits and i in edits:
+                edits[i](w)
+            w.step()
         diff = step_diff(wa, wb)
         assert not diff, f"step {i}: {diff}"
     return wa, flown
@@ -118,32 +120,15 @@ def test_a_lone_body_flies_bit_for_bit_and_its_drift_is_reported(monkeypatch):
 @pytest.mark.exact
 def test_what_the_flight_keeps_is_renewed_when_the_scene_changes_between_steps(monkeypatch):
     """The flight keeps what the scene fixes (``stepper._plan``): gravity, a settings field, a
-    step of another ``dt``, a body added, a pair disabled and a kind changed between steps are each
-    seen at the next step, which stays bit for bit the pipeline's."""
+    step of another ``dt``, a body added, a pair disabled and the look-ahead switched off between
+    steps are each seen at the next step, which stays bit for bit the pipeline's."""
     edits = {20: lambda w: setattr(w, "gravity", (0.5, 0.0, -3.0)),
              40: lambda w: setattr(w.settings, "contact_margin", 0.01),
              60: lambda w: w.step(1 / 500),
              80: lambda w: w.add_body("late", cs.Sphere(0.05), mass=0.5, position=(2.0, 0, 2.0), velocity=(0, 0, 1.0)),
              100: lambda w: w.disable_collisions([("late", "ball")]),
              120: lambda w: setattr(w.settings, "speculative", False)}
-    wa, wb = _ball(), _ball()
-    real = stepper.flight
-    flown = 0
-
-    def counted(w, dt):
-        nonlocal flown
-        m = real(w, dt)
-        flown += m is None
-        return m
-
-    for i in range(140):
-        for w, flight in ((wa, counted), (wb, lambda w, dt: models.choose(w, dt))):
-            monkeypatch.setattr(stepper, "flight", flight)
-            if i in edits:
-                edits[i](w)
-            w.step()
-        diff = step_diff(wa, wb)
-        assert not diff, f"step {i}: {diff}"
+    wa, flown = _both_ways(_ball, 140, monkeypatch, edits)
     assert flown > 100 and len(wa) == 3 and wa.s.vel[1, 0] > 0.0   # flights under the new gravity too
 
 
