@@ -40,6 +40,7 @@ maximum penetration at the start of the step, contact and impact counts, the mod
 energy terms the step declares.
 """
 import time
+from dataclasses import fields
 from operator import is_
 
 import numpy as np
@@ -50,7 +51,7 @@ from .free_motion import advance, all_finite
 from . import validate
 from .jit import njit
 from .response import models as _models
-from .collision import (_bodies_of, _NO_KEYS, broadphase, detect_world, disabled_keys,
+from .collision import (DetectionStats, _bodies_of, _NO_KEYS, broadphase, detect_world, disabled_keys,
                         rebuild_pair_cache)
 from .collision.vec3 import rotations
 from .response import toi as toi_mod
@@ -126,7 +127,8 @@ def flight(world, dt):
     cache = bodies.pair_cache
     cached = cache.args if bodies.n >= 2 else _NO_PAIRS
     if (plan[2] is None or cached is None or det is None
-            or (det[1] if det.__class__ is tuple else det.candidate_pairs) or world.contact_cache.preflight_dt != dt):
+            or (det[_CANDIDATES] if det.__class__ is tuple else det.candidate_pairs)
+            or world.contact_cache.preflight_dt != dt):
         return m
     t0 = time.perf_counter()
     s = world.s
@@ -157,6 +159,8 @@ def flight(world, dt):
 
 
 _EXACT = ("fractional", "swept")
+#: where ``candidate_pairs`` is among a ``DetectionStats``' fields, as a step keeps them (``World.last_detection``)
+_CANDIDATES = [f.name for f in fields(DetectionStats)].index("candidate_pairs")
 _NO_BOX = np.zeros((0, 3))
 #: the pair cache's arguments of ``_flight`` for one body or none (no pair: never read)
 _NO_PAIRS = (_NO_BOX, _NO_BOX, _NO_KEYS, _NO_KEYS, -1.0, np.empty(64, np.int64))
